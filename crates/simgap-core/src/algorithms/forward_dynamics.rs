@@ -1,0 +1,88 @@
+//! Forward dynamics: q̈ = H(q)⁻¹ (τ − C(q, q̇) q̇ − g(q)).
+
+use nalgebra::DVector;
+
+use crate::algorithms::coriolis::Formulation;
+use crate::algorithms::crba::{composite_inertias, fill_mass_matrix};
+use crate::algorithms::kinematics::check_len;
+use crate::algorithms::rnea::bias_torques_into;
+use crate::model::Model;
+use crate::workspace::Workspace;
+
+/// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
+///
+/// Computes the bias torques (Newton–Euler), the mass matrix (composite rigid body algorithm)
+/// and solves by an in-place Cholesky factorisation.
+///
+/// `q`, `qd`, `tau`: positions, velocities and joint torques, length `model.dof()`.
+///
+/// # Panics
+/// If a length or `ws` does not match the model, or if H is not positive definite (a
+/// model with a massless tail link whose joint carries no inertia).
+#[must_use]
+pub fn forward_dynamics(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation) -> DVector<f64> {
+    let mut out = DVector::zeros(model.dof());
+    forward_dynamics_into(model, ws, q, qd, tau, formulation, out.as_mut_slice());
+    out
+}
+
+/// In-place [`forward_dynamics`].
+///
+/// # Panics
+/// As [`forward_dynamics`].
+pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
+    check_len(model, "tau", tau);
+    let n = model.dof();
+    // bias torques; kinematics and world inertias stay in the workspace for H
+    bias_torques_into(model, ws, q, qd, formulation, out);
+    for i in 0..n {
+        out[i] = tau[i] - out[i];
+    }
+    composite_inertias(model, ws);
+    let mut h = std::mem::take(&mut ws.scratch_matrix);
+    fill_mass_matrix(model, ws, &mut h);
+    solve_spd_in_place(&mut h, out);
+    ws.scratch_matrix = h;
+}
+
+/// Solves `A x = b` for symmetric positive definite `A` by Cholesky, overwriting `A` with its
+/// factor and `b` with `x`.
+///
+/// # Panics
+/// If `A` is not positive definite.
+pub fn solve_spd_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut [f64]) {
+    let n = b.len();
+    // factorise A = L Lᵀ (lower triangle)
+    for j in 0..n {
+        let mut d = a[(j, j)];
+        for k in 0..j {
+            d -= a[(j, k)] * a[(j, k)];
+        }
+        assert!(d > 0.0, "matrix is not positive definite (pivot {j} = {d})");
+        let d = d.sqrt();
+        a[(j, j)] = d;
+        for i in j + 1..n {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / d;
+        }
+    }
+    // forward substitution L y = b
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[(i, k)] * b[k];
+        }
+        b[i] = s / a[(i, i)];
+    }
+    // back substitution Lᵀ x = y
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[(k, i)] * b[k];
+        }
+        b[i] = s / a[(i, i)];
+    }
+}

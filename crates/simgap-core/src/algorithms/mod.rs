@@ -1,0 +1,10 @@
+//! One file per algorithm. Every function takes `(model, ws, q, qd[, qdd])`; see the crate root
+//! for the equation of motion and the conventions.
+
+pub mod coriolis;
+pub mod crba;
+pub mod energy;
+pub mod forward_dynamics;
+pub mod kinematics;
+pub mod rnea;
+pub mod terms;

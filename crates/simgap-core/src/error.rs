@@ -1,0 +1,166 @@
+//! Errors of `simgap-core`.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong while building a [`Model`](crate::Model).
+///
+/// Every variant says where (`source`: the file, or `<string>` / `<code>`), which element, and
+/// what was expected.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The file could not be read.
+    #[error("{path}: cannot read file: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The document is not well-formed URDF XML.
+    #[error("{source_name}: malformed URDF: {message}")]
+    MalformedUrdf {
+        /// File name or `<string>`.
+        source_name: String,
+        /// What the parser said.
+        message: String,
+    },
+    /// A link name appears twice.
+    #[error("{source_name}: link '{link}' is defined more than once; expected unique link names")]
+    DuplicateLink {
+        /// File name.
+        source_name: String,
+        /// The repeated name.
+        link: String,
+    },
+    /// A joint name appears twice.
+    #[error("{source_name}: joint '{joint}' is defined more than once; expected unique joint names")]
+    DuplicateJoint {
+        /// File name.
+        source_name: String,
+        /// The repeated name.
+        joint: String,
+    },
+    /// A joint refers to a link that does not exist.
+    #[error("{source_name}: joint '{joint}' names {role} link '{link}', which is not defined")]
+    MissingLink {
+        /// File name.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// `parent` or `child`.
+        role: &'static str,
+        /// The missing link.
+        link: String,
+    },
+    /// The kinematic graph has a loop or a link with two parents.
+    #[error("{source_name}: link '{link}' {detail}; expected a tree (each link the child of at most one joint, no loops)")]
+    Loop {
+        /// File name.
+        source_name: String,
+        /// A link on the loop.
+        link: String,
+        /// What was found.
+        detail: String,
+    },
+    /// The model is not a tree with a single root.
+    #[error("{source_name}: expected exactly one root link (a link that is no joint's child), found {found:?}")]
+    Roots {
+        /// File name.
+        source_name: String,
+        /// The roots that were found.
+        found: Vec<String>,
+    },
+    /// The movable joints branch and no tip link was chosen.
+    #[error("{source_name}: the chain is not serial: link '{link}' has movable branches through {children:?}; choose a tip link (tip / --tip)")]
+    NotSerial {
+        /// File name.
+        source_name: String,
+        /// Where the tree branches.
+        link: String,
+        /// The branches.
+        children: Vec<String>,
+    },
+    /// The requested tip link does not exist.
+    #[error("{source_name}: tip link '{tip}' is not defined")]
+    UnknownTip {
+        /// File name.
+        source_name: String,
+        /// The requested tip.
+        tip: String,
+    },
+    /// No revolute, continuous or prismatic joint between root and tip.
+    #[error("{source_name}: no movable joint between root '{root}' and tip '{tip}'; expected at least one revolute, continuous or prismatic joint")]
+    NoMovableJoint {
+        /// File name.
+        source_name: String,
+        /// Root link.
+        root: String,
+        /// Tip link.
+        tip: String,
+    },
+    /// A joint type this crate does not model.
+    #[error("{source_name}: joint '{name}' has unsupported type '{kind}'; expected revolute, continuous, prismatic or fixed")]
+    UnsupportedJoint {
+        /// File name.
+        source_name: String,
+        /// The joint.
+        name: String,
+        /// Its type.
+        kind: String,
+    },
+    /// A joint axis of zero length.
+    #[error("{source_name}: joint '{joint}' has a zero-length axis {axis:?}; expected a non-zero direction")]
+    ZeroAxis {
+        /// File name.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// The axis as written.
+        axis: [f64; 3],
+    },
+    /// A number is NaN or infinite.
+    #[error("{source_name}: {element} has a non-finite value in {field} ({value}); expected a finite number")]
+    NonFinite {
+        /// File name.
+        source_name: String,
+        /// e.g. `link 'forearm'` or `joint 'elbow'`.
+        element: String,
+        /// The attribute.
+        field: String,
+        /// The value read.
+        value: f64,
+    },
+    /// A link with negative mass.
+    #[error("{source_name}: link '{link}' has mass {mass}; expected mass >= 0")]
+    NegativeMass {
+        /// File name.
+        source_name: String,
+        /// The link.
+        link: String,
+        /// The mass.
+        mass: f64,
+    },
+    /// A rotational inertia that no rigid body can have.
+    #[error("{source_name}: link '{link}' has a non-physical inertia: {detail}")]
+    NonPhysicalInertia {
+        /// File name.
+        source_name: String,
+        /// The link.
+        link: String,
+        /// What is wrong (eigenvalues, triangle inequality).
+        detail: String,
+    },
+    /// Every link of the chain is massless.
+    #[error("{source_name}: every link between root and tip is massless; expected at least one <inertial> with mass > 0")]
+    Massless {
+        /// File name.
+        source_name: String,
+    },
+    /// A model built in code is inconsistent.
+    #[error("invalid model: {0}")]
+    InvalidModel(String),
+}
+
+/// Result alias of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,66 @@
+//! The [`Workspace`]: every per-link temporary of the algorithms, allocated once per model.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::model::Model;
+use crate::spatial::{Force, InertiaRate, Motion, SpatialInertia, Transform};
+
+/// Scratch space for the dynamics algorithms of one [`Model`].
+///
+/// Create one per thread with [`Workspace::new`]; algorithms taking `(model, ws, ...)` never
+/// allocate. Its fields hold the results of the last pass (world-frame quantities about the
+/// world origin) and may be read after a call, as Pinocchio's `Data`.
+#[derive(Clone, Debug)]
+pub struct Workspace {
+    pub(crate) dof: usize,
+    /// World pose of each joint frame (after the joint moved).
+    pub poses: Vec<Transform>,
+    /// Joint motion subspace `S_i` in world coordinates.
+    pub subspaces: Vec<Motion>,
+    /// Spatial velocity of each link `v_i` in world coordinates.
+    pub velocities: Vec<Motion>,
+    /// Time derivative of the world-frame subspace, `Ṡ_i = v_i × S_i`.
+    pub subspace_rates: Vec<Motion>,
+    /// Link inertia in world coordinates.
+    pub inertias: Vec<SpatialInertia>,
+    /// Composite inertia of the subtree of each link, world coordinates.
+    pub composites: Vec<SpatialInertia>,
+    /// Spatial momentum of the subtree of each link, world coordinates.
+    pub momenta: Vec<Force>,
+    /// Rate of the composite inertia of each subtree.
+    pub composite_rates: Vec<InertiaRate>,
+    /// Spatial accelerations (inverse dynamics).
+    pub accelerations: Vec<Motion>,
+    /// Spatial forces transmitted by each joint (inverse dynamics).
+    pub forces: Vec<Force>,
+    pub(crate) scratch_matrix: DMatrix<f64>,
+    pub(crate) scratch_vector: DVector<f64>,
+}
+
+impl Workspace {
+    /// Allocates a workspace for `model`.
+    #[must_use]
+    pub fn new(model: &Model) -> Self {
+        let n = model.dof();
+        Workspace {
+            dof: n,
+            poses: vec![Transform::IDENTITY; n],
+            subspaces: vec![Motion::ZERO; n],
+            velocities: vec![Motion::ZERO; n],
+            subspace_rates: vec![Motion::ZERO; n],
+            inertias: vec![SpatialInertia::ZERO; n],
+            composites: vec![SpatialInertia::ZERO; n],
+            momenta: vec![Force::ZERO; n],
+            composite_rates: vec![InertiaRate::default(); n],
+            accelerations: vec![Motion::ZERO; n],
+            forces: vec![Force::ZERO; n],
+            scratch_matrix: DMatrix::zeros(n, n),
+            scratch_vector: DVector::zeros(n),
+        }
+    }
+
+    /// Number of degrees of freedom this workspace was made for.
+    pub fn dof(&self) -> usize {
+        self.dof
+    }
+}

@@ -1,0 +1,8 @@
+//! simgap: why your simulation disagrees with your robot.
+//!
+//! The umbrella crate re-exports [`core`] (dynamics), [`sim`] (closed-loop simulation and logs)
+//! and [`diag`] (sim-to-real gap diagnosis), and owns the `simgap` command-line tool.
+
+pub use simgap_core as core;
+pub use simgap_diag as diag;
+pub use simgap_sim as sim;
