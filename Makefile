@@ -1,0 +1,44 @@
+# One command runs every test, Rust and Python, on a fresh machine: `make test`.
+# It creates .venv, installs requirements-test.txt and the simgap Python package, then runs
+# cargo test (default members) and pytest.
+
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+export CARGO_TERM_COLOR ?= never
+
+.PHONY: test rust-test python-test venv python-package demo bench compare-pinocchio clean
+
+test: rust-test python-test
+
+rust-test:
+	cargo build --release --bin simgap
+	cargo test --workspace --exclude simgap-python
+
+venv: $(VENV)/.requirements-stamp
+
+$(VENV)/.requirements-stamp: requirements-test.txt
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -r requirements-test.txt
+	touch $@
+
+python-package: venv
+	$(PY) -m pip install --quiet ./python
+
+python-test: python-package
+	cargo build --release --bin simgap
+	SIMGAP_BIN=$(CURDIR)/target/release/simgap $(PY) -m pytest -q python/tests tests/python
+
+demo:
+	cargo run --release -- demo
+
+bench:
+	cargo bench --bench dynamics
+
+compare-pinocchio: venv
+	cargo build --release --example timings
+	$(PY) scripts/compare_pinocchio.py
+
+clean:
+	rm -rf $(VENV) target
