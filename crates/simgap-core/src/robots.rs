@@ -60,3 +60,97 @@ impl Model {
         model
     }
 }
+
+/// splitmix64 (Steele, Lea & Flood 2014): a tiny deterministic generator, so that
+/// [`Model::random_chain`] needs no `rand` dependency.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[lo, hi)`.
+    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        let unit = (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+        lo + (hi - lo) * unit
+    }
+
+    fn vector(&mut self, lo: f64, hi: f64) -> Vector3<f64> {
+        Vector3::new(self.uniform(lo, hi), self.uniform(lo, hi), self.uniform(lo, hi))
+    }
+
+    /// A random unit vector (uniform on the sphere, by rejection from the cube).
+    fn unit_vector(&mut self) -> Vector3<f64> {
+        loop {
+            let v = self.vector(-1.0, 1.0);
+            let n = v.norm();
+            if n > 0.1 && n <= 1.0 {
+                return v / n;
+            }
+        }
+    }
+
+    /// A random rotation from random roll, pitch and yaw.
+    fn rotation(&mut self) -> Matrix3<f64> {
+        let pi = std::f64::consts::PI;
+        let rpy = [self.uniform(-pi, pi), self.uniform(-pi / 2.0, pi / 2.0), self.uniform(-pi, pi)];
+        Transform::from_xyz_rpy([0.0; 3], rpy).rotation
+    }
+}
+
+impl Model {
+    /// A random serial chain of `n` joints, deterministic from `seed`; intended for tests,
+    /// benchmarks and self-checks, not as a robot.
+    ///
+    /// Joints are a mix of revolute, continuous and prismatic (about one in four prismatic),
+    /// with random unit axes; each placement has a random rotation (roll, pitch, yaw) and a
+    /// translation of up to 0.5 m per coordinate; each link has a mass of 0.5–5 kg, a centre of
+    /// mass up to 0.2 m from its frame, and a physical rotational inertia (the second moments of
+    /// a random point-mass distribution, so positive definite and obeying the triangle
+    /// inequality) in random principal axes. Gravity is [`STANDARD_GRAVITY`](crate::STANDARD_GRAVITY).
+    /// Joint `i` is named `joint<i>` and moves link `link<i>`; the base is `base_link`.
+    ///
+    /// The random numbers come from splitmix64, so the same `(n, seed)` gives the same model on
+    /// every platform and version of this crate's dependencies.
+    ///
+    /// # Panics
+    /// If `n == 0`.
+    #[must_use]
+    pub fn random_chain(n: usize, seed: u64) -> Model {
+        assert!(n > 0, "a random chain needs at least one joint");
+        let mut rng = SplitMix64(seed);
+        let pi = std::f64::consts::PI;
+        let joints = (0..n)
+            .map(|i| {
+                // joint kind, axis and limits
+                let kind = match rng.next_u64() % 8 {
+                    0 | 1 => JointKind::Prismatic,
+                    2 => JointKind::Continuous,
+                    _ => JointKind::Revolute,
+                };
+                let axis = rng.unit_vector();
+                let placement = Transform { rotation: rng.rotation(), translation: rng.vector(-0.5, 0.5) };
+                // physical inertia: second moments (x, y, z) of a point-mass cloud, rotated
+                let mass = rng.uniform(0.5, 5.0);
+                let com = rng.vector(-0.2, 0.2);
+                let s = rng.vector(0.001, 0.05) * mass;
+                let principal = Matrix3::from_diagonal(&Vector3::new(s.y + s.z, s.x + s.z, s.x + s.y));
+                let r = rng.rotation();
+                let inertia = SpatialInertia::from_com(mass, com, r * principal * r.transpose());
+                let mut joint = Joint::new(format!("joint{i}"), kind, axis, placement, format!("link{i}"), inertia);
+                joint.limits = match kind {
+                    JointKind::Revolute => JointLimits { lower: -pi, upper: pi, effort: 100.0, velocity: 10.0 },
+                    JointKind::Continuous => JointLimits { effort: 100.0, velocity: 10.0, ..JointLimits::default() },
+                    JointKind::Prismatic => JointLimits { lower: -1.0, upper: 1.0, effort: 500.0, velocity: 2.0 },
+                };
+                joint
+            })
+            .collect();
+        Model::new(format!("random_chain_{n}_{seed}"), "base_link", joints).expect("a random chain is a valid model")
+    }
+}
