@@ -63,6 +63,7 @@ pub use algorithms::crba::{mass_matrix, mass_matrix_into};
 pub use algorithms::energy::{kinetic_energy, potential_energy};
 pub use algorithms::forward_dynamics::{forward_dynamics, forward_dynamics_into, solve_spd_in_place};
 pub use algorithms::kinematics::forward_kinematics;
+pub use algorithms::regressor::{inertia_from_parameters, inertial_parameters, inverse_dynamics_regressor, inverse_dynamics_regressor_into, PARAMS_PER_LINK};
 pub use algorithms::rnea::{
     bias_torques, bias_torques_into, coriolis_torques, coriolis_torques_into, gravity_torques, gravity_torques_into, inverse_dynamics,
     inverse_dynamics_into,

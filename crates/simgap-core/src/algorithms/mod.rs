@@ -6,5 +6,6 @@ pub mod crba;
 pub mod energy;
 pub mod forward_dynamics;
 pub mod kinematics;
+pub mod regressor;
 pub mod rnea;
 pub mod terms;
