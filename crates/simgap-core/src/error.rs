@@ -42,7 +42,7 @@ pub enum Error {
         joint: String,
     },
     /// A joint refers to a link that does not exist.
-    #[error("{source_name}: joint '{joint}' names {role} link '{link}', which is not defined")]
+    #[error("{source_name}: joint '{joint}' names {role} link '{link}', which is not defined; expected the name of a <link> in the file")]
     MissingLink {
         /// File name.
         source_name: String,
@@ -152,10 +152,12 @@ pub enum Error {
         detail: String,
     },
     /// Every link of the chain is massless.
-    #[error("{source_name}: every link between root and tip is massless; expected at least one <inertial> with mass > 0")]
+    #[error("{source_name}: every link between root and tip is massless ({links:?}); expected at least one <inertial> with mass > 0")]
     Massless {
         /// File name.
         source_name: String,
+        /// The massless links of the chain.
+        links: Vec<String>,
     },
     /// A model built in code is inconsistent.
     #[error("invalid model: {0}")]

@@ -137,7 +137,7 @@ impl Model {
             check_inertia("<code>", &j.link, &j.inertia).map_err(|e| Error::InvalidModel(e.to_string()))?;
         }
         if joints.iter().all(|j| j.inertia.mass == 0.0 && j.inertia.rotational == Matrix3::zeros()) {
-            return Err(Error::Massless { source_name: "<code>".into() });
+            return Err(Error::Massless { source_name: "<code>".into(), links: joints.iter().map(|j| j.link.clone()).collect() });
         }
         let cache = joints.iter().map(JointCache::new).collect();
         Ok(Model { name: name.into(), base_link: base_link.into(), joints, gravity: STANDARD_GRAVITY, cache, warnings: Vec::new() })
@@ -262,7 +262,7 @@ pub(crate) fn check_rotational_inertia(source: &str, link: &str, i: &Matrix3<f64
     let scale = i.abs().max().max(1e-300);
     let tol = 1e-9 * scale;
     if (i - i.transpose()).abs().max() > tol {
-        return Err(Error::NonPhysicalInertia { source_name: source.into(), link: link.into(), detail: "rotational inertia is not symmetric".into() });
+        return Err(Error::NonPhysicalInertia { source_name: source.into(), link: link.into(), detail: "rotational inertia is not symmetric; expected a symmetric matrix".into() });
     }
     let eig = i.symmetric_eigenvalues();
     let (a, b, c) = (eig[0], eig[1], eig[2]);
@@ -277,7 +277,7 @@ pub(crate) fn check_rotational_inertia(source: &str, link: &str, i: &Matrix3<f64
         return Err(Error::NonPhysicalInertia {
             source_name: source.into(),
             link: link.into(),
-            detail: format!("principal moments {:.6e}, {:.6e}, {:.6e} break the triangle inequality (each <= sum of the other two)", a, b, c),
+            detail: format!("principal moments {:.6e}, {:.6e}, {:.6e} break the triangle inequality; expected each <= the sum of the other two", a, b, c),
         });
     }
     Ok(())

@@ -355,7 +355,7 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
         .filter(|l| !has_inertial.get(*l).copied().unwrap_or(false))
         .collect();
     if out.iter().all(|j| j.inertia.mass == 0.0 && j.inertia.rotational == Matrix3::zeros()) {
-        return Err(Error::Massless { source_name: src.into() });
+        return Err(Error::Massless { source_name: src.into(), links: path.iter().map(|&k| joints[k].child.clone()).collect() });
     }
     if !massless.is_empty() {
         warnings.push(format!("{src}: links {massless:?} have no <inertial> and are treated as massless"));
