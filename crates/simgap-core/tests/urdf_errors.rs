@@ -1,0 +1,213 @@
+//! Bad URDFs in `models/bad/`: each must fail with the right [`Error`] variant, and its message
+//! must name the file, the offending element (link or joint) and what was expected.
+
+mod common;
+
+use simgap_core::{Error, Model, UrdfOptions};
+
+/// Loads `models/bad/<name>`, which must fail; returns the error and its message after checking
+/// that the message names the file and says what was expected.
+#[track_caller]
+fn load_bad(name: &str) -> (Error, String) {
+    let path = common::model_path(&format!("bad/{name}"));
+    let err = match Model::from_urdf_file(&path) {
+        Ok(m) => panic!("bad/{name} loaded as a {}-DOF model", m.dof()),
+        Err(e) => e,
+    };
+    let message = err.to_string();
+    assert!(message.contains(&format!("bad/{name}")), "message does not name the file: {message}");
+    assert!(message.contains("expected"), "message does not say what was expected: {message}");
+    (err, message)
+}
+
+/// Asserts that `message` mentions every one of `parts`.
+#[track_caller]
+fn assert_mentions(message: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(message.contains(p), "message does not mention {p:?}: {message}");
+    }
+}
+
+#[test]
+fn malformed_xml_is_malformed_urdf_with_position() {
+    let (err, msg) = load_bad("malformed_xml.urdf");
+    assert!(matches!(err, Error::MalformedUrdf { .. }), "{err:?}");
+    // the element left open and where the parser noticed
+    assert_mentions(&msg, &["malformed URDF", "'link'", "13:1"]);
+}
+
+#[test]
+fn joint_naming_missing_child_link_is_missing_link() {
+    let (err, msg) = load_bad("missing_child_link.urdf");
+    assert!(matches!(&err, Error::MissingLink { joint, role: "child", link, .. } if joint == "elbow" && link == "forearm"), "{err:?}");
+    assert_mentions(&msg, &["joint 'elbow'", "child link 'forearm'", "not defined"]);
+}
+
+#[test]
+fn joint_naming_missing_parent_link_is_missing_link() {
+    let (err, msg) = load_bad("missing_parent_link.urdf");
+    assert!(matches!(&err, Error::MissingLink { joint, role: "parent", link, .. } if joint == "elbow" && link == "upperarm"), "{err:?}");
+    assert_mentions(&msg, &["joint 'elbow'", "parent link 'upperarm'", "not defined"]);
+}
+
+#[test]
+fn duplicate_link_is_duplicate_link() {
+    let (err, msg) = load_bad("duplicate_link.urdf");
+    assert!(matches!(&err, Error::DuplicateLink { link, .. } if link == "upper"), "{err:?}");
+    assert_mentions(&msg, &["link 'upper'", "more than once", "unique link names"]);
+}
+
+#[test]
+fn duplicate_joint_is_duplicate_joint() {
+    let (err, msg) = load_bad("duplicate_joint.urdf");
+    assert!(matches!(&err, Error::DuplicateJoint { joint, .. } if joint == "shoulder"), "{err:?}");
+    assert_mentions(&msg, &["joint 'shoulder'", "more than once", "unique joint names"]);
+}
+
+#[test]
+fn link_with_two_parents_is_loop() {
+    let (err, msg) = load_bad("loop_two_parents.urdf");
+    assert!(matches!(&err, Error::Loop { link, .. } if link == "forearm"), "{err:?}");
+    assert_mentions(&msg, &["link 'forearm'", "'elbow'", "'shortcut'", "expected a tree"]);
+}
+
+#[test]
+fn closed_cycle_is_loop() {
+    let (err, msg) = load_bad("loop_cycle.urdf");
+    assert!(matches!(&err, Error::Loop { link, .. } if link == "a" || link == "b"), "{err:?}");
+    assert_mentions(&msg, &["closed loop", "expected a tree"]);
+    assert!(msg.contains("link 'a'") || msg.contains("link 'b'"), "{msg}");
+}
+
+#[test]
+fn two_roots_is_roots() {
+    let (err, msg) = load_bad("two_roots.urdf");
+    assert!(matches!(&err, Error::Roots { found, .. } if found == &["base", "floating_box"]), "{err:?}");
+    assert_mentions(&msg, &["\"base\"", "\"floating_box\"", "exactly one root link"]);
+}
+
+#[test]
+fn only_fixed_joints_is_no_movable_joint() {
+    let (err, msg) = load_bad("no_movable_joint.urdf");
+    assert!(matches!(&err, Error::NoMovableJoint { root, .. } if root == "base"), "{err:?}");
+    assert_mentions(&msg, &["root 'base'", "revolute, continuous or prismatic"]);
+}
+
+#[test]
+fn floating_joint_is_unsupported_joint() {
+    let (err, msg) = load_bad("floating_joint.urdf");
+    assert!(matches!(&err, Error::UnsupportedJoint { name, kind, .. } if name == "free" && kind == "floating"), "{err:?}");
+    assert_mentions(&msg, &["joint 'free'", "'floating'", "revolute, continuous, prismatic or fixed"]);
+}
+
+#[test]
+fn planar_joint_is_unsupported_joint() {
+    let (err, msg) = load_bad("planar_joint.urdf");
+    assert!(matches!(&err, Error::UnsupportedJoint { name, kind, .. } if name == "slide" && kind == "planar"), "{err:?}");
+    assert_mentions(&msg, &["joint 'slide'", "'planar'", "revolute, continuous, prismatic or fixed"]);
+}
+
+#[test]
+fn zero_length_axis_is_zero_axis() {
+    let (err, msg) = load_bad("zero_axis.urdf");
+    assert!(matches!(&err, Error::ZeroAxis { joint, axis, .. } if joint == "elbow" && axis == &[0.0; 3]), "{err:?}");
+    assert_mentions(&msg, &["joint 'elbow'", "zero-length axis", "non-zero direction"]);
+}
+
+#[test]
+fn negative_mass_is_negative_mass() {
+    let (err, msg) = load_bad("negative_mass.urdf");
+    assert!(matches!(&err, Error::NegativeMass { link, mass, .. } if link == "forearm" && *mass == -1.5), "{err:?}");
+    assert_mentions(&msg, &["link 'forearm'", "-1.5", "mass >= 0"]);
+}
+
+#[test]
+fn negative_principal_moment_is_non_physical_inertia() {
+    let (err, msg) = load_bad("inertia_not_positive_definite.urdf");
+    assert!(matches!(&err, Error::NonPhysicalInertia { link, .. } if link == "forearm"), "{err:?}");
+    assert_mentions(&msg, &["link 'forearm'", "-1.000000e-2", "positive semi-definite"]);
+}
+
+#[test]
+fn triangle_inequality_violation_is_non_physical_inertia() {
+    let (err, msg) = load_bad("inertia_triangle_inequality.urdf");
+    assert!(matches!(&err, Error::NonPhysicalInertia { link, .. } if link == "forearm"), "{err:?}");
+    assert_mentions(&msg, &["link 'forearm'", "5.000000e-2", "triangle inequality"]);
+}
+
+#[test]
+fn nan_mass_is_non_finite() {
+    let (err, msg) = load_bad("nan_mass.urdf");
+    assert!(matches!(&err, Error::NonFinite { element, field, value, .. } if element == "link 'forearm'" && field == "inertial/mass" && value.is_nan()), "{err:?}");
+    assert_mentions(&msg, &["link 'forearm'", "inertial/mass", "NaN", "finite number"]);
+}
+
+#[test]
+fn infinite_origin_is_non_finite() {
+    let (err, msg) = load_bad("infinite_origin.urdf");
+    assert!(matches!(&err, Error::NonFinite { element, field, value, .. } if element == "joint 'elbow'" && field == "origin" && value.is_infinite()), "{err:?}");
+    assert_mentions(&msg, &["joint 'elbow'", "origin", "inf", "finite number"]);
+}
+
+#[test]
+fn whole_massless_chain_is_massless() {
+    let (err, msg) = load_bad("massless_chain.urdf");
+    assert!(matches!(&err, Error::Massless { links, .. } if links == &["upper", "forearm"]), "{err:?}");
+    assert_mentions(&msg, &["\"upper\"", "\"forearm\"", "massless", "mass > 0"]);
+}
+
+#[test]
+fn every_bad_fixture_is_tested() {
+    // a new file in models/bad/ needs a test above
+    let mut names: Vec<String> = std::fs::read_dir(common::model_path("bad"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    let source = include_str!("urdf_errors.rs");
+    for name in names {
+        assert!(source.contains(&format!("load_bad(\"{name}\")")), "models/bad/{name} has no test");
+    }
+}
+
+#[test]
+fn missing_file_is_io_naming_the_path() {
+    let path = common::model_path("bad/does_not_exist.urdf");
+    let err = Model::from_urdf_file(&path).unwrap_err();
+    assert!(matches!(err, Error::Io { .. }), "{err:?}");
+    assert_mentions(&err.to_string(), &["does_not_exist.urdf", "cannot read file"]);
+}
+
+#[test]
+fn unknown_tip_is_unknown_tip() {
+    let options = UrdfOptions { tip: Some("panda_link99".into()) };
+    let err = Model::from_urdf_file_with(common::model_path("arm7.urdf"), &options).unwrap_err();
+    assert!(matches!(&err, Error::UnknownTip { tip, .. } if tip == "panda_link99"), "{err:?}");
+    assert_mentions(&err.to_string(), &["arm7.urdf", "tip link 'panda_link99'", "not defined"]);
+}
+
+#[test]
+fn branching_arm_without_tip_is_not_serial() {
+    let err = Model::from_urdf_file(common::model_path("arm7.urdf")).unwrap_err();
+    assert!(
+        matches!(&err, Error::NotSerial { link, children, .. } if link == "panda_hand" && children == &["panda_leftfinger", "panda_rightfinger"]),
+        "{err:?}"
+    );
+    assert_mentions(&err.to_string(), &["arm7.urdf", "link 'panda_hand'", "panda_leftfinger", "panda_rightfinger", "choose a tip link"]);
+}
+
+#[test]
+fn joint_without_parent_element_is_malformed_urdf() {
+    let text = r#"<robot name="r"><link name="a"/><link name="b"/>
+        <joint name="j" type="revolute"><child link="b"/><axis xyz="0 0 1"/></joint></robot>"#;
+    let err = Model::from_urdf_str_with(text, "inline.urdf", &UrdfOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::MalformedUrdf { .. }), "{err:?}");
+    assert_mentions(&err.to_string(), &["inline.urdf", "joint 'j'", "<parent link="]);
+}
+
+#[test]
+fn root_element_other_than_robot_is_malformed_urdf() {
+    let err = Model::from_urdf_str("<model name=\"x\"/>").unwrap_err();
+    assert!(matches!(err, Error::MalformedUrdf { .. }), "{err:?}");
+    assert_mentions(&err.to_string(), &["<string>", "<model>", "expected <robot>"]);
+}
