@@ -1,10 +1,27 @@
 //! Closed-loop simulation of serial manipulators sampled like a real controller, logs in ROS 2
 //! MCAP and CSV, and the L² index.
 
+pub mod controller;
+pub mod effects;
 pub mod error;
+pub mod integrate;
+pub mod l2;
+pub mod plant;
+pub mod reference;
+pub mod sensor;
+pub mod simulate;
 pub mod run;
 pub mod sink;
 
 pub use error::{Error, Result};
 pub use run::{ControllerKind, Experiment, Run, Sample};
 pub use sink::{MemorySink, RunEnd, Sink};
+
+pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, ZeroTorque};
+pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH, EFFECT_NAMES};
+pub use integrate::Integrator;
+pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Report};
+pub use plant::{Plant, PlantWorkspace};
+pub use reference::{reference_from_run, reference_from_run_for, Fourier, PiecewiseSetpoints, Reference, Sampled, Step};
+pub use sensor::{SensorParams, VelocityEstimate};
+pub use simulate::{simulate, simulate_experiment, simulate_experiment_with_end, SimParams, DEFAULT_SUBSTEPS};

@@ -1,0 +1,497 @@
+//! Unmodelled effects (BRIEF §3.2): friction, actuator errors, inertial errors, delays.
+//!
+//! An [`Effect`] is something the real robot has and the nominal [`Model`] lacks. A
+//! [`Plant`](crate::plant::Plant) is the nominal model plus a list of effects; the simulator
+//! integrates
+//!
+//! ```text
+//! (H(q) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q, q̇) q̇ − g(q)
+//! τ_applied(t)        = k · clamp(τ_cmd(t − delay), ±limit) + offset
+//! ```
+//!
+//! with `H`, `C`, `g` those of the model after [`Effect::Payload`] and [`Effect::InertialError`]
+//! were applied, and `C` of the other [`Formulation`](simgap_core::Formulation) when
+//! [`Effect::CoriolisStructure`] is present.
+//!
+//! Per-joint parameters are `Vec<f64>` of length `model.dof()` in model joint order. A joint an
+//! effect does not act on holds the neutral value: 0 for friction, armature, offset and cogging
+//! amplitude, 1 for a gain, `+∞` for a saturation limit. Several effects of one kind compose:
+//! frictions, armatures and offsets add, gains multiply, limits take the smallest, delays add.
+//!
+//! `sign(q̇)` in Coulomb and Stribeck friction is smoothed as `tanh(q̇ / w)` with `w` the
+//! `coulomb_width` of [`SimParams`](crate::simulate::SimParams) (default
+//! [`DEFAULT_COULOMB_WIDTH`]), so the right-hand side stays Lipschitz and RK4 converges.
+
+use nalgebra::{Matrix3, Vector3};
+use simgap_core::{Model, SpatialInertia};
+
+use crate::error::{Error, Result};
+
+/// Default smoothing width of `sign(q̇)` [rad/s]: `sign(q̇) ≈ tanh(q̇ / 1e-3)`.
+///
+/// Below 1 mrad/s the friction is a steep viscous law (slope `fc / w`); the stiffness this
+/// introduces is resolved by the default sub-stepping for friction coefficients of the paper
+/// arm's order (see the `coulomb_friction` tests).
+pub const DEFAULT_COULOMB_WIDTH: f64 = 1e-3;
+
+/// The names of every effect, in the order of BRIEF §3.2 (part of the public contract).
+pub const EFFECT_NAMES: [&str; 12] = [
+    "viscous_friction",
+    "coulomb_friction",
+    "stribeck_friction",
+    "armature",
+    "payload",
+    "inertial_error",
+    "torque_gain",
+    "torque_offset",
+    "torque_saturation",
+    "time_delay",
+    "cogging",
+    "coriolis_structure",
+];
+
+/// A change to one link's inertia: `new = old + delta` (see [`Effect::InertialError`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkDelta {
+    /// Index of the joint whose child link changes (model order).
+    pub joint: usize,
+    /// Added mass [kg].
+    pub mass: f64,
+    /// Displacement of the centre of mass, in the link frame [m].
+    pub com: [f64; 3],
+    /// Added rotational inertia about the (new) centre of mass, `ixx ixy ixz iyy iyz izz`
+    /// [kg·m²], in the link frame.
+    pub inertia: [f64; 6],
+}
+
+/// One unmodelled effect (BRIEF §3.2). Per-joint vectors have length `model.dof()`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Effect {
+    /// `τ += −b q̇`; `b` [N·m·s/rad].
+    ViscousFriction {
+        /// Viscous coefficients.
+        b: Vec<f64>,
+    },
+    /// `τ += −fc sign(q̇)`; `fc` [N·m].
+    CoulombFriction {
+        /// Coulomb levels.
+        fc: Vec<f64>,
+    },
+    /// `τ += −(fc + (fs − fc) e^{−(q̇/vs)²}) sign(q̇)`; `fc`, `fs` [N·m], `vs` [rad/s]
+    /// (`vs ≤ 0` drops the Stribeck term).
+    StribeckFriction {
+        /// Coulomb levels.
+        fc: Vec<f64>,
+        /// Static (breakaway) levels.
+        fs: Vec<f64>,
+        /// Stribeck velocities.
+        vs: Vec<f64>,
+    },
+    /// Rotor inertia `ia` [kg·m²] added to the diagonal of H.
+    Armature {
+        /// Reflected rotor inertias.
+        ia: Vec<f64>,
+    },
+    /// A point mass rigidly attached to the last link of the chain.
+    Payload {
+        /// Mass [kg].
+        mass: f64,
+        /// Position in the last link's frame [m].
+        com: [f64; 3],
+    },
+    /// Wrong link parameters: each link listed becomes `old + delta`: mass `m + Δm`, centre of
+    /// mass `c + Δc`, rotational inertia about the new centre of mass `I_c + ΔI`.
+    InertialError {
+        /// One entry per changed link.
+        deltas: Vec<LinkDelta>,
+    },
+    /// `τ_applied = k τ_cmd` [–].
+    TorqueGain {
+        /// Gains.
+        k: Vec<f64>,
+    },
+    /// `τ_applied = τ_cmd + offset` [N·m].
+    TorqueOffset {
+        /// Offsets.
+        offset: Vec<f64>,
+    },
+    /// `τ_applied = clamp(τ_cmd, ±limit)` [N·m].
+    TorqueSaturation {
+        /// Limits (`+∞` for none).
+        limit: Vec<f64>,
+    },
+    /// `τ_applied(t) = τ_cmd(t − delay)` for the whole robot [s].
+    TimeDelay {
+        /// Delay [s], `>= 0`.
+        delay: f64,
+    },
+    /// `τ += −A sin(N q)`; `amplitude` [N·m], `periods_per_rev` N [–].
+    Cogging {
+        /// Amplitudes A.
+        amplitude: Vec<f64>,
+        /// Periods per revolution N.
+        periods_per_rev: Vec<f64>,
+    },
+    /// The plant uses the other formulation of C than the model under test.
+    CoriolisStructure,
+}
+
+impl Effect {
+    /// The contract name (`viscous_friction`, ..., `coriolis_structure`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Effect::ViscousFriction { .. } => "viscous_friction",
+            Effect::CoulombFriction { .. } => "coulomb_friction",
+            Effect::StribeckFriction { .. } => "stribeck_friction",
+            Effect::Armature { .. } => "armature",
+            Effect::Payload { .. } => "payload",
+            Effect::InertialError { .. } => "inertial_error",
+            Effect::TorqueGain { .. } => "torque_gain",
+            Effect::TorqueOffset { .. } => "torque_offset",
+            Effect::TorqueSaturation { .. } => "torque_saturation",
+            Effect::TimeDelay { .. } => "time_delay",
+            Effect::Cogging { .. } => "cogging",
+            Effect::CoriolisStructure => "coriolis_structure",
+        }
+    }
+
+    /// Joints (model indices) where a per-joint effect is not neutral; for whole-robot effects
+    /// (payload, time delay, Coriolis structure) every joint of `0..dof` is not known here, so
+    /// they return an empty list; inertial errors return the joints of their links.
+    pub fn joints_acted(&self) -> Vec<usize> {
+        let nonzero = |v: &[f64]| v.iter().enumerate().filter(|(_, x)| **x != 0.0).map(|(i, _)| i).collect::<Vec<_>>();
+        match self {
+            Effect::ViscousFriction { b } => nonzero(b),
+            Effect::CoulombFriction { fc } => nonzero(fc),
+            Effect::StribeckFriction { fc, fs, .. } => (0..fc.len()).filter(|&i| fc[i] != 0.0 || fs.get(i).is_some_and(|x| *x != 0.0)).collect(),
+            Effect::Armature { ia } => nonzero(ia),
+            Effect::TorqueOffset { offset } => nonzero(offset),
+            Effect::Cogging { amplitude, .. } => nonzero(amplitude),
+            Effect::TorqueGain { k } => k.iter().enumerate().filter(|(_, x)| **x != 1.0).map(|(i, _)| i).collect(),
+            Effect::TorqueSaturation { limit } => limit.iter().enumerate().filter(|(_, x)| x.is_finite()).map(|(i, _)| i).collect(),
+            Effect::InertialError { deltas } => {
+                let mut j: Vec<usize> = deltas.iter().map(|d| d.joint).collect();
+                j.sort_unstable();
+                j.dedup();
+                j
+            }
+            Effect::Payload { .. } | Effect::TimeDelay { .. } | Effect::CoriolisStructure => Vec::new(),
+        }
+    }
+
+    /// Checks lengths against `dof` and signs (friction levels, armature, limits, delay `>= 0`,
+    /// numbers finite except saturation limits).
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] naming the effect and parameter.
+    pub fn validate(&self, dof: usize) -> Result<()> {
+        let name = self.name();
+        let check = |param: &str, v: &[f64], nonneg: bool, allow_inf: bool| -> Result<()> {
+            if v.len() != dof {
+                return Err(invalid(name, format!("parameter '{param}' has {} values; expected {dof} (one per joint)", v.len())));
+            }
+            for x in v {
+                if x.is_nan() || (!allow_inf && x.is_infinite()) || (nonneg && *x < 0.0) {
+                    let what = if nonneg { "a finite number >= 0" } else { "a finite number" };
+                    return Err(invalid(name, format!("parameter '{param}' has value {x}; expected {what}")));
+                }
+            }
+            Ok(())
+        };
+        match self {
+            Effect::ViscousFriction { b } => check("b", b, true, false),
+            Effect::CoulombFriction { fc } => check("fc", fc, true, false),
+            Effect::StribeckFriction { fc, fs, vs } => {
+                check("fc", fc, true, false)?;
+                check("fs", fs, true, false)?;
+                check("vs", vs, true, false)
+            }
+            Effect::Armature { ia } => check("ia", ia, false, false),
+            Effect::Payload { mass, com } => {
+                if !mass.is_finite() || com.iter().any(|c| !c.is_finite()) {
+                    return Err(invalid(name, "mass and com must be finite".into()));
+                }
+                Ok(())
+            }
+            Effect::InertialError { deltas } => {
+                for d in deltas {
+                    if d.joint >= dof {
+                        return Err(invalid(name, format!("link delta for joint {}; the model has {dof} joints", d.joint)));
+                    }
+                    if !d.mass.is_finite() || d.com.iter().chain(d.inertia.iter()).any(|x| !x.is_finite()) {
+                        return Err(invalid(name, format!("link delta for joint {} has a non-finite number", d.joint)));
+                    }
+                }
+                Ok(())
+            }
+            Effect::TorqueGain { k } => check("k", k, false, false),
+            Effect::TorqueOffset { offset } => check("offset", offset, false, false),
+            Effect::TorqueSaturation { limit } => check("limit", limit, true, true),
+            Effect::TimeDelay { delay } => {
+                if !(delay.is_finite() && *delay >= 0.0) {
+                    return Err(invalid(name, format!("delay = {delay}; expected a finite number >= 0 [s]")));
+                }
+                Ok(())
+            }
+            Effect::Cogging { amplitude, periods_per_rev } => {
+                check("amplitude", amplitude, false, false)?;
+                check("periods_per_rev", periods_per_rev, false, false)
+            }
+            Effect::CoriolisStructure => Ok(()),
+        }
+    }
+
+    /// Parses the command-line spelling `name[:param=v1,v2,...[;param=...]]`, e.g.
+    /// `viscous_friction:b=2.288,0.175`, `stribeck_friction:fc=1,1;fs=2,2;vs=0.1,0.1`,
+    /// `payload:mass=0.5;com=0,0,-0.1`, `time_delay:delay=0.005`, `coriolis_structure`,
+    /// `inertial_error:joint=1;mass=0.2;com=0,0,0.01;inertia=0,0,0,0,0,0`.
+    /// Per-joint parameters take one value per joint (`dof` values), or a single value used for
+    /// every joint.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for an unknown name, a missing or unknown parameter, or a bad number.
+    pub fn parse(spec: &str, dof: usize) -> Result<Effect> {
+        let (name, rest) = match spec.split_once(':') {
+            Some((n, r)) => (n.trim(), r.trim()),
+            None => (spec.trim(), ""),
+        };
+        if !EFFECT_NAMES.contains(&name) {
+            return Err(invalid("effect", format!("unknown effect '{name}'; expected one of {}", EFFECT_NAMES.join(", "))));
+        }
+        let mut params: Vec<(String, Vec<f64>)> = Vec::new();
+        for part in rest.split(';').map(str::trim).filter(|p| !p.is_empty()) {
+            let (k, v) = part.split_once('=').ok_or_else(|| invalid(name, format!("'{part}' is not param=values")))?;
+            let vals = v
+                .split(',')
+                .map(|x| {
+                    let x = x.trim();
+                    match x {
+                        "inf" | "+inf" => Ok(f64::INFINITY),
+                        _ => x.parse::<f64>().map_err(|_| invalid(name, format!("'{x}' in parameter '{}' is not a number", k.trim()))),
+                    }
+                })
+                .collect::<Result<Vec<f64>>>()?;
+            params.push((k.trim().to_string(), vals));
+        }
+        let known: &[&str] = match name {
+            "viscous_friction" => &["b"],
+            "coulomb_friction" => &["fc"],
+            "stribeck_friction" => &["fc", "fs", "vs"],
+            "armature" => &["ia"],
+            "payload" => &["mass", "com"],
+            "inertial_error" => &["joint", "mass", "com", "inertia"],
+            "torque_gain" => &["k"],
+            "torque_offset" => &["offset"],
+            "torque_saturation" => &["limit"],
+            "time_delay" => &["delay"],
+            "cogging" => &["amplitude", "periods_per_rev"],
+            _ => &[],
+        };
+        if let Some((k, _)) = params.iter().find(|(k, _)| !known.contains(&k.as_str())) {
+            return Err(invalid(name, format!("unknown parameter '{k}'; expected {}", if known.is_empty() { "none".into() } else { known.join(", ") })));
+        }
+        let get = |k: &str| -> Result<Vec<f64>> {
+            params.iter().find(|(p, _)| p == k).map(|(_, v)| v.clone()).ok_or_else(|| invalid(name, format!("missing parameter '{k}'")))
+        };
+        let per_joint = |k: &str| -> Result<Vec<f64>> {
+            let v = get(k)?;
+            match v.len() {
+                1 => Ok(vec![v[0]; dof]),
+                n if n == dof => Ok(v),
+                n => Err(invalid(name, format!("parameter '{k}' has {n} values; expected {dof} (one per joint) or 1"))),
+            }
+        };
+        let scalar = |k: &str| -> Result<f64> {
+            let v = get(k)?;
+            if v.len() != 1 {
+                return Err(invalid(name, format!("parameter '{k}' takes one number, got {}", v.len())));
+            }
+            Ok(v[0])
+        };
+        let triple = |k: &str| -> Result<[f64; 3]> {
+            let v = get(k)?;
+            <[f64; 3]>::try_from(v.as_slice()).map_err(|_| invalid(name, format!("parameter '{k}' takes 3 numbers, got {}", v.len())))
+        };
+        let effect = match name {
+            "viscous_friction" => Effect::ViscousFriction { b: per_joint("b")? },
+            "coulomb_friction" => Effect::CoulombFriction { fc: per_joint("fc")? },
+            "stribeck_friction" => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")? },
+            "armature" => Effect::Armature { ia: per_joint("ia")? },
+            "payload" => Effect::Payload { mass: scalar("mass")?, com: triple("com")? },
+            "inertial_error" => {
+                let joint = scalar("joint")?;
+                if joint < 0.0 || joint.fract() != 0.0 {
+                    return Err(invalid(name, format!("joint = {joint}; expected a joint index")));
+                }
+                let inertia = match get("inertia") {
+                    Ok(v) => <[f64; 6]>::try_from(v.as_slice()).map_err(|_| invalid(name, format!("parameter 'inertia' takes 6 numbers, got {}", v.len())))?,
+                    Err(_) => [0.0; 6],
+                };
+                let delta = LinkDelta {
+                    joint: joint as usize,
+                    mass: scalar("mass").unwrap_or(0.0),
+                    com: triple("com").unwrap_or([0.0; 3]),
+                    inertia,
+                };
+                Effect::InertialError { deltas: vec![delta] }
+            }
+            "torque_gain" => Effect::TorqueGain { k: per_joint("k")? },
+            "torque_offset" => Effect::TorqueOffset { offset: per_joint("offset")? },
+            "torque_saturation" => Effect::TorqueSaturation { limit: per_joint("limit")? },
+            "time_delay" => Effect::TimeDelay { delay: scalar("delay")? },
+            "cogging" => Effect::Cogging { amplitude: per_joint("amplitude")?, periods_per_rev: per_joint("periods_per_rev")? },
+            _ => Effect::CoriolisStructure,
+        };
+        effect.validate(dof)?;
+        Ok(effect)
+    }
+}
+
+fn invalid(what: &str, message: String) -> Error {
+    Error::Invalid { what: what.to_string(), message }
+}
+
+/// Validates every effect against `dof`.
+///
+/// # Errors
+/// As [`Effect::validate`].
+pub fn validate_effects(effects: &[Effect], dof: usize) -> Result<()> {
+    effects.iter().try_for_each(|e| e.validate(dof))
+}
+
+/// `sign(q̇)` smoothed: `tanh(q̇ / width)` (the exact sign for `width <= 0`).
+#[inline]
+pub fn smooth_sign(qd: f64, width: f64) -> f64 {
+    if width > 0.0 {
+        (qd / width).tanh()
+    } else if qd > 0.0 {
+        1.0
+    } else if qd < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// Sum of the friction and cogging torques the effects ADD to the model at `(q, q̇)`:
+/// `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q)` with `s = tanh(q̇ / w)`,
+/// `w = coulomb_width` [rad/s]. Negative for dissipation. Overwrites `out`; never allocates.
+///
+/// `q`, `qd`, `out`: length `dof` (model order).
+///
+/// # Panics
+/// If the lengths differ or an effect's vector is shorter than `out`.
+pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], coulomb_width: f64, out: &mut [f64]) {
+    assert!(q.len() == out.len() && qd.len() == out.len(), "friction_torque: q, qd and out must have the same length");
+    out.fill(0.0);
+    for e in effects {
+        match e {
+            Effect::ViscousFriction { b } => {
+                for i in 0..out.len() {
+                    out[i] -= b[i] * qd[i];
+                }
+            }
+            Effect::CoulombFriction { fc } => {
+                for i in 0..out.len() {
+                    if fc[i] != 0.0 {
+                        out[i] -= fc[i] * smooth_sign(qd[i], coulomb_width);
+                    }
+                }
+            }
+            Effect::StribeckFriction { fc, fs, vs } => {
+                for i in 0..out.len() {
+                    if fc[i] == 0.0 && fs[i] == 0.0 {
+                        continue;
+                    }
+                    let stribeck = if vs[i] > 0.0 { (fs[i] - fc[i]) * (-(qd[i] / vs[i]).powi(2)).exp() } else { 0.0 };
+                    out[i] -= (fc[i] + stribeck) * smooth_sign(qd[i], coulomb_width);
+                }
+            }
+            Effect::Cogging { amplitude, periods_per_rev } => {
+                for i in 0..out.len() {
+                    if amplitude[i] != 0.0 {
+                        out[i] -= amplitude[i] * (periods_per_rev[i] * q[i]).sin();
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The torque the actuators apply for a command: `out = k · clamp(τ_cmd, ±limit) + offset`
+/// (saturation first, then gain, then offset), with gains multiplied, limits reduced to the
+/// smallest and offsets summed over the effects. The time delay is not applied here (the
+/// simulator delays `τ_cmd` before calling this). Overwrites `out`; never allocates.
+///
+/// # Panics
+/// If `tau_cmd` and `out` differ in length or an effect's vector is shorter.
+pub fn applied_torque(effects: &[Effect], tau_cmd: &[f64], out: &mut [f64]) {
+    assert_eq!(tau_cmd.len(), out.len(), "applied_torque: tau_cmd and out must have the same length");
+    for i in 0..out.len() {
+        let (mut k, mut offset, mut limit) = (1.0, 0.0, f64::INFINITY);
+        for e in effects {
+            match e {
+                Effect::TorqueGain { k: g } => k *= g[i],
+                Effect::TorqueOffset { offset: o } => offset += o[i],
+                Effect::TorqueSaturation { limit: l } => limit = limit.min(l[i]),
+                _ => {}
+            }
+        }
+        out[i] = k * tau_cmd[i].clamp(-limit, limit) + offset;
+    }
+}
+
+/// Total time delay of the effects [s] (sum of every [`Effect::TimeDelay`]).
+pub fn total_delay(effects: &[Effect]) -> f64 {
+    effects.iter().map(|e| if let Effect::TimeDelay { delay } = e { *delay } else { 0.0 }).sum()
+}
+
+/// Total armature per joint (sum of every [`Effect::Armature`]) into `out` (overwritten).
+///
+/// # Panics
+/// If an effect's vector is shorter than `out`.
+pub fn armature(effects: &[Effect], out: &mut [f64]) {
+    out.fill(0.0);
+    for e in effects {
+        if let Effect::Armature { ia } = e {
+            for i in 0..out.len() {
+                out[i] += ia[i];
+            }
+        }
+    }
+}
+
+/// The model with the payload and inertial-error effects applied to its link inertias.
+///
+/// # Errors
+/// [`Error::Invalid`] for a bad effect; [`Error::Model`] when a changed link is not physical
+/// (negative mass, inertia not positive semi-definite or violating the triangle inequality).
+pub fn apply_inertial_effects(model: &Model, effects: &[Effect]) -> Result<Model> {
+    validate_effects(effects, model.dof())?;
+    let mut m = model.clone();
+    for e in effects {
+        match e {
+            Effect::Payload { mass, com } => {
+                let last = m.dof() - 1;
+                let point = SpatialInertia::from_com(*mass, Vector3::from(*com), Matrix3::zeros());
+                let old = m.joints()[last].inertia;
+                let new = SpatialInertia { mass: old.mass + point.mass, first_moment: old.first_moment + point.first_moment, rotational: old.rotational + point.rotational };
+                m.set_link_inertia(last, new)?;
+            }
+            Effect::InertialError { deltas } => {
+                for d in deltas {
+                    let old = m.joints()[d.joint].inertia;
+                    let [ixx, ixy, ixz, iyy, iyz, izz] = d.inertia;
+                    let di = Matrix3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
+                    let new_mass = old.mass + d.mass;
+                    let new_com = old.com() + Vector3::from(d.com);
+                    let new = SpatialInertia::from_com(new_mass, new_com, old.inertia_about_com() + di);
+                    m.set_link_inertia(d.joint, new)?;
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(m)
+}

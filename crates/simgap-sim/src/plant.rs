@@ -1,0 +1,172 @@
+//! The plant: the nominal model plus unmodelled [`Effect`]s, as the simulator integrates it.
+
+use nalgebra::DMatrix;
+use simgap_core::{bias_torques_into, mass_matrix_into, Formulation, Model, Workspace};
+
+use crate::effects::{apply_inertial_effects, armature, friction_torque, total_delay, Effect};
+use crate::error::Result;
+
+/// What the simulator integrates:
+///
+/// ```text
+/// (H(q) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q, q̇) q̇ − g(q)
+/// ```
+///
+/// with `H`, `C`, `g` of the model after payload and inertial errors, `C` of
+/// `formulation.other()` when [`Effect::CoriolisStructure`] is present, `ia` the armature and
+/// `τ_friction` from [`friction_torque`]. See [`crate::effects`] for `τ_applied`.
+#[derive(Clone, Debug)]
+pub struct Plant {
+    model: Model,
+    formulation: Formulation,
+    effects: Vec<Effect>,
+    armature: Vec<f64>,
+    has_armature: bool,
+    delay: f64,
+    effort_limits: Vec<f64>,
+}
+
+/// Scratch space of [`Plant::acceleration`]: create once per thread with [`Plant::workspace`].
+#[derive(Clone, Debug)]
+pub struct PlantWorkspace {
+    /// The dynamics workspace.
+    pub ws: Workspace,
+    h: DMatrix<f64>,
+    friction: Vec<f64>,
+}
+
+impl Plant {
+    /// The model under `formulation` with `effects`.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`](crate::Error::Invalid) for an effect of the wrong size or sign;
+    /// [`Error::Model`](crate::Error::Model) when payload or inertial errors make a link
+    /// non-physical.
+    pub fn new(model: &Model, formulation: Formulation, effects: &[Effect]) -> Result<Plant> {
+        let changed = apply_inertial_effects(model, effects)?;
+        let n = model.dof();
+        let mut ia = vec![0.0; n];
+        armature(effects, &mut ia);
+        let coriolis_flip = effects.iter().filter(|e| matches!(e, Effect::CoriolisStructure)).count() % 2 == 1;
+        Ok(Plant {
+            formulation: if coriolis_flip { formulation.other() } else { formulation },
+            effects: effects.to_vec(),
+            has_armature: ia.iter().any(|x| *x != 0.0),
+            armature: ia,
+            delay: total_delay(effects),
+            effort_limits: model.joints().iter().map(|j| j.limits.effort).collect(),
+            model: changed,
+        })
+    }
+
+    /// The model the plant integrates (payload and inertial errors applied).
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The formulation of C the plant integrates (flipped by [`Effect::CoriolisStructure`]).
+    pub fn formulation(&self) -> Formulation {
+        self.formulation
+    }
+
+    /// The effects.
+    pub fn effects(&self) -> &[Effect] {
+        &self.effects
+    }
+
+    /// Total actuation delay [s].
+    pub fn delay(&self) -> f64 {
+        self.delay
+    }
+
+    /// Actuator effort limits of the model's joints (URDF `effort`, `+∞` when absent).
+    pub fn effort_limits(&self) -> &[f64] {
+        &self.effort_limits
+    }
+
+    /// Number of degrees of freedom.
+    pub fn dof(&self) -> usize {
+        self.model.dof()
+    }
+
+    /// Scratch space for [`Plant::acceleration`].
+    pub fn workspace(&self) -> PlantWorkspace {
+        let n = self.dof();
+        PlantWorkspace { ws: Workspace::new(&self.model), h: DMatrix::zeros(n, n), friction: vec![0.0; n] }
+    }
+
+    /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation);
+    /// `coulomb_width` [rad/s] smooths `sign(q̇)`. Never allocates.
+    ///
+    /// When `H + diag(ia)` is not positive definite (a negative armature) or the state is not
+    /// finite, `out` is filled with NaN; the simulator reports that as divergence.
+    ///
+    /// # Panics
+    /// If a length does not match the model.
+    pub fn acceleration(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], coulomb_width: f64, out: &mut [f64]) {
+        let n = self.dof();
+        assert!(q.len() == n && qd.len() == n && tau_applied.len() == n && out.len() == n, "Plant::acceleration: lengths must be model.dof()");
+        if q.iter().chain(qd).any(|x| !x.is_finite()) {
+            out.fill(f64::NAN);
+            return;
+        }
+        // right-hand side: τ + friction − (C q̇ + g)
+        bias_torques_into(&self.model, &mut pws.ws, q, qd, self.formulation, out);
+        friction_torque(&self.effects, q, qd, coulomb_width, &mut pws.friction);
+        for i in 0..n {
+            out[i] = tau_applied[i] + pws.friction[i] - out[i];
+        }
+        // mass matrix plus armature, then Cholesky solve
+        mass_matrix_into(&self.model, &mut pws.ws, q, &mut pws.h);
+        if self.has_armature {
+            for i in 0..n {
+                pws.h[(i, i)] += self.armature[i];
+            }
+        }
+        if !cholesky_solve(&mut pws.h, out) {
+            out.fill(f64::NAN);
+        }
+    }
+}
+
+/// Solves `A x = b` in place by Cholesky; false (and `b` unspecified) when `A` is not
+/// positive definite.
+fn cholesky_solve(a: &mut DMatrix<f64>, b: &mut [f64]) -> bool {
+    let n = b.len();
+    // factorise A = L Lᵀ (lower triangle)
+    for j in 0..n {
+        let mut d = a[(j, j)];
+        for k in 0..j {
+            d -= a[(j, k)] * a[(j, k)];
+        }
+        if !(d > 0.0) {
+            return false;
+        }
+        let d = d.sqrt();
+        a[(j, j)] = d;
+        for i in j + 1..n {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / d;
+        }
+    }
+    // forward substitution L y = b
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[(i, k)] * b[k];
+        }
+        b[i] = s / a[(i, i)];
+    }
+    // back substitution Lᵀ x = y
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[(k, i)] * b[k];
+        }
+        b[i] = s / a[(i, i)];
+    }
+    true
+}
