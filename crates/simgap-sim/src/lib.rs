@@ -2,10 +2,13 @@
 //! MCAP and CSV, and the L² index.
 
 pub mod controller;
+pub mod csv_log;
 pub mod effects;
 pub mod error;
 pub mod integrate;
 pub mod l2;
+pub mod log;
+pub mod mcap_log;
 pub mod plant;
 pub mod reference;
 pub mod sensor;
@@ -16,6 +19,9 @@ pub mod sink;
 pub use error::{Error, Result};
 pub use run::{ControllerKind, Experiment, Run, Sample};
 pub use sink::{MemorySink, RunEnd, Sink};
+
+pub use self::log::{read_log, validate_run, write_log};
+pub use mcap_log::{read_mcap, McapSink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, ZeroTorque};
 pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH, EFFECT_NAMES};

@@ -1,0 +1,538 @@
+//! CSV logs with a column mapping, so that other people's files load unedited (BRIEF §3.1).
+//!
+//! A [`CsvMapping`] names the time column and, per joint, the columns of measured position,
+//! velocity, commanded effort and the reference. Presets read the DFKI files in
+//! `../shared/data` as they are ([`CsvMapping::dfki_double_pendulum`],
+//! [`CsvMapping::dfki_double_pendulum_sysid`], [`CsvMapping::dfki_simple_pendulum`]), with the
+//! joint names of the DFKI URDFs so the logs map to those models by name. Anything else follows
+//! the generic convention `time,q_<j>…,qd_<j>…,tau_<j>…[,q_ref_<j>…,qd_ref_<j>…]`
+//! ([`CsvMapping::generic`]), which [`write_csv`] writes. Files whose name ends in `.gz` (or that
+//! start with the gzip magic bytes) are decompressed transparently.
+//!
+//! The experiment of a CSV log lives in a sidecar file ([`sidecar_path`],
+//! [`read_experiment_file`]): JSON or `key = value` lines with the keys of the
+//! `simgap.experiment` metadata.
+
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::log::{central_difference, experiment_from_map, experiment_to_map, log_error, validate_run, write_error};
+use crate::run::{Experiment, Run};
+
+/// Joint names of the DFKI double pendulum URDFs (`system_identification/identified_parameters/
+/// */*/{acrobot,pendubot}.urdf`): the shoulder (motor 1) and the elbow (motor 2).
+pub const DFKI_DOUBLE_PENDULUM_JOINTS: [&str; 2] = ["Joint1", "Joint2"];
+/// Joint name of the DFKI simple pendulum URDF `urdf/simplependul_dfki_pino_Modi.urdf` (the one
+/// whose mass and length match the records; `dfki_simple_pendulum.urdf` calls it `Joint_1`, use
+/// [`CsvMapping::with_joint_names`] for that one).
+pub const DFKI_SIMPLE_PENDULUM_JOINT: &str = "shoulder";
+
+/// Which CSV columns hold what. Each list holds `(joint, column)` pairs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CsvMapping {
+    /// Column of the time [s].
+    pub time: String,
+    /// Measured positions; gives the joints and their order.
+    pub position: Vec<(String, String)>,
+    /// Measured velocities (empty: q̇ by central difference of q, noted in `run.source`).
+    pub velocity: Vec<(String, String)>,
+    /// Commanded efforts (empty: `run.tau` is empty).
+    pub effort: Vec<(String, String)>,
+    /// Reference positions (empty: no reference).
+    pub position_ref: Vec<(String, String)>,
+    /// Reference velocities (empty: zero).
+    pub velocity_ref: Vec<(String, String)>,
+    /// When true, a file without the reference columns reads without a reference instead of
+    /// failing (the DFKI presets: system-identification runs have no reference).
+    pub optional_reference: bool,
+}
+
+impl CsvMapping {
+    /// A mapping with a time column and no joints yet; add them with the builder methods.
+    pub fn new(time: &str) -> CsvMapping {
+        CsvMapping {
+            time: time.into(),
+            position: Vec::new(),
+            velocity: Vec::new(),
+            effort: Vec::new(),
+            position_ref: Vec::new(),
+            velocity_ref: Vec::new(),
+            optional_reference: false,
+        }
+    }
+
+    /// Adds the measured position column of a joint (this also adds the joint).
+    #[must_use]
+    pub fn position(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.position.push((joint.into(), column.into()));
+        self
+    }
+
+    /// Adds the measured velocity column of a joint.
+    #[must_use]
+    pub fn velocity(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.velocity.push((joint.into(), column.into()));
+        self
+    }
+
+    /// Adds the commanded effort column of a joint.
+    #[must_use]
+    pub fn effort(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.effort.push((joint.into(), column.into()));
+        self
+    }
+
+    /// Adds the reference position column of a joint.
+    #[must_use]
+    pub fn position_ref(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.position_ref.push((joint.into(), column.into()));
+        self
+    }
+
+    /// Adds the reference velocity column of a joint.
+    #[must_use]
+    pub fn velocity_ref(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.velocity_ref.push((joint.into(), column.into()));
+        self
+    }
+
+    /// Sets whether missing reference columns mean "no reference" rather than an error.
+    #[must_use]
+    pub fn optional_reference(mut self, optional: bool) -> CsvMapping {
+        self.optional_reference = optional;
+        self
+    }
+
+    /// A mapping whose columns are `prefix + joint` (or `prefix + suffix` with `suffixes`, see
+    /// [`CsvMapping::from_suffixes`]). `None` leaves that quantity out.
+    pub fn from_prefixes(
+        time: &str,
+        joints: &[&str],
+        position: &str,
+        velocity: Option<&str>,
+        effort: Option<&str>,
+        position_ref: Option<&str>,
+        velocity_ref: Option<&str>,
+    ) -> CsvMapping {
+        let suffixes: Vec<&str> = joints.to_vec();
+        Self::from_suffixes(time, joints, &suffixes, position, velocity, effort, position_ref, velocity_ref)
+    }
+
+    /// A mapping whose column of joint `joints[i]` is `prefix + suffixes[i]` (e.g. DFKI's
+    /// `pos_meas1` for joint `Joint1`).
+    ///
+    /// # Panics
+    /// If `joints` and `suffixes` differ in length.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_suffixes(
+        time: &str,
+        joints: &[&str],
+        suffixes: &[&str],
+        position: &str,
+        velocity: Option<&str>,
+        effort: Option<&str>,
+        position_ref: Option<&str>,
+        velocity_ref: Option<&str>,
+    ) -> CsvMapping {
+        assert_eq!(joints.len(), suffixes.len(), "one column suffix per joint");
+        let cols = |prefix: Option<&str>| -> Vec<(String, String)> {
+            match prefix {
+                Some(p) => joints.iter().zip(suffixes).map(|(j, s)| (j.to_string(), format!("{p}{s}"))).collect(),
+                None => Vec::new(),
+            }
+        };
+        CsvMapping {
+            time: time.into(),
+            position: cols(Some(position)),
+            velocity: cols(velocity),
+            effort: cols(effort),
+            position_ref: cols(position_ref),
+            velocity_ref: cols(velocity_ref),
+            optional_reference: false,
+        }
+    }
+
+    /// The generic convention for these joints: `time`, `q_<j>`, `qd_<j>`, `tau_<j>`,
+    /// `q_ref_<j>`, `qd_ref_<j>` (the reference optional).
+    pub fn generic(joints: &[&str]) -> CsvMapping {
+        Self::from_prefixes("time", joints, "q_", Some("qd_"), Some("tau_"), Some("q_ref_"), Some("qd_ref_")).optional_reference(true)
+    }
+
+    /// DFKI double pendulum records in the documented layout
+    /// (`docs/text/software_structure.trajectorydata.rst`; e.g.
+    /// `design_C.0/20220914/sys_id/trajectory_0*.csv.gz`): q = `pos_meas1/2`, q̇ = `vel_filt1/2`
+    /// (the velocity the controller used; equal to `vel_meas` in sys-id runs), τ = `tau_con1/2`
+    /// (commanded, after the software limit), reference `pos_des1/2`, `vel_des1/2` when present.
+    /// Joints `Joint1`, `Joint2` as in the DFKI URDFs.
+    pub fn dfki_double_pendulum() -> CsvMapping {
+        Self::from_suffixes(
+            "time",
+            &DFKI_DOUBLE_PENDULUM_JOINTS,
+            &["1", "2"],
+            "pos_meas",
+            Some("vel_filt"),
+            Some("tau_con"),
+            Some("pos_des"),
+            Some("vel_des"),
+        )
+        .optional_reference(true)
+    }
+
+    /// DFKI double pendulum system-identification records of design A.0
+    /// (`design_A.0/20220812/sys_id/*_measured.csv.gz`, header
+    /// `time,pos1,pos2,vel1,vel2,tau1,tau2`): q = `pos1/2`, q̇ = `vel1/2`, τ = `tau1/2` (the
+    /// commanded PD torque). No reference in the file. Joints `Joint1`, `Joint2`.
+    pub fn dfki_double_pendulum_sysid() -> CsvMapping {
+        Self::from_suffixes("time", &DFKI_DOUBLE_PENDULUM_JOINTS, &["1", "2"], "pos", Some("vel"), Some("tau"), None, None)
+    }
+
+    /// DFKI simple pendulum records (`data_measured.csv.gz`, header
+    /// `time,position,velocity,torque`): q = `position`, q̇ = `velocity`, τ = `torque`. Note that
+    /// in `data_measured` files `torque` is the torque **reported by the motor**, not the
+    /// commanded one (that is in `data_desired` for feedback-only controllers). Joint `shoulder`.
+    pub fn dfki_simple_pendulum() -> CsvMapping {
+        CsvMapping::new("time")
+            .position(DFKI_SIMPLE_PENDULUM_JOINT, "position")
+            .velocity(DFKI_SIMPLE_PENDULUM_JOINT, "velocity")
+            .effort(DFKI_SIMPLE_PENDULUM_JOINT, "torque")
+    }
+
+    /// The joints of this mapping, in position-column order.
+    pub fn joints(&self) -> Vec<String> {
+        self.position.iter().map(|(j, _)| j.clone()).collect()
+    }
+
+    /// Renames the joints, in position-column order (e.g. to match another URDF).
+    ///
+    /// # Panics
+    /// If `names` does not have one name per joint.
+    #[must_use]
+    pub fn with_joint_names(mut self, names: &[&str]) -> CsvMapping {
+        let old = self.joints();
+        assert_eq!(old.len(), names.len(), "one new name per joint");
+        let rename: HashMap<String, String> = old.into_iter().zip(names.iter().map(|s| s.to_string())).collect();
+        for list in [&mut self.position, &mut self.velocity, &mut self.effort, &mut self.position_ref, &mut self.velocity_ref] {
+            for (j, _) in list.iter_mut() {
+                if let Some(n) = rename.get(j) {
+                    *j = n.clone();
+                }
+            }
+        }
+        self
+    }
+}
+
+/// The mapping for a CSV header: a DFKI layout when the header is one, else the generic
+/// convention when the header has `time` and `q_<joint>` columns; `None` otherwise.
+pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
+    let has = |c: &str| header.iter().any(|h| h == c);
+    if ["time", "pos_meas1", "pos_meas2", "vel_filt1", "vel_filt2", "tau_con1", "tau_con2"].iter().all(|c| has(c)) {
+        return Some(CsvMapping::dfki_double_pendulum());
+    }
+    if ["time", "pos1", "pos2", "vel1", "vel2", "tau1", "tau2"].iter().all(|c| has(c)) {
+        return Some(CsvMapping::dfki_double_pendulum_sysid());
+    }
+    if header.len() == 4 && ["time", "position", "velocity", "torque"].iter().all(|c| has(c)) {
+        return Some(CsvMapping::dfki_simple_pendulum());
+    }
+    if !has("time") {
+        return None;
+    }
+    let joints: Vec<&str> = header.iter().filter_map(|h| h.strip_prefix("q_")).filter(|j| !j.starts_with("ref_") && !j.is_empty()).collect();
+    if joints.is_empty() {
+        return None;
+    }
+    // a quantity is mapped when any of its columns is there (missing ones then fail clearly)
+    let any = |p: &str| joints.iter().any(|j| has(&format!("{p}{j}")));
+    Some(
+        CsvMapping::from_prefixes(
+            "time",
+            &joints,
+            "q_",
+            any("qd_").then_some("qd_"),
+            any("tau_").then_some("tau_"),
+            any("q_ref_").then_some("q_ref_"),
+            any("qd_ref_").then_some("qd_ref_"),
+        )
+        .optional_reference(false),
+    )
+}
+
+/// Opens a possibly gzip-compressed file.
+fn open_maybe_gz(path: &Path) -> Result<Box<dyn Read>> {
+    let file = File::open(path).map_err(|e| log_error(path, format!("cannot open: {e}")))?;
+    let mut reader = BufReader::new(file);
+    let magic = reader.fill_buf().map_err(|e| log_error(path, format!("cannot read: {e}")))?;
+    if magic.starts_with(&[0x1f, 0x8b]) {
+        Ok(Box::new(flate2::read::MultiGzDecoder::new(reader)))
+    } else {
+        Ok(Box::new(reader))
+    }
+}
+
+fn csv_reader(path: &Path) -> Result<csv::Reader<Box<dyn Read>>> {
+    Ok(csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).comment(Some(b'#')).from_reader(open_maybe_gz(path)?))
+}
+
+/// The header of a CSV file (gzip handled).
+///
+/// # Errors
+/// [`Error::Log`] when the file cannot be read or has no header.
+pub fn read_header(path: &Path) -> Result<Vec<String>> {
+    let mut r = csv_reader(path)?;
+    let h = r.headers().map_err(|e| log_error(path, format!("cannot read the CSV header: {e}")))?;
+    Ok(h.iter().map(str::to_string).collect())
+}
+
+/// Reads a CSV log with a column mapping.
+///
+/// # Errors
+/// [`Error::Log`] naming the file and the problem: a mapped column missing from the header, a
+/// cell that is not a number (with its line), joints mapped inconsistently, non-finite values,
+/// time not strictly increasing.
+pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
+    let err = |m: String| log_error(path, m);
+    let joints = mapping.joints();
+    if joints.is_empty() {
+        return Err(err("the column mapping has no position column".into()));
+    }
+    let mut reader = csv_reader(path)?;
+    let header: Vec<String> = reader.headers().map_err(|e| err(format!("cannot read the CSV header: {e}")))?.iter().map(str::to_string).collect();
+    let column = |name: &str, what: &str| -> Result<usize> {
+        header.iter().position(|h| h == name).ok_or_else(|| {
+            err(format!("column '{name}' ({what}) is not in the header (columns: {})", header.join(",")))
+        })
+    };
+    // columns of each quantity, in joint order
+    let t_col = column(&mapping.time, "time")?;
+    let columns_of = |list: &[(String, String)], what: &str| -> Result<Vec<usize>> {
+        if list.is_empty() {
+            return Ok(Vec::new());
+        }
+        joints
+            .iter()
+            .map(|j| {
+                let (_, c) = list.iter().find(|(lj, _)| lj == j).ok_or_else(|| {
+                    err(format!("the column mapping gives a position but no {what} for joint '{j}'"))
+                })?;
+                column(c, &format!("{what} of joint '{j}'"))
+            })
+            .collect()
+    };
+    let q_cols = columns_of(&mapping.position, "position")?;
+    let qd_cols = columns_of(&mapping.velocity, "velocity")?;
+    let tau_cols = columns_of(&mapping.effort, "effort")?;
+    let ref_present = mapping.position_ref.iter().any(|(_, c)| header.contains(c));
+    let (qr_cols, qdr_cols) = if mapping.optional_reference && !ref_present {
+        (Vec::new(), Vec::new())
+    } else {
+        (columns_of(&mapping.position_ref, "reference position")?, columns_of(&mapping.velocity_ref, "reference velocity")?)
+    };
+    for list in [&mapping.velocity, &mapping.effort, &mapping.position_ref, &mapping.velocity_ref] {
+        if let Some((j, _)) = list.iter().find(|(j, _)| !joints.contains(j)) {
+            return Err(err(format!("the column mapping names joint '{j}', which has no position column")));
+        }
+    }
+
+    // rows
+    let dof = joints.len();
+    let mut run = Run::new(joints);
+    run.source = path.display().to_string();
+    let mut record = csv::StringRecord::new();
+    loop {
+        match reader.read_record(&mut record) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(err(format!("cannot read CSV: {e}"))),
+        }
+        let line = record.position().map_or(0, |p| p.line());
+        let value = |i: usize| -> Result<f64> {
+            let s = record.get(i).unwrap_or("");
+            s.parse::<f64>().map_err(|_| err(format!("line {line}, column '{}': '{s}' is not a number", header[i])))
+        };
+        run.t.push(value(t_col)?);
+        for (cols, out) in [
+            (&q_cols, &mut run.q),
+            (&qd_cols, &mut run.qd),
+            (&tau_cols, &mut run.tau),
+            (&qr_cols, &mut run.q_ref),
+            (&qdr_cols, &mut run.qd_ref),
+        ] {
+            for &c in cols.iter() {
+                out.push(value(c)?);
+            }
+        }
+    }
+    if run.is_empty() {
+        return Err(err("no data rows".into()));
+    }
+    if qd_cols.is_empty() {
+        if let Some(i) = run.t.iter().position(|t| !t.is_finite()) {
+            return Err(err(format!("time of sample {i} is {}", run.t[i])));
+        }
+        run.qd = central_difference(&run.t, &run.q, dof);
+        run.source.push_str(" (velocity by central difference of position: the log has none)");
+    }
+    validate_run(&run).map_err(|e| match e {
+        Error::Log { message, .. } => err(message),
+        other => other,
+    })?;
+    Ok(run)
+}
+
+/// Reads a CSV log whose mapping is detected from the header ([`detect_mapping`]), with the
+/// experiment of its sidecar file when there is one ([`sidecar_path`]).
+///
+/// # Errors
+/// As [`read_csv`], and [`Error::Log`] when the header matches no known layout or the sidecar
+/// is malformed.
+pub fn read_csv_auto(path: &Path) -> Result<Run> {
+    let header = read_header(path)?;
+    let mapping = detect_mapping(&header).ok_or_else(|| {
+        log_error(
+            path,
+            format!(
+                "cannot tell what the columns are: header '{}' is no DFKI layout and does not follow the generic convention \
+                 (time, q_<joint>…, qd_<joint>…, tau_<joint>…, q_ref_<joint>…, qd_ref_<joint>…); pass a CsvMapping",
+                header.join(",")
+            ),
+        )
+    })?;
+    let mut run = read_csv(path, &mapping)?;
+    for sidecar in sidecar_candidates(path) {
+        if sidecar.exists() {
+            run.experiment = Some(read_experiment_file(&sidecar)?);
+            validate_run(&run)?;
+            break;
+        }
+    }
+    Ok(run)
+}
+
+/// Writes a run as CSV in the generic convention (gzip-compressed when the name ends in
+/// `.gz`). Numbers are written in shortest round-trip form, so reading gives back the same
+/// values. The experiment is not written (see [`write_experiment_file`]).
+///
+/// # Errors
+/// [`Error::Write`] when the file cannot be written or a joint name contains a comma.
+pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
+    let werr = |e: &dyn std::fmt::Display| write_error(path, e);
+    if let Some(j) = run.joints.iter().find(|j| j.contains(',') || j.contains('"')) {
+        return Err(werr(&format!("joint name '{j}' cannot be a CSV column")));
+    }
+    let file = File::create(path).map_err(|e| werr(&e))?;
+    let gz = path.to_string_lossy().to_lowercase().ends_with(".gz");
+    let out: Box<dyn Write> = if gz {
+        Box::new(flate2::write::GzEncoder::new(BufWriter::new(file), flate2::Compression::default()))
+    } else {
+        Box::new(BufWriter::new(file))
+    };
+    let mut w = csv::WriterBuilder::new().from_writer(out);
+    let dof = run.dof();
+    // header
+    let blocks: Vec<(&str, &[f64])> = [("q_", &run.q[..]), ("qd_", &run.qd[..]), ("tau_", &run.tau[..]), ("q_ref_", &run.q_ref[..]), ("qd_ref_", &run.qd_ref[..])]
+        .into_iter()
+        .filter(|(_, m)| !m.is_empty())
+        .collect();
+    let mut header = vec!["time".to_string()];
+    for (p, _) in &blocks {
+        header.extend(run.joints.iter().map(|j| format!("{p}{j}")));
+    }
+    w.write_record(&header).map_err(|e| werr(&e))?;
+    // rows
+    let mut row: Vec<String> = Vec::with_capacity(header.len());
+    for k in 0..run.len() {
+        row.clear();
+        row.push(format!("{}", run.t[k]));
+        for (_, m) in &blocks {
+            row.extend(m[k * dof..(k + 1) * dof].iter().map(|x| format!("{x}")));
+        }
+        w.write_record(&row).map_err(|e| werr(&e))?;
+    }
+    let out = w.into_inner().map_err(|e| werr(&e.error().to_string()))?;
+    finish_writer(out).map_err(|e| werr(&e))
+}
+
+fn finish_writer(mut out: Box<dyn Write>) -> std::io::Result<()> {
+    // flushing the GzEncoder writes the stream so far; dropping it writes the trailer
+    out.flush()?;
+    drop(out);
+    Ok(())
+}
+
+/// The sidecar experiment file of a CSV log: `run.csv` and `run.csv.gz` → `run.experiment.json`.
+pub fn sidecar_path(csv_path: &Path) -> PathBuf {
+    sidecar_candidates(csv_path).swap_remove(0)
+}
+
+/// Sidecar files looked for, in order: `<stem>.experiment.json`, `<stem>.experiment`.
+fn sidecar_candidates(csv_path: &Path) -> Vec<PathBuf> {
+    let name = csv_path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+    let lower = name.to_lowercase();
+    let stem_len = if lower.ends_with(".csv.gz") {
+        name.len() - 7
+    } else if lower.ends_with(".csv") {
+        name.len() - 4
+    } else {
+        name.len()
+    };
+    let stem = &name[..stem_len];
+    vec![csv_path.with_file_name(format!("{stem}.experiment.json")), csv_path.with_file_name(format!("{stem}.experiment"))]
+}
+
+/// Reads an experiment file: a JSON object or `key = value` lines (`#` comments), with the keys
+/// of the `simgap.experiment` metadata (`controller`, `joints`, `kp`, `kv`, `sample_period`;
+/// others kept in `extra`). In JSON, lists may be arrays or comma-separated strings.
+///
+/// # Errors
+/// [`Error::Log`] naming the file: unreadable, not JSON / `key = value`, a missing or malformed
+/// key.
+pub fn read_experiment_file(path: &Path) -> Result<Experiment> {
+    let err = |m: String| log_error(path, m);
+    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let mut map = BTreeMap::new();
+    if text.trim_start().starts_with('{') {
+        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| err(format!("not valid JSON: {e}")))?;
+        let obj = value.as_object().ok_or_else(|| err("expected a JSON object".into()))?;
+        for (k, v) in obj {
+            let s = match v {
+                serde_json::Value::String(s) => s.clone(),
+                serde_json::Value::Number(n) => n.to_string(),
+                serde_json::Value::Array(items) => items
+                    .iter()
+                    .map(|x| match x {
+                        serde_json::Value::String(s) => Ok(s.clone()),
+                        serde_json::Value::Number(n) => Ok(n.to_string()),
+                        other => Err(err(format!("key '{k}': unexpected list item {other}"))),
+                    })
+                    .collect::<Result<Vec<_>>>()?
+                    .join(","),
+                other => return Err(err(format!("key '{k}': expected a string, number or list, got {other}"))),
+            };
+            map.insert(k.clone(), s);
+        }
+    } else {
+        for (i, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let (k, v) = line.split_once('=').ok_or_else(|| err(format!("line {}: expected 'key = value', got '{line}'", i + 1)))?;
+            map.insert(k.trim().to_string(), v.trim().to_string());
+        }
+    }
+    experiment_from_map(&map).map_err(|m| err(format!("malformed experiment: {m}")))
+}
+
+/// Writes an experiment file as a JSON object of strings (the `simgap.experiment` map).
+///
+/// # Errors
+/// [`Error::Write`] when the file cannot be written.
+pub fn write_experiment_file(experiment: &Experiment, path: &Path) -> Result<()> {
+    let map = experiment_to_map(experiment);
+    let text = serde_json::to_string_pretty(&map).map_err(|e| write_error(path, e))?;
+    std::fs::write(path, text + "\n").map_err(|e| write_error(path, e))
+}
