@@ -608,7 +608,7 @@ pub fn read_mcap(path: &Path) -> Result<Run> {
                 n_messages += 1;
                 let Some(topic) = channels.get(&header.channel_id).copied().flatten() else { return Ok(()) };
                 let msg = JointState::decode_cdr(&data).map_err(|e| format!("{topic} message {}: {e}", n_messages))?;
-                topics.entry(topic).or_default().push(msg, header.log_time as i64);
+                topics.entry(topic).or_default().push(msg, header.log_time as i64, header.channel_id);
             }
             Record::Metadata(m) if m.name == EXPERIMENT_METADATA => {
                 if experiment.is_some() {
@@ -652,9 +652,12 @@ pub fn read_mcap(path: &Path) -> Result<Run> {
             run.q_ref = r.position;
             run.qd_ref = r.velocity.unwrap_or_default();
         } else {
-            let tr: Vec<f64> = r.t.iter().map(|&ns| ns_to_seconds(ns)).collect();
-            run.q_ref = interpolate_rows(&tr, &r.position, dof, &run.t);
-            run.qd_ref = r.velocity.map(|v| interpolate_rows(&tr, &v, dof, &run.t)).unwrap_or_default();
+            // interpolate in time relative to the first state: absolute f64 seconds lose ~1e-7 s
+            let t0 = states.t[0];
+            let rel = |ns: &[i64]| -> Vec<f64> { ns.iter().map(|&x| (x - t0) as f64 * 1e-9).collect() };
+            let (tr, ts) = (rel(&r.t), rel(&states.t));
+            run.q_ref = interpolate_rows(&tr, &r.position, dof, &ts);
+            run.qd_ref = r.velocity.map(|v| interpolate_rows(&tr, &v, dof, &ts)).unwrap_or_default();
         }
     }
     debug_assert_eq!(run.q.len(), n * dof);
@@ -721,6 +724,7 @@ fn describe_mcap_error(e: &mcap::McapError, bytes: u64, records: usize) -> Strin
 struct TopicData {
     msgs: Vec<JointState>,
     log_ns: Vec<i64>,
+    channel: Vec<u16>,
 }
 
 /// A topic merged into samples.
@@ -733,9 +737,10 @@ struct Merged {
 }
 
 impl TopicData {
-    fn push(&mut self, msg: JointState, log_ns: i64) {
+    fn push(&mut self, msg: JointState, log_ns: i64, channel: u16) {
         self.msgs.push(msg);
         self.log_ns.push(log_ns);
+        self.channel.push(channel);
     }
 
     /// Merges messages into samples (see the module docs); `joints` fixes the joint set.
@@ -747,8 +752,8 @@ impl TopicData {
         // joint set: first message's order, then first appearance
         let mut names: Vec<String> = joints.map(<[String]>::to_vec).unwrap_or_default();
         let mut index: HashMap<String, usize> = names.iter().enumerate().map(|(i, j)| (j.clone(), i)).collect();
-        let mut last_time: Vec<Option<i64>> = vec![None; names.len()];
-        for (m, &t) in self.msgs.iter().zip(&times) {
+        let mut last_time: HashMap<(u16, usize), i64> = HashMap::new();
+        for ((m, &t), &channel) in self.msgs.iter().zip(&times).zip(&self.channel) {
             // array lengths
             if m.name.is_empty() {
                 return Err(format!("{topic} message at t = {} s has no joint names", time_s(t)));
@@ -785,12 +790,11 @@ impl TopicData {
                     None => {
                         names.push(j.clone());
                         index.insert(j.clone(), names.len() - 1);
-                        last_time.push(None);
                         names.len() - 1
                     }
                 };
-                // time strictly increasing per joint, in file order
-                if let Some(prev) = last_time[k] {
+                // time strictly increasing per joint and channel (publisher), in file order
+                if let Some(&prev) = last_time.get(&(channel, k)) {
                     if t == prev {
                         return Err(format!("{topic}: joint '{j}' is given twice at the same time t = {} s", time_s(t)));
                     }
@@ -802,7 +806,7 @@ impl TopicData {
                         ));
                     }
                 }
-                last_time[k] = Some(t);
+                last_time.insert((channel, k), t);
             }
         }
 
@@ -836,6 +840,9 @@ impl TopicData {
                 }
                 for (i, j) in m.name.iter().enumerate() {
                     let k = index[j];
+                    if filled[k] {
+                        return Err(format!("{topic}: joint '{j}' is given twice at the same time t = {} s", time_s(t)));
+                    }
                     filled[k] = true;
                     out.position[start_row + k] = m.position[i];
                     if has_velocity {
