@@ -1,0 +1,41 @@
+"""simgap: why your simulation disagrees with your robot.
+
+Rigid-body dynamics of serial arms loaded from URDF (H, C in two formulations, g), closed-loop
+simulation and sim-to-real gap diagnosis, implemented in Rust.
+
+Equation of motion, SI units: ``H(q) q̈ + C(q, q̇) q̇ + g(q) = τ`` with ``g = ∂U/∂q`` on the
+left-hand side. Every :class:`Model` method takes one state, shape ``(dof,)``, or a batch,
+shape ``(N, dof)``, of anything array-like, and returns C-ordered float64 numpy arrays (row
+``i`` of a matrix is equation ``i``). Batches release the GIL, run on all cores, and stop with
+``KeyboardInterrupt`` on Ctrl-C.
+"""
+
+from simgap._simgap import (
+    DimensionError,
+    DynamicsError,
+    FitError,
+    LogError,
+    Model,
+    SimgapError,
+    SimulationError,
+    UrdfError,
+    __version__,
+)
+
+# Simulation (simgap-sim): simulate, read_log, write_log, l2, compare are re-exported here
+# as they are bound in python/src/sim.rs.
+
+# Diagnosis (simgap-diag): `diagnose` will be re-exported here once python/src/diagnosis.rs
+# binds it; it is deliberately absent from __all__ until then.
+
+__all__ = [
+    "DimensionError",
+    "DynamicsError",
+    "FitError",
+    "LogError",
+    "Model",
+    "SimgapError",
+    "SimulationError",
+    "UrdfError",
+    "__version__",
+]
