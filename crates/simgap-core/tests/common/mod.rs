@@ -38,12 +38,14 @@ pub fn fixtures() -> &'static [(&'static str, Arc<Model>)] {
 }
 
 /// A fixed-seed proptest configuration (ChaCha, no failure files), so every run checks the
-/// same cases.
+/// same cases. For a soak run, `SIMGAP_TEST_SEED` and `SIMGAP_TEST_CASES` override the seed
+/// (added to `seed`) and the number of cases.
 pub fn config(cases: u32, seed: u64) -> Config {
+    let env = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<u64>().ok());
     Config {
-        cases,
+        cases: env("SIMGAP_TEST_CASES").map_or(cases, |c| c as u32),
         rng_algorithm: RngAlgorithm::ChaCha,
-        rng_seed: RngSeed::Fixed(seed),
+        rng_seed: RngSeed::Fixed(seed.wrapping_add(env("SIMGAP_TEST_SEED").unwrap_or(0))),
         failure_persistence: None,
         ..Config::default()
     }
