@@ -220,6 +220,24 @@ proptest! {
     }
 
     #[test]
+    fn energy_rate_equals_power_of_applied_torques(c in case()) {
+        // d(T + U)/dt = q̇ᵀτ along q̈ = forward_dynamics(τ), for both formulations: the simplified
+        // C is energy-consistent too, since q̇ᵀ(Ḣ − 2C)q̇ = 0 for any C with Ḣ = C + Cᵀ or 2C
+        let mut ws = Workspace::new(&c.model);
+        let tau: Vec<f64> = c.qdd.iter().map(|x| 10.0 * x).collect();
+        let energy = |ws: &mut Workspace, q: &[f64], qd: &[f64]| kinetic_energy(&c.model, ws, q, qd) + potential_energy(&c.model, ws, q);
+        for f in Formulation::ALL {
+            let qdd = forward_dynamics(&c.model, &mut ws, &c.q, &c.qd, &tau, f);
+            let plus = energy(&mut ws, &axpy(&c.q, EPS, &c.qd), &axpy(&c.qd, EPS, qdd.as_slice()));
+            let minus = energy(&mut ws, &axpy(&c.q, -EPS, &c.qd), &axpy(&c.qd, -EPS, qdd.as_slice()));
+            let rate = (plus - minus) / (2.0 * EPS);
+            let power: f64 = c.qd.iter().zip(&tau).map(|(a, b)| a * b).sum();
+            let s = energy(&mut ws, &c.q, &c.qd).abs() + c.model.total_mass() * 9.81 + power.abs();
+            prop_assert!((rate - power).abs() <= FD * s * (1.0 + qdd.norm()), "{f}: dE/dt = {rate}, q̇ᵀτ = {power}");
+        }
+    }
+
+    #[test]
     fn gravity_torques_equal_inverse_dynamics_at_rest(c in case()) {
         let mut ws = Workspace::new(&c.model);
         let zero = vec![0.0; c.model.dof()];
