@@ -30,4 +30,4 @@ pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Report};
 pub use plant::{Plant, PlantWorkspace};
 pub use reference::{reference_from_run, reference_from_run_for, Fourier, PiecewiseSetpoints, Reference, Sampled, Step};
 pub use sensor::{SensorParams, VelocityEstimate};
-pub use simulate::{simulate, simulate_experiment, simulate_experiment_with_end, SimParams, DEFAULT_SUBSTEPS};
+pub use simulate::{effective_substeps, simulate, simulate_experiment, simulate_experiment_with_end, SimParams, DEFAULT_SUBSTEPS};

@@ -18,10 +18,10 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use simgap_core::{Formulation, Model};
+use simgap_core::{mass_matrix, Formulation, Model, Workspace};
 
 use crate::controller::{controller_from_experiment, Controller};
-use crate::effects::{applied_torque, Effect, DEFAULT_COULOMB_WIDTH};
+use crate::effects::{applied_torque, armature, friction_slope_bound, Effect, DEFAULT_COULOMB_WIDTH};
 use crate::error::{Error, Result};
 use crate::integrate::{Dopri5, Integrator, Rk4};
 use crate::plant::Plant;
@@ -47,7 +47,8 @@ pub struct SimParams {
     /// Duration [s]; the run has `round(duration / T) + 1` samples, from `t0` to
     /// `t0 + duration`. Default 3 (long enough for the paper's experiment to settle).
     pub duration: f64,
-    /// RK4 steps per sample period (ignored by the adaptive integrator). Default
+    /// RK4 steps per sample period, a minimum: raised automatically when friction makes the
+    /// dynamics stiff (see [`effective_substeps`]); ignored by the adaptive integrator. Default
     /// [`DEFAULT_SUBSTEPS`].
     pub substeps: usize,
     /// Integrator within each sample. Default [`Integrator::Rk4`].
@@ -56,7 +57,7 @@ pub struct SimParams {
     /// difference velocity.
     pub sensor: SensorParams,
     /// Smoothing width of `sign(q̇)` in Coulomb and Stribeck friction [rad/s]. Default
-    /// [`DEFAULT_COULOMB_WIDTH`] (1e-3).
+    /// [`DEFAULT_COULOMB_WIDTH`] (0.01).
     pub coulomb_width: f64,
     /// Also saturate applied torques at the model's (URDF) effort limits. Default false (the
     /// paper's simulation does not saturate).
@@ -203,7 +204,8 @@ fn step_loop(
     let mut history = vec![0.0; depth * n];
     let limits = plant.effort_limits();
     let width = params.coulomb_width;
-    let h = period / params.substeps as f64;
+    let substeps = effective_substeps(plant, params);
+    let h = period / substeps as f64;
 
     for k in 0..=intervals {
         let t = params.t0 + k as f64 * period;
@@ -213,7 +215,7 @@ fn step_loop(
         }
         // divergence: non-finite or too fast
         let (q, qd) = y.split_at(n);
-        if let Some(j) = (0..n).find(|&j| !q[j].is_finite() || !qd[j].is_finite() || qd[j].abs() > params.divergence_bound) {
+        if let Some(j) = diverged_joint(q, qd, params.divergence_bound) {
             return Ok(RunEnd::Diverged { t, joint: names[j].clone() });
         }
         // sensors, reference, controller
@@ -260,13 +262,50 @@ fn step_loop(
                 d.integrate(&mut f, t, t + period, &mut y);
             }
             None => {
-                for s in 0..params.substeps {
+                for s in 0..substeps {
                     rk4.step(&mut f, t + s as f64 * h, h, &mut y);
                 }
             }
         }
     }
     Ok(RunEnd::Completed)
+}
+
+/// The RK4 steps per sample the simulator uses: `params.substeps`, raised so that
+/// `h · λ <= 2` where `λ = Σ_i s_i (H⁻¹)_ii >= λ_max(H⁻¹ diag(s))` bounds the friction
+/// stiffness (`s` from [`friction_slope_bound`], `H` the plant's mass matrix plus armature at
+/// `q0`). RK4's stability interval on the negative real axis is `h·λ < 2.785`. At most 10,000.
+pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
+    let n = plant.dof();
+    let mut slope = vec![0.0; n];
+    friction_slope_bound(plant.effects(), params.coulomb_width, &mut slope);
+    if slope.iter().all(|s| *s == 0.0) || !matches!(params.integrator, Integrator::Rk4) {
+        return params.substeps;
+    }
+    let q0 = if params.q0.len() == n { params.q0.clone() } else { vec![0.0; n] };
+    let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), &q0);
+    let mut ia = vec![0.0; n];
+    armature(plant.effects(), &mut ia);
+    for i in 0..n {
+        h[(i, i)] += ia[i];
+    }
+    let Some(inv) = h.try_inverse() else { return params.substeps };
+    let lambda: f64 = (0..n).map(|i| slope[i] * inv[(i, i)].abs()).sum();
+    let needed = (params.sample_period * lambda / 2.0).ceil();
+    if needed.is_finite() {
+        params.substeps.max(needed.min(10_000.0) as usize)
+    } else {
+        params.substeps
+    }
+}
+
+/// The diverged joint: the first with a non-finite state, else the fastest beyond the bound.
+fn diverged_joint(q: &[f64], qd: &[f64], bound: f64) -> Option<usize> {
+    if let Some(j) = (0..q.len()).find(|&j| !q[j].is_finite() || !qd[j].is_finite()) {
+        return Some(j);
+    }
+    let (j, v) = qd.iter().map(|v| v.abs()).enumerate().fold((0, 0.0), |acc, (j, v)| if v > acc.1 { (j, v) } else { acc });
+    (v > bound).then_some(j)
 }
 
 /// Simulates an experiment (BRIEF §3.1) into memory: the controller from

@@ -1,0 +1,253 @@
+//! Closed-loop simulation: integrator convergence, energy, divergence, interruption, replay.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use simgap_core::robots::paper_arm;
+use simgap_core::{kinetic_energy, potential_energy, Formulation, Model, Workspace};
+use simgap_sim::{
+    reference_from_run, simulate, simulate_experiment, Controller, ControllerKind, Experiment, Integrator, MemorySink, Pd, Plant, Replay, Run, RunEnd,
+    SensorParams, SimParams, Step, ZeroTorque, DEFAULT_SUBSTEPS,
+};
+
+fn paper_pd() -> Pd {
+    Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() }
+}
+
+fn paper_step() -> Step {
+    Step { target: paper_arm::Q_DESIRED.to_vec() }
+}
+
+fn run_with(plant: &Plant, controller: &mut dyn Controller, reference: &dyn simgap_sim::Reference, params: &SimParams) -> (Run, RunEnd) {
+    let mut sink = MemorySink::new();
+    let end = simulate(plant, controller, reference, params, &mut sink, None).unwrap();
+    assert_eq!(sink.end.as_ref(), Some(&end), "the sink is finished with the run's end");
+    (sink.into_run(), end)
+}
+
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+fn reference_params(duration: f64, sensor: SensorParams) -> SimParams {
+    SimParams { duration, sensor, integrator: Integrator::Adaptive { rtol: 1e-12, atol: 1e-12 }, ..SimParams::default() }
+}
+
+#[test]
+fn rk4_converges_with_order_four() {
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
+    let exact = SensorParams::exact();
+    let (reference, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &reference_params(1.0, exact.clone()));
+    let mut errors = Vec::new();
+    for substeps in [1, 2, 4] {
+        let params = SimParams { duration: 1.0, substeps, sensor: exact.clone(), ..SimParams::default() };
+        let (run, end) = run_with(&plant, &mut paper_pd(), &paper_step(), &params);
+        assert_eq!(end, RunEnd::Completed);
+        errors.push(max_abs_diff(&run.q, &reference.q));
+    }
+    eprintln!("rk4 max position error for 1, 2, 4 substeps: {errors:?}");
+    for w in errors.windows(2) {
+        let ratio = w[0] / w[1];
+        assert!((12.0..20.0).contains(&ratio), "halving the step divides the error by {ratio}; expected about 16 ({errors:?})");
+    }
+}
+
+#[test]
+fn paper_defaults_converge_to_a_micro_radian() {
+    // the paper's experiment (3 s) with the default substeps against a Dormand–Prince
+    // reference (rtol = atol = 1e-12): exact sensors isolate the integration error
+    let model = Model::paper_arm();
+    for formulation in [Formulation::EulerLagrange, Formulation::Simplified] {
+        let plant = Plant::new(&model, formulation, &[]).unwrap();
+        let (reference, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &reference_params(3.0, SensorParams::exact()));
+        for substeps in [1, DEFAULT_SUBSTEPS] {
+            let params = SimParams { substeps, sensor: SensorParams::exact(), ..SimParams::default() };
+            let (run, end) = run_with(&plant, &mut paper_pd(), &paper_step(), &params);
+            assert_eq!(end, RunEnd::Completed);
+            let err = max_abs_diff(&run.q, &reference.q);
+            eprintln!("{formulation:?}: {substeps} substeps, max position error {err:e} rad");
+            if substeps == DEFAULT_SUBSTEPS {
+                assert!(err < 1e-6, "default substeps give {err:e} rad; expected below 1e-6");
+            }
+        }
+    }
+}
+
+#[test]
+fn with_the_paper_encoders_runs_agree_to_one_count() {
+    // with quantised encoders an integration error can flip a measured count; the closed loop
+    // absorbs it, so default RK4 and the reference agree to one count (6.1 µrad) plus 1e-6
+    let model = Model::paper_arm();
+    let count = std::f64::consts::TAU / paper_arm::COUNTS_PER_REV;
+    for formulation in [Formulation::EulerLagrange, Formulation::Simplified] {
+        let plant = Plant::new(&model, formulation, &[]).unwrap();
+        let (reference, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &reference_params(3.0, SensorParams::default()));
+        let (run, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &SimParams::default());
+        let err = max_abs_diff(&run.q, &reference.q);
+        eprintln!("{formulation:?}, paper encoders: max measured position difference {err:e} rad ({:.2} counts)", err / count);
+        assert!(err <= count + 1e-6, "{err:e} rad");
+    }
+}
+
+/// Total energy along a free-motion run, and the largest relative deviation from the start.
+fn energy_drift(model: &Model, formulation: Formulation, q0: Vec<f64>, qd0: Vec<f64>, duration: f64, integrator: Integrator, substeps: usize) -> f64 {
+    let plant = Plant::new(model, formulation, &[]).unwrap();
+    let params = SimParams { duration, substeps, integrator, sensor: SensorParams::exact(), q0, qd0, ..SimParams::default() };
+    let zero = Step { target: vec![0.0; model.dof()] };
+    let (run, end) = run_with(&plant, &mut ZeroTorque, &zero, &params);
+    assert_eq!(end, RunEnd::Completed);
+    let mut ws = Workspace::new(model);
+    let mut energy = |k: usize| kinetic_energy(model, &mut ws, run.row(&run.q, k), run.row(&run.qd, k)) + potential_energy(model, &mut ws, run.row(&run.q, k));
+    let e0 = energy(0);
+    let scale = e0.abs().max(kinetic_energy(model, &mut Workspace::new(model), run.row(&run.q, 0), run.row(&run.qd, 0)));
+    (0..run.len()).map(|k| (energy(k) - e0).abs() / scale).fold(0.0, f64::max)
+}
+
+#[test]
+fn free_motion_conserves_energy() {
+    let arm = Model::paper_arm();
+    let drift = energy_drift(&arm, Formulation::EulerLagrange, vec![1.0, -0.5], vec![2.0, -3.0], 10.0, Integrator::Rk4, 16);
+    eprintln!("paper arm, Euler-Lagrange, RK4 x16: relative energy drift {drift:e}");
+    assert!(drift < 1e-8, "relative energy drift {drift:e}");
+    let chain = Model::random_chain(4, 7);
+    let drift = energy_drift(&chain, Formulation::EulerLagrange, vec![0.3, -0.2, 0.1, 0.4], vec![0.5, -0.5, 0.2, 0.1], 10.0, Integrator::Adaptive { rtol: 1e-12, atol: 1e-12 }, 1);
+    eprintln!("random chain, Euler-Lagrange, Dormand-Prince: relative energy drift {drift:e}");
+    assert!(drift < 1e-8, "relative energy drift {drift:e}");
+}
+
+#[test]
+fn simplified_model_also_conserves_energy() {
+    // C = Ḣ/2 is symmetric and q̇ᵀ(Ḣ − 2C)q̇ = 0: the simplified model is energy-consistent
+    // even though its C q̇ is not the true Coriolis torque
+    let arm = Model::paper_arm();
+    let drift = energy_drift(&arm, Formulation::Simplified, vec![1.0, -0.5], vec![2.0, -3.0], 10.0, Integrator::Rk4, 16);
+    eprintln!("paper arm, simplified, RK4 x16: relative energy drift {drift:e}");
+    assert!(drift < 1e-8, "relative energy drift {drift:e}");
+    let chain = Model::random_chain(4, 7);
+    let drift = energy_drift(&chain, Formulation::Simplified, vec![0.3, -0.2, 0.1, 0.4], vec![0.5, -0.5, 0.2, 0.1], 10.0, Integrator::Adaptive { rtol: 1e-12, atol: 1e-12 }, 1);
+    eprintln!("random chain, simplified, Dormand-Prince: relative energy drift {drift:e}");
+    assert!(drift < 1e-8, "relative energy drift {drift:e}");
+}
+
+#[test]
+fn the_two_formulations_give_different_runs() {
+    let model = Model::paper_arm();
+    let params = SimParams::default();
+    let el = run_with(&Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap(), &mut paper_pd(), &paper_step(), &params).0;
+    let simple = run_with(&Plant::new(&model, Formulation::Simplified, &[]).unwrap(), &mut paper_pd(), &paper_step(), &params).0;
+    let d = max_abs_diff(&el.q, &simple.q);
+    assert!(d > 1e-4 && d < 0.5, "max difference {d}");
+}
+
+#[test]
+fn diverging_run_reports_time_and_joint_and_records_no_nan() {
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
+    // a derivative gain far beyond what 2.5 ms sampling can stabilise
+    let mut pd = Pd { kp: vec![64.72, 32.36], kv: vec![5000.0, 6.472] };
+    let mut sink = MemorySink::new();
+    let end = simulate(&plant, &mut pd, &paper_step(), &SimParams { sensor: SensorParams::exact(), ..SimParams::default() }, &mut sink, None).unwrap();
+    let RunEnd::Diverged { t, joint } = end.clone() else { panic!("expected divergence, got {end:?}") };
+    assert!(t > 0.0 && t < 3.0, "diverged at {t}");
+    // the fastest joint is named (the unstable shoulder loop throws the light elbow around)
+    assert!(joint == "shoulder" || joint == "elbow", "joint {joint}");
+    assert_eq!(sink.end, Some(end));
+    let run = sink.into_run();
+    assert!(!run.is_empty());
+    for v in [&run.q, &run.qd, &run.tau, &run.q_ref, &run.qd_ref] {
+        assert!(v.iter().all(|x| x.is_finite()), "the log holds a non-finite number");
+    }
+    assert!(*run.t.last().unwrap() < t);
+}
+
+/// A PD controller that raises a stop flag at a given time (as Ctrl-C would).
+struct StopAt {
+    pd: Pd,
+    at: f64,
+    flag: Arc<AtomicBool>,
+}
+
+impl Controller for StopAt {
+    fn torque(&mut self, t: f64, q: &[f64], qd: &[f64], q_ref: &[f64], qd_ref: &[f64], out: &mut [f64]) {
+        if t >= self.at {
+            self.flag.store(true, Ordering::Relaxed);
+        }
+        self.pd.torque(t, q, qd, q_ref, qd_ref, out);
+    }
+}
+
+#[test]
+fn interruption_stops_and_finishes_the_sink() {
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
+    let flag = Arc::new(AtomicBool::new(false));
+    let mut c = StopAt { pd: paper_pd(), at: 0.5, flag: flag.clone() };
+    let mut sink = MemorySink::new();
+    let end = simulate(&plant, &mut c, &paper_step(), &SimParams::default(), &mut sink, Some(&flag)).unwrap();
+    let RunEnd::Interrupted { t } = end else { panic!("expected an interruption, got {end:?}") };
+    assert!((t - 0.5).abs() < 1e-9, "interrupted at {t}");
+    assert!(sink.end.is_some());
+    let run = sink.into_run();
+    assert!((run.t.last().unwrap() - 0.5).abs() < 1e-9);
+}
+
+#[test]
+fn replaying_the_commanded_effort_reproduces_the_run() {
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
+    let params = SimParams { sensor: SensorParams::exact(), duration: 1.0, ..SimParams::default() };
+    let (pd_run, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &params);
+    let mut replay = Replay::new(pd_run.t.clone(), pd_run.tau.clone()).unwrap();
+    let (replayed, _) = run_with(&plant, &mut replay, &paper_step(), &params);
+    let d = max_abs_diff(&pd_run.q, &replayed.q);
+    assert!(d < 1e-12, "replay differs by {d}");
+    assert_eq!(replayed.experiment.as_ref().unwrap().controller, ControllerKind::Replay);
+}
+
+#[test]
+fn resimulating_a_logged_run_reproduces_it() {
+    // what the diagnosis does: a logged run (here simulated, with the paper's sensors, started
+    // at an absolute time) re-simulated from its metadata, reference and first sample
+    let model = Model::paper_arm();
+    let exp = Experiment {
+        controller: ControllerKind::Pd,
+        joints: vec!["elbow".into(), "shoulder".into()],
+        kp: vec![paper_arm::KP[1], paper_arm::KP[0]],
+        kv: vec![paper_arm::KV[1], paper_arm::KV[0]],
+        sample_period: paper_arm::SAMPLE_PERIOD,
+        extra: Default::default(),
+    };
+    let params = SimParams { t0: 1000.0, duration: 1.5, ..SimParams::default() };
+    let logged = simulate_experiment(&model, Formulation::EulerLagrange, &[], &exp, &paper_step(), &params, None).unwrap();
+    assert_eq!(logged.len(), 601);
+    assert_eq!(logged.experiment.as_ref(), Some(&exp));
+    let again_params = SimParams {
+        t0: logged.t[0],
+        duration: logged.duration(),
+        q0: logged.row(&logged.q, 0).to_vec(),
+        qd0: logged.row(&logged.qd, 0).to_vec(),
+        ..SimParams::default()
+    };
+    let again = simulate_experiment(&model, Formulation::EulerLagrange, &[], &exp, reference_from_run(&logged).as_ref(), &again_params, None).unwrap();
+    assert_eq!(again.len(), logged.len());
+    assert!(max_abs_diff(&again.q, &logged.q) < 1e-12);
+    assert!(max_abs_diff(&again.t, &logged.t) < 1e-9);
+}
+
+#[test]
+fn pd_reaches_the_paper_steady_state() {
+    // PD without gravity compensation settles where Kp q̃ = g(q)
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
+    let params = SimParams { duration: 10.0, ..SimParams::default() };
+    let (run, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &params);
+    let k = run.len() - 1;
+    let q = run.row(&run.q, k);
+    let g = simgap_core::gravity_torques(&model, &mut Workspace::new(&model), q);
+    for i in 0..2 {
+        let residual = paper_arm::KP[i] * (paper_arm::Q_DESIRED[i] - q[i]) - g[i];
+        assert!(residual.abs() < 1e-3, "joint {i}: Kp q̃ − g = {residual}");
+    }
+}
