@@ -608,7 +608,7 @@ pub fn read_mcap(path: &Path) -> Result<Run> {
                 n_messages += 1;
                 let Some(topic) = channels.get(&header.channel_id).copied().flatten() else { return Ok(()) };
                 let msg = JointState::decode_cdr(&data).map_err(|e| format!("{topic} message {}: {e}", n_messages))?;
-                topics.entry(topic).or_default().push(msg, header.log_time as i64, header.channel_id);
+                topics.entry(topic).or_default().push(topic, msg, header.log_time as i64, header.channel_id)?;
             }
             Record::Metadata(m) if m.name == EXPERIMENT_METADATA => {
                 if experiment.is_some() {
@@ -719,12 +719,29 @@ fn describe_mcap_error(e: &mcap::McapError, bytes: u64, records: usize) -> Strin
     }
 }
 
-/// The messages of one topic as read.
+/// The messages of one topic as read: joint names interned, values in flat arrays, so a long
+/// bag costs about what the run itself costs.
 #[derive(Default)]
 struct TopicData {
-    msgs: Vec<JointState>,
-    log_ns: Vec<i64>,
-    channel: Vec<u16>,
+    names: Vec<String>,
+    index: HashMap<String, u32>,
+    msgs: Vec<MsgRef>,
+    ids: Vec<u32>,
+    position: Vec<f64>,
+    velocity: Vec<f64>,
+    effort: Vec<f64>,
+    any_stamp: bool,
+}
+
+/// One message: its times and its slice of the flat arrays.
+struct MsgRef {
+    stamp: i64,
+    log: i64,
+    channel: u16,
+    start: usize,
+    len: usize,
+    has_velocity: bool,
+    has_effort: bool,
 }
 
 /// A topic merged into samples.
@@ -737,64 +754,88 @@ struct Merged {
 }
 
 impl TopicData {
-    fn push(&mut self, msg: JointState, log_ns: i64, channel: u16) {
-        self.msgs.push(msg);
-        self.log_ns.push(log_ns);
-        self.channel.push(channel);
+    /// Checks and stores a message: array lengths and finite values.
+    fn push(&mut self, topic: &str, m: JointState, log_ns: i64, channel: u16) -> std::result::Result<(), String> {
+        let stamp = m.stamp_ns();
+        let t = ns_to_seconds(if stamp != 0 { stamp } else { log_ns });
+        // array lengths
+        if m.name.is_empty() {
+            return Err(format!("{topic} message at t = {t} s has no joint names"));
+        }
+        if m.position.len() != m.name.len() {
+            return Err(format!("{topic} message at t = {t} s has {} positions for {} joints", m.position.len(), m.name.len()));
+        }
+        for (what, v) in [("velocities", &m.velocity), ("efforts", &m.effort)] {
+            if !v.is_empty() && v.len() != m.name.len() {
+                return Err(format!("{topic} message at t = {t} s has {} {what} for {} joints", v.len(), m.name.len()));
+            }
+        }
+        // finite values
+        for (i, j) in m.name.iter().enumerate() {
+            for (what, v) in [("position", &m.position), ("velocity", &m.velocity), ("effort", &m.effort)] {
+                if let Some(x) = v.get(i).filter(|x| !x.is_finite()) {
+                    return Err(format!("{topic}: {what} of joint '{j}' is {x} at t = {t} s"));
+                }
+            }
+        }
+        // store
+        let start = self.ids.len();
+        for j in &m.name {
+            let id = match self.index.get(j) {
+                Some(&id) => id,
+                None => {
+                    self.names.push(j.clone());
+                    self.index.insert(j.clone(), (self.names.len() - 1) as u32);
+                    (self.names.len() - 1) as u32
+                }
+            };
+            self.ids.push(id);
+        }
+        let n = m.name.len();
+        self.position.extend_from_slice(&m.position);
+        let has_velocity = !m.velocity.is_empty();
+        let has_effort = !m.effort.is_empty();
+        if has_velocity {
+            self.velocity.extend_from_slice(&m.velocity);
+        } else {
+            self.velocity.extend(std::iter::repeat(0.0).take(n));
+        }
+        if has_effort {
+            self.effort.extend_from_slice(&m.effort);
+        } else {
+            self.effort.extend(std::iter::repeat(0.0).take(n));
+        }
+        self.any_stamp |= stamp != 0;
+        self.msgs.push(MsgRef { stamp, log: log_ns, channel, start, len: n, has_velocity, has_effort });
+        Ok(())
     }
 
     /// Merges messages into samples (see the module docs); `joints` fixes the joint set.
     fn merge(self, topic: &str, joints: Option<&[String]>) -> std::result::Result<Merged, String> {
-        let use_stamps = self.msgs.iter().any(|m| m.sec != 0 || m.nanosec != 0);
-        let times: Vec<i64> = if use_stamps { self.msgs.iter().map(JointState::stamp_ns).collect() } else { self.log_ns.clone() };
-        let time_s = |ns: i64| ns_to_seconds(ns);
+        let times: Vec<i64> = self.msgs.iter().map(|m| if self.any_stamp { m.stamp } else { m.log }).collect();
+        let time_s = ns_to_seconds;
 
-        // joint set: first message's order, then first appearance
-        let mut names: Vec<String> = joints.map(<[String]>::to_vec).unwrap_or_default();
-        let mut index: HashMap<String, usize> = names.iter().enumerate().map(|(i, j)| (j.clone(), i)).collect();
-        let mut last_time: HashMap<(u16, usize), i64> = HashMap::new();
-        for ((m, &t), &channel) in self.msgs.iter().zip(&times).zip(&self.channel) {
-            // array lengths
-            if m.name.is_empty() {
-                return Err(format!("{topic} message at t = {} s has no joint names", time_s(t)));
-            }
-            if m.position.len() != m.name.len() {
-                return Err(format!(
-                    "{topic} message at t = {} s has {} positions for {} joints",
-                    time_s(t),
-                    m.position.len(),
-                    m.name.len()
-                ));
-            }
-            for (what, v) in [("velocities", &m.velocity), ("efforts", &m.effort)] {
-                if !v.is_empty() && v.len() != m.name.len() {
-                    return Err(format!("{topic} message at t = {} s has {} {what} for {} joints", time_s(t), v.len(), m.name.len()));
+        // columns: the given joints, or the order of first appearance (first message first)
+        let (names, column): (Vec<String>, Vec<usize>) = match joints {
+            Some(js) => {
+                let mut column = Vec::with_capacity(self.names.len());
+                for j in &self.names {
+                    let c = js.iter().position(|x| x == j).ok_or_else(|| {
+                        format!("joint '{j}' is in {topic} but not in {JOINT_STATES_TOPIC} (joints: {})", js.join(", "))
+                    })?;
+                    column.push(c);
                 }
+                (js.to_vec(), column)
             }
-            for (i, j) in m.name.iter().enumerate() {
-                // finite values
-                for (what, v) in [("position", &m.position), ("velocity", &m.velocity), ("effort", &m.effort)] {
-                    if let Some(x) = v.get(i).filter(|x| !x.is_finite()) {
-                        return Err(format!("{topic}: {what} of joint '{j}' is {x} at t = {} s", time_s(t)));
-                    }
-                }
-                // joint known
-                let k = match index.get(j) {
-                    Some(&k) => k,
-                    None if joints.is_some() => {
-                        return Err(format!(
-                            "joint '{j}' is in {topic} but not in {JOINT_STATES_TOPIC} (joints: {})",
-                            names.join(", ")
-                        ))
-                    }
-                    None => {
-                        names.push(j.clone());
-                        index.insert(j.clone(), names.len() - 1);
-                        names.len() - 1
-                    }
-                };
-                // time strictly increasing per joint and channel (publisher), in file order
-                if let Some(&prev) = last_time.get(&(channel, k)) {
+            None => (self.names.clone(), (0..self.names.len()).collect()),
+        };
+
+        // time strictly increasing per joint and channel (publisher), in file order
+        let mut last_time: HashMap<(u16, u32), i64> = HashMap::new();
+        for (m, &t) in self.msgs.iter().zip(&times) {
+            for &id in &self.ids[m.start..m.start + m.len] {
+                if let Some(prev) = last_time.insert((m.channel, id), t) {
+                    let j = &self.names[id as usize];
                     if t == prev {
                         return Err(format!("{topic}: joint '{j}' is given twice at the same time t = {} s", time_s(t)));
                     }
@@ -806,16 +847,15 @@ impl TopicData {
                         ));
                     }
                 }
-                last_time.insert((channel, k), t);
             }
         }
 
-        // group by time
+        // group by time; messages with the same time merge
         let dof = names.len();
         let mut order: Vec<usize> = (0..self.msgs.len()).collect();
         order.sort_by_key(|&i| times[i]);
-        let has_velocity = self.msgs.iter().any(|m| !m.velocity.is_empty());
-        let has_effort = self.msgs.iter().any(|m| !m.effort.is_empty());
+        let has_velocity = self.msgs.iter().any(|m| m.has_velocity);
+        let has_effort = self.msgs.iter().any(|m| m.has_effort);
         let mut out = Merged { joints: names.clone(), t: Vec::new(), position: Vec::new(), velocity: None, effort: None };
         let mut velocity = Vec::new();
         let mut effort = Vec::new();
@@ -823,34 +863,28 @@ impl TopicData {
         let mut g = 0;
         while g < order.len() {
             let t = times[order[g]];
-            let start_row = out.position.len();
-            out.position.resize(start_row + dof, 0.0);
-            velocity.resize(start_row + dof, 0.0);
-            effort.resize(start_row + dof, 0.0);
+            let row = out.position.len();
+            out.position.resize(row + dof, 0.0);
+            velocity.resize(row + dof, 0.0);
+            effort.resize(row + dof, 0.0);
             filled.fill(false);
             while g < order.len() && times[order[g]] == t {
                 let m = &self.msgs[order[g]];
-                for (what, present, v) in [("velocity", has_velocity, &m.velocity), ("effort", has_effort, &m.effort)] {
-                    if present && v.is_empty() {
-                        return Err(format!(
-                            "{topic}: the message at t = {} s has no {what} while other messages have one",
-                            time_s(t)
-                        ));
+                for (what, any, this) in [("velocity", has_velocity, m.has_velocity), ("effort", has_effort, m.has_effort)] {
+                    if any && !this {
+                        return Err(format!("{topic}: the message at t = {} s has no {what} while other messages have one", time_s(t)));
                     }
                 }
-                for (i, j) in m.name.iter().enumerate() {
-                    let k = index[j];
+                for i in m.start..m.start + m.len {
+                    let id = self.ids[i] as usize;
+                    let k = column[id];
                     if filled[k] {
-                        return Err(format!("{topic}: joint '{j}' is given twice at the same time t = {} s", time_s(t)));
+                        return Err(format!("{topic}: joint '{}' is given twice at the same time t = {} s", self.names[id], time_s(t)));
                     }
                     filled[k] = true;
-                    out.position[start_row + k] = m.position[i];
-                    if has_velocity {
-                        velocity[start_row + k] = m.velocity[i];
-                    }
-                    if has_effort {
-                        effort[start_row + k] = m.effort[i];
-                    }
+                    out.position[row + k] = self.position[i];
+                    velocity[row + k] = self.velocity[i];
+                    effort[row + k] = self.effort[i];
                 }
                 g += 1;
             }
