@@ -8,14 +8,14 @@ import numpy.typing as npt
 
 __version__: str
 
-Formulation: TypeAlias = Literal["euler_lagrange", "euler-lagrange", "simplified"]
+_Formulation: TypeAlias = Literal["euler_lagrange", "euler-lagrange", "simplified"]
 """Which Coriolis matrix C: ``"euler_lagrange"`` (Christoffel symbols; Ḣ − 2C skew-symmetric,
 C q̇ the true torque) or ``"simplified"`` (C = Ḣ/2, symmetric; C q̇ lacks the skew part)."""
 
-ArrayLike: TypeAlias = npt.ArrayLike
+_ArrayLike: TypeAlias = npt.ArrayLike
 """Anything numpy converts to a float64 array: arrays of any dtype and order, lists, tuples."""
 
-FloatArray: TypeAlias = npt.NDArray[np.float64]
+_FloatArray: TypeAlias = npt.NDArray[np.float64]
 """A C-ordered float64 numpy array."""
 
 class SimgapError(Exception):
@@ -82,23 +82,23 @@ class Model:
         """Joint names in chain order, root to tip: the order of every joint vector."""
 
     @property
-    def lower_limits(self) -> FloatArray:
+    def lower_limits(self) -> _FloatArray:
         """Lower position limits [rad or m], shape (dof,); -inf for continuous joints."""
 
     @property
-    def upper_limits(self) -> FloatArray:
+    def upper_limits(self) -> _FloatArray:
         """Upper position limits [rad or m], shape (dof,); +inf for continuous joints."""
 
     @property
-    def effort_limits(self) -> FloatArray:
+    def effort_limits(self) -> _FloatArray:
         """Effort limits [N·m or N], shape (dof,)."""
 
     @property
-    def velocity_limits(self) -> FloatArray:
+    def velocity_limits(self) -> _FloatArray:
         """Velocity limits [rad/s or m/s], shape (dof,)."""
 
     @property
-    def gravity(self) -> FloatArray:
+    def gravity(self) -> _FloatArray:
         """Gravity acceleration in the base frame [m/s²], shape (3,); default (0, 0, -9.81).
 
         Settable with any 3 finite numbers (DimensionError / DynamicsError otherwise); a batch
@@ -106,18 +106,18 @@ class Model:
         """
 
     @gravity.setter
-    def gravity(self, gravity: ArrayLike) -> None: ...
+    def gravity(self, gravity: _ArrayLike) -> None: ...
     @property
     def warnings(self) -> list[str]:
         """Warnings raised while loading (massless links, locked off-chain joints)."""
 
-    def mass_matrix(self, q: ArrayLike) -> FloatArray:
+    def mass_matrix(self, q: _ArrayLike) -> _FloatArray:
         """Mass matrix H(q) (composite rigid body algorithm): symmetric positive definite.
 
         ``q``: joint positions, shape (dof,) or (N, dof). Returns (dof, dof) or (N, dof, dof).
         """
 
-    def coriolis_matrix(self, q: ArrayLike, qd: ArrayLike, formulation: Formulation = "euler_lagrange") -> FloatArray:
+    def coriolis_matrix(self, q: _ArrayLike, qd: _ArrayLike, formulation: _Formulation = "euler_lagrange") -> _FloatArray:
         """Coriolis matrix C(q, q̇) of the chosen formulation.
 
         ``q``, ``qd``: positions and velocities, shape (dof,) or (N, dof), the same for both.
@@ -125,50 +125,50 @@ class Model:
         simplified: C = Ḣ/2.
         """
 
-    def mass_matrix_derivative(self, q: ArrayLike, qd: ArrayLike) -> FloatArray:
+    def mass_matrix_derivative(self, q: _ArrayLike, qd: _ArrayLike) -> _FloatArray:
         """Time derivative of the mass matrix, Ḣ(q, q̇) = Σ_k ∂H/∂q_k q̇_k.
 
         ``q``, ``qd``: shape (dof,) or (N, dof). Returns (dof, dof) or (N, dof, dof).
         """
 
-    def coriolis_torques(self, q: ArrayLike, qd: ArrayLike, formulation: Formulation = "euler_lagrange") -> FloatArray:
+    def coriolis_torques(self, q: _ArrayLike, qd: _ArrayLike, formulation: _Formulation = "euler_lagrange") -> _FloatArray:
         """Coriolis and centrifugal torques C(q, q̇) q̇ of the chosen formulation.
 
         ``q``, ``qd``: shape (dof,) or (N, dof). Returns (dof,) or (N, dof).
         """
 
-    def gravity_torques(self, q: ArrayLike) -> FloatArray:
+    def gravity_torques(self, q: _ArrayLike) -> _FloatArray:
         """Gravity torques g(q) = ∂U/∂q; equivalent to ``inverse_dynamics(q, 0, 0)``.
 
         ``q``: shape (dof,) or (N, dof). Returns (dof,) or (N, dof).
         """
 
-    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike) -> FloatArray:
+    def inverse_dynamics(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _FloatArray:
         """Joint torques τ = H q̈ + C q̇ + g (recursive Newton–Euler), with the true Coriolis torque.
 
         ``q``, ``qd``, ``qdd``: shape (dof,) or (N, dof). Returns (dof,) or (N, dof).
         """
 
-    def bias_torques(self, q: ArrayLike, qd: ArrayLike, formulation: Formulation = "euler_lagrange") -> FloatArray:
+    def bias_torques(self, q: _ArrayLike, qd: _ArrayLike, formulation: _Formulation = "euler_lagrange") -> _FloatArray:
         """Bias torques C(q, q̇) q̇ + g(q) of the chosen formulation.
 
         ``q``, ``qd``: shape (dof,) or (N, dof). Returns (dof,) or (N, dof).
         """
 
-    def forward_dynamics(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, formulation: Formulation = "euler_lagrange") -> FloatArray:
+    def forward_dynamics(self, q: _ArrayLike, qd: _ArrayLike, tau: _ArrayLike, formulation: _Formulation = "euler_lagrange") -> _FloatArray:
         """Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
 
         ``q``, ``qd``, ``tau``: shape (dof,) or (N, dof). Returns (dof,) or (N, dof).
         Raises DynamicsError if an input is not finite or H is not positive definite.
         """
 
-    def kinetic_energy(self, q: ArrayLike, qd: ArrayLike) -> float | FloatArray:
+    def kinetic_energy(self, q: _ArrayLike, qd: _ArrayLike) -> float | _FloatArray:
         """Kinetic energy ½ q̇ᵀ H q̇ [J]: a float for one state, shape (N,) for a batch."""
 
-    def potential_energy(self, q: ArrayLike) -> float | FloatArray:
+    def potential_energy(self, q: _ArrayLike) -> float | _FloatArray:
         """Potential energy of gravity U(q) [J] (g = ∂U/∂q): a float for one state, shape (N,) for a batch."""
 
-    def dynamics_terms(self, q: ArrayLike, qd: ArrayLike, formulation: Formulation = "euler_lagrange") -> tuple[FloatArray, FloatArray, FloatArray]:
+    def dynamics_terms(self, q: _ArrayLike, qd: _ArrayLike, formulation: _Formulation = "euler_lagrange") -> tuple[_FloatArray, _FloatArray, _FloatArray]:
         """H(q), C(q, q̇) and g(q) in one call, cheaper than three calls.
 
         ``q``, ``qd``: shape (dof,) or (N, dof). Returns ``(H, C, g)`` with shapes

@@ -52,9 +52,10 @@ fn shape_str(shape: &[usize]) -> String {
 
 /// The flat row-major data of `arr`, borrowed when it is C-contiguous, copied otherwise.
 pub(crate) fn row_major<'a>(arr: &'a ArrayArg<'_>) -> Cow<'a, [f64]> {
+    // `as_slice` also succeeds on Fortran-contiguous arrays, whose memory order is not ours
     match arr.as_slice() {
-        Ok(s) => Cow::Borrowed(s),
-        Err(_) => Cow::Owned(arr.as_array().iter().copied().collect()),
+        Ok(s) if arr.is_c_contiguous() => Cow::Borrowed(s),
+        _ => Cow::Owned(arr.as_array().iter().copied().collect()),
     }
 }
 
@@ -111,8 +112,18 @@ pub(crate) fn require_finite(name: &str, data: &[f64], dof: usize, batch: Batch)
                 Batch::Single => format!("[{k}]"),
                 Batch::Many(_) => format!("[{}, {}]", k / dof, k % dof),
             };
-            Err(Kind::Dynamics.err(format!("{name}: expected finite values, got {} at {name}{at}", data[k])))
+            Err(Kind::Dynamics.err(format!("{name}: expected finite values, got {} at {name}{at}", py_float(data[k]))))
         }
+    }
+}
+
+/// `x` as Python prints it (`nan`, `inf`, `-inf`, `1.5`).
+pub(crate) fn py_float(x: f64) -> String {
+    match x {
+        x if x.is_nan() => "nan".to_owned(),
+        f64::INFINITY => "inf".to_owned(),
+        f64::NEG_INFINITY => "-inf".to_owned(),
+        x => format!("{x:?}"),
     }
 }
 

@@ -153,7 +153,7 @@ fn formulation(name: &str) -> PyResult<Formulation> {
     match name {
         "euler_lagrange" | "euler-lagrange" => Ok(Formulation::EulerLagrange),
         "simplified" => Ok(Formulation::Simplified),
-        other => Err(PyValueError::new_err(format!("formulation: expected 'euler_lagrange' or 'simplified', got {other:?}"))),
+        other => Err(PyValueError::new_err(format!("formulation: expected 'euler_lagrange' or 'simplified', got '{other}'"))),
     }
 }
 
@@ -301,7 +301,7 @@ impl PyModel {
     fn set_gravity(&self, gravity: ArrayArg<'_>) -> PyResult<()> {
         let g = vector3("gravity", &gravity)?;
         if let Some(x) = g.iter().find(|x| !x.is_finite()) {
-            return Err(Kind::Dynamics.err(format!("gravity: expected finite values, got {x}")));
+            return Err(Kind::Dynamics.err(format!("gravity: expected finite values, got {}", crate::conv::py_float(*x))));
         }
         let mut model = self.model.write().unwrap_or_else(|e| e.into_inner());
         Arc::make_mut(&mut model).set_gravity(Vector3::from(g));
