@@ -1,0 +1,245 @@
+//! Every effect of BRIEF §3.2 changes the run in the expected direction.
+
+use simgap_core::robots::paper_arm;
+use simgap_core::{gravity_torques, kinetic_energy, potential_energy, Formulation, Model, Workspace};
+use simgap_sim::effects::{friction_slope_bound, smooth_sign};
+use simgap_sim::{
+    applied_torque, friction_torque, simulate, Controller, Effect, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, Step,
+    ZeroTorque, EFFECT_NAMES,
+};
+
+fn run(model: &Model, effects: &[Effect], controller: &mut dyn Controller, params: &SimParams) -> Run {
+    let plant = Plant::new(model, Formulation::EulerLagrange, effects).unwrap();
+    let mut sink = MemorySink::new();
+    let end = simulate(&plant, controller, &Step { target: paper_arm::Q_DESIRED.to_vec() }, params, &mut sink, None).unwrap();
+    assert_eq!(end, RunEnd::Completed);
+    sink.into_run()
+}
+
+fn paper_pd() -> Pd {
+    Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() }
+}
+
+fn exact(duration: f64) -> SimParams {
+    SimParams { duration, sensor: SensorParams::exact(), ..SimParams::default() }
+}
+
+fn pd_run(effects: &[Effect], duration: f64) -> Run {
+    run(&Model::paper_arm(), effects, &mut paper_pd(), &exact(duration))
+}
+
+fn last(run: &Run) -> Vec<f64> {
+    run.row(&run.q, run.len() - 1).to_vec()
+}
+
+/// Total energy (nominal model) at every sample of a free-motion run.
+fn energies(model: &Model, run: &Run) -> Vec<f64> {
+    let mut ws = Workspace::new(model);
+    (0..run.len()).map(|k| kinetic_energy(model, &mut ws, run.row(&run.q, k), run.row(&run.qd, k)) + potential_energy(model, &mut ws, run.row(&run.q, k))).collect()
+}
+
+fn free_params() -> SimParams {
+    SimParams { duration: 3.0, sensor: SensorParams::exact(), q0: vec![1.0, -0.5], qd0: vec![1.0, 2.0], substeps: 8, ..SimParams::default() }
+}
+
+#[test]
+fn every_effect_name_parses() {
+    let specs = [
+        "viscous_friction:b=2.288,0.175",
+        "coulomb_friction:fc=7.17,1.734",
+        "stribeck_friction:fc=1,1;fs=2,2;vs=0.1,0.1",
+        "armature:ia=0.1,0.01",
+        "payload:mass=0.5;com=0,0,-0.4",
+        "inertial_error:joint=1;mass=0.2;com=0,0,-0.01;inertia=0.001,0,0,0.001,0,0.001",
+        "torque_gain:k=0.9,1.1",
+        "torque_offset:offset=0.5,-0.2",
+        "torque_saturation:limit=200,15",
+        "time_delay:delay=0.005",
+        "cogging:amplitude=0.3,0.1;periods_per_rev=8,8",
+        "coriolis_structure",
+    ];
+    for (spec, name) in specs.iter().zip(EFFECT_NAMES) {
+        let e = Effect::parse(spec, 2).unwrap_or_else(|err| panic!("{spec}: {err}"));
+        assert_eq!(e.name(), name);
+    }
+    assert_eq!(Effect::parse("viscous_friction:b=2", 2).unwrap(), Effect::ViscousFriction { b: vec![2.0, 2.0] });
+    assert!(Effect::parse("viscous_friction:b=1,2,3", 2).is_err());
+    assert!(Effect::parse("viscous_friction:c=1", 2).is_err());
+    assert!(Effect::parse("backlash", 2).is_err());
+    assert!(Effect::parse("viscous_friction:b=-1,0", 2).is_err());
+    assert_eq!(Effect::ViscousFriction { b: vec![0.0, 0.175] }.joints_acted(), vec![1]);
+    assert_eq!(Effect::TorqueSaturation { limit: vec![f64::INFINITY, 15.0] }.joints_acted(), vec![1]);
+}
+
+#[test]
+fn friction_torques_have_the_documented_values() {
+    let (q, qd) = ([0.3, -0.2], [0.5, -2.0]);
+    let mut out = [0.0; 2];
+    let w = 0.01;
+    friction_torque(&[Effect::ViscousFriction { b: vec![2.288, 0.175] }], &q, &qd, w, &mut out);
+    assert!((out[0] + 2.288 * 0.5).abs() < 1e-15 && (out[1] - 0.175 * 2.0).abs() < 1e-15);
+    friction_torque(&[Effect::CoulombFriction { fc: vec![7.17, 1.734] }], &q, &qd, w, &mut out);
+    assert!((out[0] + 7.17).abs() < 1e-12 && (out[1] - 1.734).abs() < 1e-12);
+    // Stribeck: fs near rest, fc at speed
+    let st = [Effect::StribeckFriction { fc: vec![1.0, 1.0], fs: vec![2.0, 2.0], vs: vec![0.1, 0.1] }];
+    friction_torque(&st, &q, &[0.05, 10.0], 1e-4, &mut out);
+    assert!((out[0] + (1.0 + (-0.25f64).exp())).abs() < 1e-9, "{out:?}");
+    assert!((out[1] + 1.0).abs() < 1e-9);
+    friction_torque(&[Effect::Cogging { amplitude: vec![0.3, 0.0], periods_per_rev: vec![8.0, 8.0] }], &q, &qd, w, &mut out);
+    assert!((out[0] + 0.3 * (8.0f64 * 0.3).sin()).abs() < 1e-15 && out[1] == 0.0);
+    assert_eq!(smooth_sign(0.0, w), 0.0);
+    let mut slope = [0.0; 2];
+    friction_slope_bound(&[Effect::CoulombFriction { fc: vec![7.17, 1.734] }], w, &mut slope);
+    assert!((slope[1] - 173.4).abs() < 1e-9);
+}
+
+#[test]
+fn applied_torque_saturates_then_scales_then_offsets() {
+    let effects = [Effect::TorqueGain { k: vec![0.5, 2.0] }, Effect::TorqueOffset { offset: vec![1.0, -1.0] }, Effect::TorqueSaturation { limit: vec![10.0, f64::INFINITY] }];
+    let mut out = [0.0; 2];
+    applied_torque(&effects, &[-50.0, 3.0], &mut out);
+    assert_eq!(out, [0.5 * -10.0 + 1.0, 2.0 * 3.0 - 1.0]);
+}
+
+#[test]
+fn viscous_friction_removes_energy() {
+    let model = Model::paper_arm();
+    let r = run(&model, &[Effect::ViscousFriction { b: vec![2.288, 0.175] }], &mut ZeroTorque, &free_params());
+    let e = energies(&model, &r);
+    // energy never increases (up to integration error) and drops substantially
+    assert!(e.windows(2).all(|w| w[1] <= w[0] + 1e-9), "energy increased");
+    assert!(e[e.len() - 1] < e[0] - 0.5 * (e[0] - e.iter().cloned().fold(f64::INFINITY, f64::min)).abs().min(1.0));
+    let free = energies(&model, &run(&model, &[], &mut ZeroTorque, &free_params()));
+    assert!(e[e.len() - 1] < free[free.len() - 1] - 1.0);
+}
+
+#[test]
+fn coulomb_friction_removes_energy_and_stops_the_arm() {
+    let model = Model::paper_arm();
+    let effects = [Effect::CoulombFriction { fc: vec![7.17, 1.734] }];
+    let r = run(&model, &effects, &mut ZeroTorque, &free_params());
+    let e = energies(&model, &r);
+    assert!(e.windows(2).all(|w| w[1] <= w[0] + 1e-9), "energy increased");
+    let qd_end = r.row(&r.qd, r.len() - 1);
+    assert!(qd_end.iter().all(|v| v.abs() < 0.05), "still moving: {qd_end:?}");
+    // the stiffness guard raised the substeps beyond the requested 8
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &effects).unwrap();
+    assert!(simgap_sim::effective_substeps(&plant, &free_params()) >= 8);
+}
+
+#[test]
+fn armature_slows_the_response() {
+    let nominal = pd_run(&[], 0.2);
+    let heavy = pd_run(&[Effect::Armature { ia: vec![1.0, 0.1] }], 0.2);
+    let (a, b) = (last(&nominal), last(&heavy));
+    assert!(b[0] < a[0] && b[1] < a[1], "nominal {a:?}, with armature {b:?}");
+}
+
+#[test]
+fn payload_and_heavier_links_increase_the_gravity_sag() {
+    // PD without gravity compensation settles where Kp q̃ = g(q): more mass, more error
+    let nominal = last(&pd_run(&[], 8.0));
+    let payload = last(&pd_run(&[Effect::Payload { mass: 1.0, com: [0.0, 0.0, -0.45] }], 8.0));
+    let heavier = last(&pd_run(&[Effect::InertialError { deltas: vec![LinkDelta { joint: 1, mass: 1.0, com: [0.0; 3], inertia: [0.0; 6] }] }], 8.0));
+    for q in [&payload, &heavier] {
+        assert!(q[0] < nominal[0], "shoulder: nominal {nominal:?}, loaded {q:?}");
+    }
+    // the steady state satisfies Kp q̃ = g of the loaded model
+    let plant = Plant::new(&Model::paper_arm(), Formulation::EulerLagrange, &[Effect::Payload { mass: 1.0, com: [0.0, 0.0, -0.45] }]).unwrap();
+    let g = gravity_torques(plant.model(), &mut Workspace::new(plant.model()), &payload);
+    for i in 0..2 {
+        assert!((paper_arm::KP[i] * (paper_arm::Q_DESIRED[i] - payload[i]) - g[i]).abs() < 1e-3);
+    }
+    // a negative payload that makes the link massless is refused
+    assert!(Plant::new(&Model::paper_arm(), Formulation::EulerLagrange, &[Effect::Payload { mass: -10.0, com: [0.0; 3] }]).is_err());
+}
+
+#[test]
+fn torque_gain_and_offset_shift_the_steady_state() {
+    let nominal = last(&pd_run(&[], 8.0));
+    let weak = last(&pd_run(&[Effect::TorqueGain { k: vec![0.8, 1.0] }], 8.0));
+    assert!(weak[0] < nominal[0], "a weaker shoulder sags more: {nominal:?} vs {weak:?}");
+    let pushed = last(&pd_run(&[Effect::TorqueOffset { offset: vec![0.0, 1.0] }], 8.0));
+    assert!(pushed[1] > nominal[1], "a positive elbow offset raises the elbow: {nominal:?} vs {pushed:?}");
+}
+
+#[test]
+fn saturation_equals_replaying_clamped_commands() {
+    // logged effort is the command; the plant applies the clamped command
+    let model = Model::paper_arm();
+    let limits = paper_arm::TORQUE_LIMITS.to_vec();
+    let saturated = pd_run(&[Effect::TorqueSaturation { limit: limits.clone() }], 1.0);
+    let max_elbow = saturated.column(&saturated.tau, 1).iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(max_elbow > 15.0, "the logged command is not clamped ({max_elbow})");
+    let clamped: Vec<f64> = saturated.tau.chunks(2).flat_map(|r| [r[0].clamp(-limits[0], limits[0]), r[1].clamp(-limits[1], limits[1])]).collect();
+    let replayed = run(&model, &[], &mut Replay::new(saturated.t.clone(), clamped).unwrap(), &exact(1.0));
+    let d = saturated.q.iter().zip(&replayed.q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(d < 1e-12, "{d}");
+    // and the same comes from the model's effort limits
+    let from_model = run(&model, &[], &mut paper_pd(), &SimParams { torque_limits_from_model: true, ..exact(1.0) });
+    assert!(from_model.q.iter().zip(&saturated.q).all(|(a, b)| (a - b).abs() < 1e-12));
+    // saturation slows the elbow
+    let free = pd_run(&[], 1.0);
+    assert!(saturated.q[2 * 20 + 1] < free.q[2 * 20 + 1]);
+}
+
+#[test]
+fn time_delay_equals_replaying_shifted_commands() {
+    let model = Model::paper_arm();
+    let m = 3;
+    let delayed = pd_run(&[Effect::TimeDelay { delay: m as f64 * paper_arm::SAMPLE_PERIOD }], 1.0);
+    // the plant applied τ_cmd,k−m (τ_cmd,0 before the start)
+    let n = 2;
+    let shifted: Vec<f64> = (0..delayed.len()).flat_map(|k| delayed.row(&delayed.tau, k.saturating_sub(m)).to_vec()).collect();
+    let replayed = run(&model, &[], &mut Replay::new(delayed.t.clone(), shifted).unwrap(), &exact(1.0));
+    let d = delayed.q.iter().zip(&replayed.q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(d < 1e-12, "{d}");
+    // a fractional delay lies between its neighbours
+    let half = pd_run(&[Effect::TimeDelay { delay: 2.5 * paper_arm::SAMPLE_PERIOD }], 1.0);
+    let two = pd_run(&[Effect::TimeDelay { delay: 2.0 * paper_arm::SAMPLE_PERIOD }], 1.0);
+    let k = 40 * n;
+    let (lo, hi) = (two.q[k].min(delayed.q[k]), two.q[k].max(delayed.q[k]));
+    assert!(half.q[k] > lo && half.q[k] < hi, "{} not in [{lo}, {hi}]", half.q[k]);
+}
+
+#[test]
+fn cogging_is_conservative_and_shifts_the_steady_state() {
+    // −A sin(N q) = −∂V/∂q with V = A (1 − cos N q) / N, so energy plus V is conserved in
+    // free motion
+    let model = Model::paper_arm();
+    let (a, nper) = (0.5, 8.0);
+    let effects = [Effect::Cogging { amplitude: vec![a, 0.0], periods_per_rev: vec![nper, 0.0] }];
+    let r = run(&model, &effects, &mut ZeroTorque, &SimParams { substeps: 16, ..free_params() });
+    let e: Vec<f64> = energies(&model, &r).iter().enumerate().map(|(k, e)| e + a / nper * (1.0 - (nper * r.q[2 * k]).cos())).collect();
+    let drift = e.iter().map(|x| (x - e[0]).abs()).fold(0.0, f64::max);
+    assert!(drift < 1e-8 * e[0].abs(), "drift {drift}");
+    let nominal = last(&pd_run(&[], 8.0));
+    let cogged = last(&pd_run(&effects, 8.0));
+    assert!((cogged[0] - nominal[0]).abs() > 1e-4);
+}
+
+#[test]
+fn coriolis_structure_swaps_the_formulation() {
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[Effect::CoriolisStructure]).unwrap();
+    assert_eq!(plant.formulation(), Formulation::Simplified);
+    let swapped = pd_run(&[Effect::CoriolisStructure], 1.5);
+    let simplified = {
+        let plant = Plant::new(&model, Formulation::Simplified, &[]).unwrap();
+        let mut sink = MemorySink::new();
+        simulate(&plant, &mut paper_pd(), &Step { target: paper_arm::Q_DESIRED.to_vec() }, &exact(1.5), &mut sink, None).unwrap();
+        sink.into_run()
+    };
+    assert_eq!(swapped.q, simplified.q);
+    let nominal = pd_run(&[], 1.5);
+    assert!(nominal.q.iter().zip(&swapped.q).any(|(a, b)| (a - b).abs() > 1e-5));
+}
+
+#[test]
+fn stribeck_friction_removes_energy() {
+    let model = Model::paper_arm();
+    let r = run(&model, &[Effect::StribeckFriction { fc: vec![2.0, 0.5], fs: vec![3.0, 0.8], vs: vec![0.1, 0.1] }], &mut ZeroTorque, &free_params());
+    let e = energies(&model, &r);
+    assert!(e.windows(2).all(|w| w[1] <= w[0] + 1e-9), "energy increased");
+    assert!(e[e.len() - 1] < e[0]);
+}
