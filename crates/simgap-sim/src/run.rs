@@ -64,7 +64,8 @@ pub struct Run {
     pub q: Vec<f64>,
     /// Measured velocities q̇ as the controller saw them.
     pub qd: Vec<f64>,
-    /// Commanded effort τ_cmd [N·m or N].
+    /// Commanded effort τ_cmd [N·m or N] (empty when a log has none: check before replaying
+    /// or fitting).
     pub tau: Vec<f64>,
     /// Reference positions q_ref (empty when the log has none).
     pub q_ref: Vec<f64>,
