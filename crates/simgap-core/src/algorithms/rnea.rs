@@ -117,6 +117,17 @@ pub(crate) fn gravity_from_kinematics(model: &Model, ws: &Workspace, out: &mut [
     }
 }
 
+/// g(q) from current composite inertias (after [`composite_inertias`](crate::algorithms::crba)):
+/// the same numbers as [`gravity_from_kinematics`] without transforming the first moments again.
+#[inline]
+pub(crate) fn gravity_from_composites(model: &Model, ws: &Workspace, out: &mut [f64]) {
+    let g = model.gravity();
+    for (i, c) in ws.composites.iter().enumerate() {
+        let f = Force { moment: -c.first_moment.cross(&g), force: -g * c.mass };
+        out[i] = ws.subspaces[i].dot(&f);
+    }
+}
+
 /// Coriolis and centrifugal torques C(q, q̇) q̇ of the chosen formulation.
 ///
 /// For [`Formulation::EulerLagrange`] this is the true velocity-product torque, equivalent to

@@ -3,7 +3,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::algorithms::coriolis::{fill_second_order, second_order_pass, Formulation, SecondOrderOut};
-use crate::algorithms::rnea::gravity_from_kinematics;
+use crate::algorithms::rnea::gravity_from_composites;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -48,5 +48,5 @@ pub fn dynamics_terms_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f
     assert!(out.mass_matrix.shape() == (n, n) && out.coriolis_matrix.shape() == (n, n) && out.gravity_torques.len() == n, "dynamics terms output shape");
     second_order_pass(model, ws, q, qd);
     fill_second_order(model, ws, SecondOrderOut { h: Some(&mut out.mass_matrix), c: Some((&mut out.coriolis_matrix, formulation)), hdot: None });
-    gravity_from_kinematics(model, ws, out.gravity_torques.as_mut_slice());
+    gravity_from_composites(model, ws, out.gravity_torques.as_mut_slice());
 }
