@@ -1,9 +1,243 @@
-//! `simgap simulate`.
+//! `simgap simulate`: one closed-loop run of a model with effects, written to MCAP.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::{bail, Context};
+use simgap::core::{Formulation, Model};
+use simgap::sim::mcap_log::McapSink;
+use simgap::sim::{
+    l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink,
+    Step, VelocityEstimate,
+};
 
 /// Arguments of `simgap simulate`.
 #[derive(clap::Args)]
-pub(crate) struct Args {}
+pub(crate) struct Args {
+    /// URDF of the robot (default: the built-in paper arm).
+    #[arg(long)]
+    urdf: Option<PathBuf>,
+    /// Tip link of the chain when the tree branches.
+    #[arg(long)]
+    tip: Option<String>,
+    /// Formulation of C: euler-lagrange or simplified.
+    #[arg(long, default_value = "euler-lagrange")]
+    formulation: Formulation,
+    /// Controller: pd or pd_gravity (gravity from the nominal model, without effects).
+    #[arg(long, default_value = "pd")]
+    controller: String,
+    /// Proportional gains [N·m/rad], comma-separated in model order (default: the paper's for
+    /// the paper arm).
+    #[arg(long)]
+    kp: Option<String>,
+    /// Derivative gains [N·m·s/rad], comma-separated in model order.
+    #[arg(long)]
+    kv: Option<String>,
+    /// Step target [rad], comma-separated (default: the paper's (π/4, π/2) for the paper arm);
+    /// with --fourier, the offset of the sinusoids (default zeros).
+    #[arg(long, allow_hyphen_values = true)]
+    target: Option<String>,
+    /// One harmonic per joint added to the reference, repeatable:
+    /// 'amplitude=A1,A2;frequency=F1,F2[;phase=P1,P2]' (rad, Hz, rad).
+    #[arg(long, allow_hyphen_values = true)]
+    fourier: Vec<String>,
+    /// Initial positions [rad], comma-separated (default zeros).
+    #[arg(long, allow_hyphen_values = true)]
+    q0: Option<String>,
+    /// Initial velocities [rad/s], comma-separated (default zeros).
+    #[arg(long, allow_hyphen_values = true)]
+    qd0: Option<String>,
+    /// Duration [s].
+    #[arg(long, default_value_t = 3.0)]
+    duration: f64,
+    /// Controller sample period [s].
+    #[arg(long, default_value_t = 0.0025)]
+    sample_period: f64,
+    /// Minimum RK4 steps per sample.
+    #[arg(long, default_value_t = simgap::sim::DEFAULT_SUBSTEPS)]
+    substeps: usize,
+    /// An effect of the plant, repeatable, e.g. 'viscous_friction:b=2.288,0.175',
+    /// 'coulomb_friction:fc=7.17,1.734', 'time_delay:delay=0.005', 'coriolis_structure'.
+    #[arg(long, allow_hyphen_values = true)]
+    effect: Vec<String>,
+    /// Saturate applied torques at the URDF effort limits.
+    #[arg(long)]
+    torque_limits: bool,
+    /// Encoder counts per revolution (0 = exact positions).
+    #[arg(long, default_value_t = 1_024_000.0)]
+    counts_per_rev: f64,
+    /// Measure the exact velocity instead of the backward difference.
+    #[arg(long)]
+    exact_velocity: bool,
+    /// Standard deviation of the position noise [rad].
+    #[arg(long, default_value_t = 0.0)]
+    noise: f64,
+    /// Seed of the noise.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output MCAP file (ROS 2 profile); without it, only the summary is printed.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
 
-pub(crate) fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`simgap simulate` is not built yet")
+pub(crate) fn parse_list(what: &str, s: &str, n: usize) -> anyhow::Result<Vec<f64>> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().with_context(|| format!("--{what}: '{x}' is not a number")))
+        .collect::<anyhow::Result<_>>()?;
+    if v.len() == 1 && n > 1 {
+        return Ok(vec![v[0]; n]);
+    }
+    if v.len() != n {
+        bail!("--{what}: expected {n} values (one per joint), got {}", v.len());
+    }
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        bail!("--{what}: expected finite numbers, got {x}");
+    }
+    Ok(v)
+}
+
+fn parse_fourier(specs: &[String], offset: Vec<f64>, n: usize) -> anyhow::Result<Fourier> {
+    let mut f = Fourier { offset, amplitudes: vec![Vec::new(); n], frequencies: vec![Vec::new(); n], phases: vec![Vec::new(); n] };
+    for spec in specs {
+        let (mut a, mut fr, mut ph) = (None, None, None);
+        for part in spec.split(';').map(str::trim).filter(|p| !p.is_empty()) {
+            let (k, v) = part.split_once('=').with_context(|| format!("--fourier: '{part}' is not key=values"))?;
+            match k.trim() {
+                "amplitude" => a = Some(parse_list("fourier amplitude", v, n)?),
+                "frequency" => fr = Some(parse_list("fourier frequency", v, n)?),
+                "phase" => ph = Some(parse_list("fourier phase", v, n)?),
+                other => bail!("--fourier: unknown key '{other}'; expected amplitude, frequency, phase"),
+            }
+        }
+        let (a, fr) = (a.context("--fourier: missing amplitude=")?, fr.context("--fourier: missing frequency=")?);
+        let ph = ph.unwrap_or_else(|| vec![0.0; n]);
+        for i in 0..n {
+            f.amplitudes[i].push(a[i]);
+            f.frequencies[i].push(fr[i]);
+            f.phases[i].push(ph[i]);
+        }
+    }
+    Ok(f)
+}
+
+/// Records into two sinks.
+pub(crate) struct Tee<'a>(pub(crate) &'a mut dyn Sink, pub(crate) &'a mut dyn Sink);
+
+impl Sink for Tee<'_> {
+    fn begin(&mut self, joints: &[String], experiment: &Experiment) -> simgap::sim::Result<()> {
+        self.0.begin(joints, experiment)?;
+        self.1.begin(joints, experiment)
+    }
+    fn record(&mut self, sample: &Sample<'_>) -> simgap::sim::Result<()> {
+        self.0.record(sample)?;
+        self.1.record(sample)
+    }
+    fn finish(&mut self, end: &RunEnd) -> simgap::sim::Result<()> {
+        let a = self.0.finish(end);
+        let b = self.1.finish(end);
+        a.and(b)
+    }
+}
+
+/// A stop flag raised by Ctrl-C.
+pub(crate) fn ctrl_c_flag() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    if let Err(e) = ctrlc::set_handler(move || f.store(true, Ordering::Relaxed)) {
+        eprintln!("warning: cannot install the Ctrl-C handler: {e}");
+    }
+    flag
+}
+
+fn is_paper_arm(model: &Model) -> bool {
+    model.joint_names() == ["shoulder", "elbow"] && model.dof() == 2
+}
+
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
+    use simgap::core::robots::paper_arm;
+    let model = super::load_model(args.urdf.as_deref(), args.tip.as_deref())?;
+    let n = model.dof();
+    let paper = is_paper_arm(&model);
+    // gains and reference (the paper's experiment by default on the paper arm)
+    let gains = |what: &str, given: &Option<String>, default: &[f64]| -> anyhow::Result<Vec<f64>> {
+        match given {
+            Some(s) => parse_list(what, s, n),
+            None if paper => Ok(default.to_vec()),
+            None => bail!("--{what} is required for a model other than the paper arm"),
+        }
+    };
+    let kp = gains("kp", &args.kp, &paper_arm::KP)?;
+    let kv = gains("kv", &args.kv, &paper_arm::KV)?;
+    let mut controller: Box<dyn Controller> = match args.controller.as_str() {
+        "pd" => Box::new(Pd { kp, kv }),
+        "pd_gravity" => Box::new(PdGravity::new(kp, kv, model.clone())),
+        other => bail!("--controller: unknown '{other}'; expected pd or pd_gravity"),
+    };
+    let reference: Box<dyn Reference> = if args.fourier.is_empty() {
+        let target = match &args.target {
+            Some(s) => parse_list("target", s, n)?,
+            None if paper => paper_arm::Q_DESIRED.to_vec(),
+            None => bail!("--target or --fourier is required for a model other than the paper arm"),
+        };
+        Box::new(Step { target })
+    } else {
+        let offset = match &args.target {
+            Some(s) => parse_list("target", s, n)?,
+            None => vec![0.0; n],
+        };
+        Box::new(parse_fourier(&args.fourier, offset, n)?)
+    };
+    let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse(s, n).with_context(|| format!("--effect '{s}'"))).collect::<anyhow::Result<_>>()?;
+    let plant = Plant::new(&model, args.formulation, &effects)?;
+    let params = SimParams {
+        duration: args.duration,
+        sample_period: args.sample_period,
+        substeps: args.substeps,
+        torque_limits_from_model: args.torque_limits,
+        sensor: SensorParams {
+            counts_per_rev: (args.counts_per_rev > 0.0).then_some(args.counts_per_rev),
+            velocity: if args.exact_velocity { VelocityEstimate::Exact } else { VelocityEstimate::BackwardDifference },
+            noise_std: args.noise,
+            seed: args.seed,
+        },
+        q0: args.q0.as_deref().map(|s| parse_list("q0", s, n)).transpose()?.unwrap_or_default(),
+        qd0: args.qd0.as_deref().map(|s| parse_list("qd0", s, n)).transpose()?.unwrap_or_default(),
+        ..SimParams::default()
+    };
+    // simulate into memory, and into the MCAP file when asked
+    let stop = ctrl_c_flag();
+    let mut memory = MemorySink::new();
+    let start = std::time::Instant::now();
+    let end = match &args.out {
+        Some(path) => {
+            let mut file = McapSink::create(path)?;
+            simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut Tee(&mut memory, &mut file), Some(&stop))?
+        }
+        None => simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut memory, Some(&stop))?,
+    };
+    let elapsed = start.elapsed();
+    let run = memory.into_run();
+    // summary
+    println!("model {} ({} joints: {}), formulation {}", model.name(), n, model.joint_names().join(", "), args.formulation.as_str());
+    if !effects.is_empty() {
+        println!("effects: {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "));
+    }
+    println!("{} samples over {:.4} s in {:.1} ms", run.len(), run.duration(), elapsed.as_secs_f64() * 1e3);
+    if let Ok(l2) = l2_tracking(&run, None) {
+        let per: Vec<String> = run.joints.iter().zip(&l2.per_joint).map(|(j, v)| format!("{j} {v:.6}")).collect();
+        println!("L2 tracking error [rad]: overall {:.6} ({})", l2.overall, per.join(", "));
+    }
+    if let Some(path) = &args.out {
+        println!("wrote {}", path.display());
+    }
+    match end {
+        RunEnd::Completed => Ok(()),
+        RunEnd::Interrupted { t } => {
+            eprintln!("interrupted at t = {t} s; the log holds the run so far");
+            Ok(())
+        }
+        RunEnd::Diverged { t, joint } => bail!("the simulation diverged at t = {t} s on joint '{joint}'; the log holds the run until then"),
+    }
 }

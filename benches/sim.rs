@@ -1,0 +1,2 @@
+//! Closed-loop simulation benchmarks (placeholder replaced below).
+fn main() {}
