@@ -132,6 +132,14 @@ pub(crate) fn to_array<'py>(py: Python<'py>, data: Vec<f64>, shape: &[usize]) ->
     ArrayD::from_shape_vec(IxDyn(shape), data).expect("output length matches its shape").into_pyarray(py)
 }
 
+/// A zeroed C-ordered `float64` output array of `shape`, allocated by numpy.
+///
+/// Batch results are written straight into it: numpy's allocator asks for huge pages on large
+/// arrays, which makes filling 100 000 mass matrices several times cheaper than a `Vec` would.
+pub(crate) fn output<'py>(py: Python<'py>, shape: &[usize]) -> Bound<'py, PyArrayDyn<f64>> {
+    PyArrayDyn::zeros(py, IxDyn(shape), false)
+}
+
 /// A 3-vector argument (e.g. gravity).
 ///
 /// # Errors

@@ -14,12 +14,13 @@ use std::sync::{Arc, Mutex, RwLock};
 
 use nalgebra::{DMatrix, Vector3};
 use pyo3::exceptions::PyValueError;
+use numpy::{PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyFloat;
 use rayon::prelude::*;
 use simgap_core::{DynamicsTerms, Formulation, Model, UrdfOptions, Workspace};
 
-use crate::conv::{joint_vectors, require_finite, to_array, vector3, ArrayArg, Batch};
+use crate::conv::{joint_vectors, output, require_finite, to_array, vector3, ArrayArg, Batch};
 use crate::errors::{from_core, Kind};
 
 /// Per-thread scratch: the core workspace plus column-major result buffers.
@@ -77,7 +78,7 @@ fn blocks_of(buf: &mut [f64], width: usize, block: usize, count: usize) -> Vec<&
 /// Evaluates `kernel` on every state of `batch`: the one-state path keeps the GIL and reuses the
 /// model's cached scratch; batches release the GIL, run in parallel, and check for signals
 /// between chunks. Returns one row-major buffer per output (`widths[o]` values per state).
-fn evaluate<K>(py: Python<'_>, this: &PyModel, batch: Batch, inputs: &[Cow<'_, [f64]>], widths: [usize; 3], kernel: K) -> PyResult<[Vec<f64>; 3]>
+fn evaluate<K>(py: Python<'_>, this: &PyModel, batch: Batch, inputs: &[Cow<'_, [f64]>], outputs: &[&Bound<'_, PyArrayDyn<f64>>], kernel: K) -> PyResult<()>
 where
     K: Fn(&Model, &mut Scratch, Inputs<'_>, Outputs<'_>) -> Result<(), String> + Sync,
 {
@@ -85,7 +86,11 @@ where
     let n = model.dof();
     let input = |k: usize, a: usize| inputs.get(a).map_or(&[][..], |x| &x[k * n..(k + 1) * n]);
     let len = batch.len();
-    let mut outs = widths.map(|w| vec![0.0; len * w]);
+    // the outputs' row-major buffers and their widths per state (unused ones empty)
+    let mut guards: Vec<_> = outputs.iter().map(|o| o.readwrite()).collect();
+    let mut bufs = guards.iter_mut().map(|g| g.as_slice_mut().expect("a fresh array is contiguous"));
+    let mut outs: [&mut [f64]; 3] = std::array::from_fn(|_| bufs.next().unwrap_or_default());
+    let widths = outs.each_ref().map(|o| o.len().checked_div(len).unwrap_or(0));
 
     // one state: keep the GIL and the cached scratch
     if batch == Batch::Single {
@@ -96,7 +101,7 @@ where
         if let Some(c) = cached.as_mut() {
             **c = Some(scratch);
         }
-        return Ok(outs);
+        return Ok(());
     }
 
     // a batch: chunks without the GIL, a signal check between chunks
@@ -145,7 +150,7 @@ where
         py.check_signals()?;
         start = end;
     }
-    Ok(outs)
+    Ok(())
 }
 
 /// Parses a formulation name.
@@ -188,12 +193,13 @@ impl PyModel {
     {
         let n = self.model().dof();
         let (batch, data) = joint_vectors(n, args)?;
-        let [out, _, _] = evaluate(py, self, batch, &data, [n * n, 0, 0], |m, s, i, [o, _, _]| {
+        let out = output(py, &batch.shape(&[n, n]));
+        evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
             kernel(m, &mut s.ws, i, &mut s.matrix);
             write_c_order(&s.matrix, o);
             Ok(())
         })?;
-        Ok(to_array(py, out, &batch.shape(&[n, n])).into_any())
+        Ok(out.into_any())
     }
 
     /// Evaluates a kernel with one joint-vector output per state.
@@ -203,11 +209,12 @@ impl PyModel {
     {
         let n = self.model().dof();
         let (batch, data) = joint_vectors(n, args)?;
-        let [out, _, _] = evaluate(py, self, batch, &data, [n, 0, 0], |m, s, i, [o, _, _]| {
+        let out = output(py, &batch.shape(&[n]));
+        evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
             kernel(m, &mut s.ws, i, o);
             Ok(())
         })?;
-        Ok(to_array(py, out, &batch.shape(&[n])).into_any())
+        Ok(out.into_any())
     }
 
     /// Evaluates a kernel with one number per state: a float for one state, shape `(N,)` for a batch.
@@ -217,13 +224,14 @@ impl PyModel {
     {
         let n = self.model().dof();
         let (batch, data) = joint_vectors(n, args)?;
-        let [out, _, _] = evaluate(py, self, batch, &data, [1, 0, 0], |m, s, i, [o, _, _]| {
+        let out = output(py, &batch.shape(&[]));
+        evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
             o[0] = kernel(m, &mut s.ws, i);
             Ok(())
         })?;
         Ok(match batch {
-            Batch::Single => PyFloat::new(py, out[0]).into_any(),
-            Batch::Many(_) => to_array(py, out, &batch.shape(&[])).into_any(),
+            Batch::Single => PyFloat::new(py, out.readonly().as_slice().expect("contiguous")[0]).into_any(),
+            Batch::Many(_) => out.into_any(),
         })
     }
 }
@@ -375,14 +383,15 @@ impl PyModel {
         for (name, d) in ["q", "qd", "tau"].iter().zip(&data) {
             require_finite(name, d, n, batch)?;
         }
-        let [out, _, _] = evaluate(py, self, batch, &data, [n, 0, 0], |m, s, [q, qd, tau], [o, _, _]| {
+        let out = output(py, &batch.shape(&[n]));
+        evaluate(py, self, batch, &data, &[&out], |m, s, [q, qd, tau], [o, _, _]| {
             // the only assertion left after the checks above is H positive definite
             catch_unwind(AssertUnwindSafe(|| simgap_core::forward_dynamics_into(m, &mut s.ws, q, qd, tau, f, o))).map_err(|_| {
                 *s = Scratch::new(m);
                 "the mass matrix is not positive definite (a massless link at the tip?)".to_owned()
             })
         })?;
-        Ok(to_array(py, out, &batch.shape(&[n])).into_any())
+        Ok(out.into_any())
     }
 
     /// Kinetic energy ½ q̇ᵀ H q̇ [J]: a float for one state, shape (N,) for a batch.
@@ -403,15 +412,16 @@ impl PyModel {
         let f = self::formulation(formulation)?;
         let n = self.model().dof();
         let (batch, data) = joint_vectors(n, &[("q", &q), ("qd", &qd)])?;
-        let [h, c, g] = evaluate(py, self, batch, &data, [n * n, n * n, n], |m, s, [q, qd, _], [h, c, g]| {
+        let (mshape, vshape) = (batch.shape(&[n, n]), batch.shape(&[n]));
+        let (h, c, g) = (output(py, &mshape), output(py, &mshape), output(py, &vshape));
+        evaluate(py, self, batch, &data, &[&h, &c, &g], |m, s, [q, qd, _], [h, c, g]| {
             simgap_core::dynamics_terms_into(m, &mut s.ws, q, qd, f, &mut s.terms);
             write_c_order(&s.terms.mass_matrix, h);
             write_c_order(&s.terms.coriolis_matrix, c);
             g.copy_from_slice(s.terms.gravity_torques.as_slice());
             Ok(())
         })?;
-        let (mshape, vshape) = (batch.shape(&[n, n]), batch.shape(&[n]));
-        Ok((to_array(py, h, &mshape).into_any(), to_array(py, c, &mshape).into_any(), to_array(py, g, &vshape).into_any()))
+        Ok((h.into_any(), c.into_any(), g.into_any()))
     }
 }
 
