@@ -1,0 +1,204 @@
+//! Fit data: logs aligned to the model, smoothed, differentiated, and the nominal
+//! inverse-dynamics residual `r = τ_cmd − (H q̈ + C q̇ + g)`.
+
+use simgap_core::{bias_torques_into, inverse_dynamics_regressor_into, mass_matrix_into, Formulation, Model, Workspace, PARAMS_PER_LINK};
+use simgap_sim::Run;
+
+use crate::differentiate::Smoother;
+use crate::error::{Error, Result};
+
+/// Options of the data preparation.
+#[derive(Clone, Debug)]
+pub struct PrepareOptions {
+    /// Window of the smoothing differentiator [s] (default 0.05).
+    pub window: f64,
+    /// At most this many samples per run are used for fitting (evenly strided; default 3000).
+    pub max_samples: usize,
+    /// Compute the inertial-parameter regressor (needed for `payload` and `inertial_error`).
+    pub regressor: bool,
+}
+
+impl Default for PrepareOptions {
+    fn default() -> Self {
+        PrepareOptions { window: 0.05, max_samples: 3000, regressor: true }
+    }
+}
+
+/// Reorders a run's columns to the model's joint order (joints matched by name).
+///
+/// # Errors
+/// [`Error::Log`] when a model joint is missing from the log, when the log is too short, or
+/// when its time or values are not finite and increasing.
+pub fn align_run(model: &Model, run: &Run) -> Result<Run> {
+    let names = model.joint_names();
+    let log = if run.source.is_empty() { "<run>".to_string() } else { run.source.clone() };
+    let idx: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            run.joints.iter().position(|j| j == n).ok_or_else(|| Error::Log {
+                log: log.clone(),
+                message: format!("joint '{n}' of model '{}' is not in the log (log joints: {:?}); expected every model joint", model.name(), run.joints),
+            })
+        })
+        .collect::<Result<_>>()?;
+    let n = run.dof();
+    let take = |m: &[f64]| -> Vec<f64> {
+        if m.is_empty() {
+            return Vec::new();
+        }
+        let rows = m.len() / n;
+        let mut out = Vec::with_capacity(rows * idx.len());
+        for k in 0..rows {
+            for &i in &idx {
+                out.push(m[k * n + i]);
+            }
+        }
+        out
+    };
+    let mut out = Run::new(names.iter().map(|s| s.to_string()).collect());
+    out.t = run.t.clone();
+    out.q = take(&run.q);
+    out.qd = take(&run.qd);
+    out.tau = take(&run.tau);
+    out.q_ref = take(&run.q_ref);
+    out.qd_ref = take(&run.qd_ref);
+    out.experiment = run.experiment.clone();
+    out.source = log.clone();
+    let samples = out.t.len();
+    if out.q.len() != samples * out.dof() || out.tau.len() != samples * out.dof() {
+        return Err(Error::Log { log, message: "positions and efforts must be logged for every sample".into() });
+    }
+    if let Some(k) = out.t.windows(2).position(|w| !(w[1] > w[0])) {
+        return Err(Error::Log { log, message: format!("time is not strictly increasing at sample {} (t = {} then {})", k + 1, out.t[k], out.t[k + 1]) });
+    }
+    if let Some(v) = out.t.iter().chain(&out.q).chain(&out.tau).find(|v| !v.is_finite()) {
+        return Err(Error::Log { log, message: format!("non-finite value {v} in time, position or effort") });
+    }
+    Ok(out)
+}
+
+/// One run prepared for fitting. Matrices are row-major `len × dof` over the kept samples.
+#[derive(Clone, Debug)]
+pub struct FitData {
+    /// Log name.
+    pub name: String,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Kept sample times.
+    pub t: Vec<f64>,
+    /// Smoothed positions.
+    pub q: Vec<f64>,
+    /// Smoothed velocities (derivative of the positions).
+    pub qd: Vec<f64>,
+    /// Smoothed accelerations.
+    pub qdd: Vec<f64>,
+    /// Commanded torque filtered like the accelerations (see [`Smoother::apply_zoh`]).
+    pub tau: Vec<f64>,
+    /// Nominal residual `τ − (H q̈ + C q̇ + g)` with the model's formulation.
+    pub residual: Vec<f64>,
+    /// `(C_other − C) q̇`: what switching the formulation of C would add to the model torque.
+    pub coriolis_delta: Vec<f64>,
+    /// Inertial regressor per kept sample, `dof × 10 dof` row-major, when requested.
+    pub regressor: Vec<f64>,
+    /// The aligned raw run.
+    pub raw: Run,
+    smoother: Smoother,
+    kept: Vec<usize>,
+}
+
+impl FitData {
+    /// Prepares an aligned run (see [`align_run`]).
+    ///
+    /// # Errors
+    /// [`Error::Log`] when the run is too short for the smoothing window.
+    pub fn new(model: &Model, formulation: Formulation, run: Run, options: &PrepareOptions) -> Result<FitData> {
+        let n = model.dof();
+        let smoother = Smoother::new(&run.t, options.window);
+        let valid = smoother.valid();
+        if valid.len() < 20 {
+            return Err(Error::Log {
+                log: run.source.clone(),
+                message: format!(
+                    "too short to fit: {} samples over {:.3} s; expected at least {} samples (a {:.3} s smoothing window plus 20 samples)",
+                    run.len(),
+                    run.duration(),
+                    2 * smoother.half() + 20,
+                    options.window
+                ),
+            });
+        }
+        let stride = valid.len().div_ceil(options.max_samples).max(1);
+        let kept: Vec<usize> = valid.clone().step_by(stride).collect();
+        let qs = smoother.apply(&run.q, n, 0);
+        let qds = smoother.apply(&run.q, n, 1);
+        let qdds = smoother.apply(&run.q, n, 2);
+        let taus = smoother.apply_zoh(&run.tau, n);
+        let pick = |m: &[f64]| -> Vec<f64> { kept.iter().flat_map(|&k| m[k * n..(k + 1) * n].iter().copied()).collect() };
+        let (q, qd, qdd, tau) = (pick(&qs), pick(&qds), pick(&qdds), pick(&taus));
+        let t: Vec<f64> = kept.iter().map(|&k| run.t[k]).collect();
+        let mut ws = Workspace::new(model);
+        let mut h = nalgebra::DMatrix::zeros(n, n);
+        let mut b = vec![0.0; n];
+        let mut b_other = vec![0.0; n];
+        let mut y = nalgebra::DMatrix::zeros(n, PARAMS_PER_LINK * n);
+        let m = t.len();
+        let mut residual = vec![0.0; m * n];
+        let mut coriolis_delta = vec![0.0; m * n];
+        let mut regressor = if options.regressor { Vec::with_capacity(m * n * PARAMS_PER_LINK * n) } else { Vec::new() };
+        // per sample: model torque, the other formulation's bias, the regressor
+        for k in 0..m {
+            let (qk, qdk, qddk) = (&q[k * n..(k + 1) * n], &qd[k * n..(k + 1) * n], &qdd[k * n..(k + 1) * n]);
+            mass_matrix_into(model, &mut ws, qk, &mut h);
+            bias_torques_into(model, &mut ws, qk, qdk, formulation, &mut b);
+            bias_torques_into(model, &mut ws, qk, qdk, formulation.other(), &mut b_other);
+            for i in 0..n {
+                let hq: f64 = (0..n).map(|j| h[(i, j)] * qddk[j]).sum();
+                residual[k * n + i] = tau[k * n + i] - hq - b[i];
+                coriolis_delta[k * n + i] = b_other[i] - b[i];
+            }
+            if options.regressor {
+                inverse_dynamics_regressor_into(model, &mut ws, qk, qdk, qddk, &mut y);
+                for i in 0..n {
+                    for c in 0..PARAMS_PER_LINK * n {
+                        regressor.push(y[(i, c)]);
+                    }
+                }
+            }
+        }
+        Ok(FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, residual, coriolis_delta, regressor, raw: run, smoother, kept })
+    }
+
+    /// Number of kept samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when no sample was kept.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Applies a per-sample map to the raw commanded torque (each value held over its sample),
+    /// then the filter of the accelerations; returns the kept samples.
+    pub fn smoothed_torque_map(&self, f: impl Fn(usize, &[f64], &mut [f64])) -> Vec<f64> {
+        let n = self.dof;
+        let raw = &self.raw;
+        let mut mapped = vec![0.0; raw.tau.len()];
+        for k in 0..raw.len() {
+            f(k, &raw.tau[k * n..(k + 1) * n], &mut mapped[k * n..(k + 1) * n]);
+        }
+        let s = self.smoother.apply_zoh(&mapped, n);
+        self.kept.iter().flat_map(|&k| s[k * n..(k + 1) * n].iter().copied()).collect()
+    }
+
+    /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the
+    /// simulator applies it: with `delay = m T + r`, `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`
+    /// (before the first sample, the first command).
+    pub fn delayed_torque(&self, k: usize, delay: f64, period: f64, j: usize) -> f64 {
+        let ratio = delay / period;
+        let m = ratio.floor() as usize;
+        let r = ratio - m as f64;
+        let at = |i: isize| -> f64 { self.raw.tau[(i.max(0) as usize) * self.dof + j] };
+        (1.0 - r) * at(k as isize - m as isize) + r * at(k as isize - m as isize - 1)
+    }
+}

@@ -1,0 +1,215 @@
+//! From fitted terms to simulator effects and to the report's parameter maps.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Matrix3, Vector3};
+use simgap_core::{inertia_from_parameters, inertial_parameters, Model, SpatialInertia, PARAMS_PER_LINK};
+use simgap_sim::{Effect, LinkDelta};
+
+use crate::terms::Term;
+
+/// A parameter value: per joint (aligned with the effect's joints) or whole robot.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(untagged)]
+pub enum Param {
+    /// Per-joint values.
+    PerJoint(Vec<f64>),
+    /// A whole-robot number.
+    Number(f64),
+    /// A vector (e.g. a centre of mass).
+    Vector(Vec<f64>),
+    /// Per-link values (inertial error).
+    PerLink(Vec<Vec<f64>>),
+}
+
+/// One effect as the report states it (BRIEF §3.3).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct EffectReport {
+    /// Contract name.
+    pub effect: String,
+    /// Joints it acts on (names); empty for whole-robot effects.
+    pub joints: Vec<String>,
+    /// Parameters.
+    pub parameters: BTreeMap<String, Param>,
+    /// Half-widths of 95 % block-bootstrap intervals, same layout as `parameters`.
+    pub uncertainty: BTreeMap<String, Param>,
+}
+
+/// A fitted term with its parameter values and standard deviations.
+#[derive(Clone, Debug)]
+pub struct FittedTerm {
+    /// The term.
+    pub term: Term,
+    /// Its free parameters.
+    pub theta: Vec<f64>,
+    /// Bootstrap standard deviations.
+    pub std: Vec<f64>,
+}
+
+fn delta_of(model: &Model, joint: usize, dpi: &[f64]) -> LinkDelta {
+    let old = &model.joints()[joint].inertia;
+    let mut p = inertial_parameters(old);
+    for (a, b) in p.iter_mut().zip(dpi) {
+        *a += b;
+    }
+    let new: SpatialInertia = inertia_from_parameters(&p);
+    let dc: Vector3<f64> = new.com() - old.com();
+    let di: Matrix3<f64> = new.inertia_about_com() - old.inertia_about_com();
+    LinkDelta { joint, mass: new.mass - old.mass, com: [dc.x, dc.y, dc.z], inertia: [di[(0, 0)], di[(0, 1)], di[(0, 2)], di[(1, 1)], di[(1, 2)], di[(2, 2)]] }
+}
+
+/// Converts fitted terms into simulator effects, merging per-joint terms of one effect.
+pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
+    let n = model.dof();
+    let mut out: Vec<Effect> = Vec::new();
+    fn slot(out: &mut Vec<Effect>, name: &str, make: &dyn Fn() -> Effect) -> usize {
+        if let Some(i) = out.iter().position(|e| e.name() == name) {
+            i
+        } else {
+            out.push(make());
+            out.len() - 1
+        }
+    }
+    for f in fitted {
+        let th = &f.theta;
+        match f.term {
+            Term::Viscous(j) => {
+                let i = slot(&mut out, "viscous_friction", &|| Effect::ViscousFriction { b: vec![0.0; n] });
+                if let Effect::ViscousFriction { b } = &mut out[i] {
+                    b[j] = th[0];
+                }
+            }
+            Term::Coulomb(j) => {
+                let i = slot(&mut out, "coulomb_friction", &|| Effect::CoulombFriction { fc: vec![0.0; n] });
+                if let Effect::CoulombFriction { fc } = &mut out[i] {
+                    fc[j] = th[0];
+                }
+            }
+            Term::Stribeck { joint, vs } => {
+                let i = slot(&mut out, "stribeck_friction", &|| Effect::StribeckFriction { fc: vec![0.0; n], fs: vec![0.0; n], vs: vec![0.0; n] });
+                if let Effect::StribeckFriction { fc, fs, vs: v } = &mut out[i] {
+                    fc[joint] = th[0];
+                    fs[joint] = th[1];
+                    v[joint] = vs;
+                }
+            }
+            Term::Armature(j) => {
+                let i = slot(&mut out, "armature", &|| Effect::Armature { ia: vec![0.0; n] });
+                if let Effect::Armature { ia } = &mut out[i] {
+                    ia[j] = th[0];
+                }
+            }
+            Term::Gain(j) => {
+                let i = slot(&mut out, "torque_gain", &|| Effect::TorqueGain { k: vec![1.0; n] });
+                if let Effect::TorqueGain { k } = &mut out[i] {
+                    k[j] = 1.0 - th[0];
+                }
+            }
+            Term::Offset(j) => {
+                let i = slot(&mut out, "torque_offset", &|| Effect::TorqueOffset { offset: vec![0.0; n] });
+                if let Effect::TorqueOffset { offset } = &mut out[i] {
+                    offset[j] = th[0];
+                }
+            }
+            Term::Saturation { joint, limit } => {
+                let i = slot(&mut out, "torque_saturation", &|| Effect::TorqueSaturation { limit: vec![f64::INFINITY; n] });
+                if let Effect::TorqueSaturation { limit: l } = &mut out[i] {
+                    l[joint] = limit;
+                }
+            }
+            Term::Cogging { joint, periods } => {
+                let i = slot(&mut out, "cogging", &|| Effect::Cogging { amplitude: vec![0.0; n], periods_per_rev: vec![1.0; n] });
+                if let Effect::Cogging { amplitude, periods_per_rev } = &mut out[i] {
+                    amplitude[joint] = th[0];
+                    periods_per_rev[joint] = periods;
+                }
+            }
+            Term::Delay { delay } => out.push(Effect::TimeDelay { delay }),
+            Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
+            Term::Payload { .. } => {
+                let m = th[0];
+                let com = if m.abs() > 1e-12 { [th[1] / m, th[2] / m, th[3] / m] } else { [0.0; 3] };
+                out.push(Effect::Payload { mass: m, com });
+            }
+            Term::InertialError { ref basis } => {
+                let dpi = basis * nalgebra::DVector::from_column_slice(th);
+                let deltas = (0..n)
+                    .map(|j| delta_of(model, j, &dpi.as_slice()[PARAMS_PER_LINK * j..PARAMS_PER_LINK * (j + 1)]))
+                    .filter(|d| d.mass != 0.0 || d.com.iter().chain(&d.inertia).any(|v| *v != 0.0))
+                    .collect();
+                out.push(Effect::InertialError { deltas });
+            }
+        }
+    }
+    out
+}
+
+/// The report entries of fitted terms (merged per effect, joints named).
+pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
+    let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
+    let mut out: Vec<EffectReport> = Vec::new();
+    for f in fitted {
+        let effect = f.term.effect_name();
+        let idx = match out.iter().position(|e| e.effect == effect) {
+            Some(i) => i,
+            None => {
+                out.push(EffectReport { effect: effect.into(), joints: vec![], parameters: BTreeMap::new(), uncertainty: BTreeMap::new() });
+                out.len() - 1
+            }
+        };
+        let e = &mut out[idx];
+        let ci = |s: f64| 1.96 * s;
+        let mut push = |key: &str, v: f64, u: f64| {
+            for (map, x) in [(&mut e.parameters, v), (&mut e.uncertainty, u)] {
+                match map.entry(key.to_string()).or_insert_with(|| Param::PerJoint(vec![])) {
+                    Param::PerJoint(list) => list.push(x),
+                    other => *other = Param::Number(x),
+                }
+            }
+        };
+        if let Some(j) = f.term.joint() {
+            e.joints.push(names[j].clone());
+        }
+        let (th, sd) = (&f.theta, &f.std);
+        match f.term {
+            Term::Viscous(_) => push("b", th[0], ci(sd[0])),
+            Term::Coulomb(_) => push("fc", th[0], ci(sd[0])),
+            Term::Stribeck { vs, .. } => {
+                push("fc", th[0], ci(sd[0]));
+                push("fs", th[1], ci(sd[1]));
+                push("vs", vs, f64::NAN);
+            }
+            Term::Armature(_) => push("ia", th[0], ci(sd[0])),
+            Term::Gain(_) => push("k", 1.0 - th[0], ci(sd[0])),
+            Term::Offset(_) => push("offset", th[0], ci(sd[0])),
+            Term::Saturation { limit, .. } => push("limit", limit, f64::NAN),
+            Term::Cogging { periods, .. } => {
+                push("amplitude", th[0], ci(sd[0]));
+                push("periods_per_rev", periods, f64::NAN);
+            }
+            Term::Delay { delay } => {
+                e.parameters.insert("delay".into(), Param::Number(delay));
+                e.uncertainty.insert("delay".into(), Param::Number(f64::NAN));
+            }
+            Term::CoriolisStructure => {}
+            Term::Payload { .. } => {
+                let m = th[0];
+                e.parameters.insert("mass".into(), Param::Number(m));
+                e.uncertainty.insert("mass".into(), Param::Number(ci(sd[0])));
+                let com = if m.abs() > 1e-12 { vec![th[1] / m, th[2] / m, th[3] / m] } else { vec![0.0; 3] };
+                e.parameters.insert("com".into(), Param::Vector(com));
+            }
+            Term::InertialError { .. } => {
+                let effects = to_effects(model, std::slice::from_ref(f));
+                if let Some(Effect::InertialError { deltas }) = effects.first() {
+                    e.joints = deltas.iter().map(|d| names[d.joint].clone()).collect();
+                    e.parameters.insert("delta_mass".into(), Param::PerJoint(deltas.iter().map(|d| d.mass).collect()));
+                    e.parameters.insert("delta_com".into(), Param::PerLink(deltas.iter().map(|d| d.com.to_vec()).collect()));
+                    e.parameters.insert("delta_inertia".into(), Param::PerLink(deltas.iter().map(|d| d.inertia.to_vec()).collect()));
+                    e.parameters.insert("identifiable_directions".into(), Param::Number(th.len() as f64));
+                }
+            }
+        }
+    }
+    out
+}

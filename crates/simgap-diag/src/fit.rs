@@ -1,0 +1,248 @@
+//! Weighted least squares over block Gram matrices: fits, cross-validation and block bootstrap
+//! without revisiting the samples.
+
+use nalgebra::{DMatrix, DVector};
+use rand::{Rng, SeedableRng};
+
+use crate::dataset::FitData;
+use crate::terms::{design, Column, Term, TermDesign};
+
+/// Blocks per run for the bootstrap; cross-validation folds group [`BLOCKS_PER_FOLD`] of them.
+pub const BLOCKS_PER_RUN: usize = 20;
+/// Bootstrap blocks per cross-validation fold (so 5 contiguous folds per run).
+pub const BLOCKS_PER_FOLD: usize = 4;
+
+/// The fitting problem: residuals of all runs, joint weights and sample blocks.
+#[derive(Clone, Debug)]
+pub struct Problem {
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Total samples over runs.
+    pub samples: usize,
+    /// Block of every sample.
+    pub block_of: Vec<usize>,
+    /// Number of blocks.
+    pub blocks: usize,
+    /// Weight of each joint's rows (1 / RMS of its nominal residual).
+    pub weights: Vec<f64>,
+    /// Nominal residual, global column.
+    pub y: Column,
+}
+
+impl Problem {
+    /// Builds the problem from prepared runs.
+    pub fn new(data: &[FitData]) -> Problem {
+        let dof = data[0].dof;
+        let mut block_of = Vec::new();
+        let mut blocks = 0;
+        for d in data {
+            let n = d.len();
+            for s in 0..n {
+                block_of.push(blocks + (s * BLOCKS_PER_RUN / n.max(1)).min(BLOCKS_PER_RUN - 1));
+            }
+            blocks += BLOCKS_PER_RUN;
+        }
+        let y = Column { joint: None, values: data.iter().flat_map(|d| d.residual.iter().copied()).collect() };
+        let samples = block_of.len();
+        let weights = (0..dof)
+            .map(|j| {
+                let ms = (0..samples).map(|s| y.values[s * dof + j].powi(2)).sum::<f64>() / samples.max(1) as f64;
+                let tau_ms = data.iter().flat_map(|d| (0..d.len()).map(move |s| d.tau[s * dof + j].powi(2))).sum::<f64>() / samples.max(1) as f64;
+                1.0 / ms.sqrt().max(1e-3 * tau_ms.sqrt()).max(1e-9)
+            })
+            .collect();
+        Problem { dof, samples, block_of, blocks, weights, y }
+    }
+
+    /// Weighted inner product of two columns per block.
+    fn dot_blocks(&self, a: &Column, b: &Column, out: &mut [f64]) {
+        out.fill(0.0);
+        let dof = self.dof;
+        match (a.joint, b.joint) {
+            (Some(ja), Some(jb)) => {
+                if ja == jb {
+                    let w2 = self.weights[ja].powi(2);
+                    for s in 0..self.samples {
+                        out[self.block_of[s]] += w2 * a.values[s] * b.values[s];
+                    }
+                }
+            }
+            (Some(j), None) | (None, Some(j)) => {
+                let (pj, g) = if a.joint.is_some() { (a, b) } else { (b, a) };
+                let w2 = self.weights[j].powi(2);
+                for s in 0..self.samples {
+                    out[self.block_of[s]] += w2 * pj.values[s] * g.values[s * dof + j];
+                }
+            }
+            (None, None) => {
+                for s in 0..self.samples {
+                    let mut acc = 0.0;
+                    for j in 0..dof {
+                        acc += self.weights[j].powi(2) * a.values[s * dof + j] * b.values[s * dof + j];
+                    }
+                    out[self.block_of[s]] += acc;
+                }
+            }
+        }
+    }
+
+    /// Total weighted rows (samples × dof).
+    pub fn rows(&self) -> f64 {
+        (self.samples * self.dof) as f64
+    }
+}
+
+/// The block Gram matrices of a set of terms.
+#[derive(Clone, Debug)]
+pub struct Grams {
+    /// Free columns (k).
+    pub k: usize,
+    /// Per block: XᵀW²X (k × k).
+    pub g: Vec<DMatrix<f64>>,
+    /// Per block: XᵀW²y'.
+    pub c: Vec<DVector<f64>>,
+    /// Per block: y'ᵀW²y'.
+    pub s: Vec<f64>,
+    /// Which term each column belongs to.
+    pub owner: Vec<usize>,
+}
+
+/// Builds the Gram matrices of `terms` (their designs given) against the residual minus their
+/// fixed offsets.
+pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
+    // y' = y − Σ offsets, as a global column
+    let mut y = p.y.clone();
+    for d in designs {
+        if let Some(off) = &d.offset {
+            for s in 0..p.samples {
+                for j in 0..p.dof {
+                    y.values[s * p.dof + j] -= off.at(s, j, p.dof);
+                }
+            }
+        }
+    }
+    let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
+    let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat(i).take(d.cols.len())).collect();
+    let k = cols.len();
+    let nb = p.blocks;
+    let mut g = vec![DMatrix::zeros(k, k); nb];
+    let mut c = vec![DVector::zeros(k); nb];
+    let mut s = vec![0.0; nb];
+    let mut buf = vec![0.0; nb];
+    for a in 0..k {
+        for b in a..k {
+            p.dot_blocks(cols[a], cols[b], &mut buf);
+            for (bl, v) in buf.iter().enumerate() {
+                g[bl][(a, b)] = *v;
+                g[bl][(b, a)] = *v;
+            }
+        }
+        p.dot_blocks(cols[a], &y, &mut buf);
+        for (bl, v) in buf.iter().enumerate() {
+            c[bl][a] = *v;
+        }
+    }
+    p.dot_blocks(&y, &y, &mut buf);
+    s.copy_from_slice(&buf);
+    Grams { k, g, c, s, owner }
+}
+
+/// Minimum-norm least-squares solution of `G θ = c` (eigenvalues below `1e-10 · max` dropped);
+/// returns θ and the effective rank.
+pub fn solve(g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
+    let k = g.nrows();
+    if k == 0 {
+        return (DVector::zeros(0), 0);
+    }
+    let eig = g.clone().symmetric_eigen();
+    let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let mut theta = DVector::zeros(k);
+    let mut rank = 0;
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > 1e-10 * max && l > 0.0 {
+            let v = eig.eigenvectors.column(i);
+            theta += v * (v.dot(c) / l);
+            rank += 1;
+        }
+    }
+    (theta, rank)
+}
+
+/// Result of fitting a set of terms.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    /// Parameters, in column order.
+    pub theta: DVector<f64>,
+    /// Effective number of parameters.
+    pub rank: usize,
+    /// Weighted mean squared residual on all data.
+    pub mse: f64,
+    /// Cross-validated weighted mean squared residual (contiguous folds).
+    pub cv_mse: f64,
+}
+
+fn sum_blocks(gr: &Grams, keep: impl Fn(usize) -> bool) -> (DMatrix<f64>, DVector<f64>, f64) {
+    let mut g = DMatrix::zeros(gr.k, gr.k);
+    let mut c = DVector::zeros(gr.k);
+    let mut s = 0.0;
+    for b in 0..gr.g.len() {
+        if keep(b) {
+            g += &gr.g[b];
+            c += &gr.c[b];
+            s += gr.s[b];
+        }
+    }
+    (g, c, s)
+}
+
+fn sse(g: &DMatrix<f64>, c: &DVector<f64>, s: f64, theta: &DVector<f64>) -> f64 {
+    (s - 2.0 * theta.dot(c) + theta.dot(&(g * theta))).max(0.0)
+}
+
+/// Fits and cross-validates.
+pub fn fit(p: &Problem, gr: &Grams) -> Fit {
+    let (g, c, s) = sum_blocks(gr, |_| true);
+    let (theta, rank) = solve(&g, &c);
+    let mse = sse(&g, &c, s, &theta) / p.rows();
+    let folds = p.blocks / BLOCKS_PER_FOLD;
+    let mut cv = 0.0;
+    for f in 0..folds {
+        let in_fold = |b: usize| b / BLOCKS_PER_FOLD == f;
+        let (gt, ct, _) = sum_blocks(gr, |b| !in_fold(b));
+        let (th, _) = solve(&gt, &ct);
+        let (gv, cvv, sv) = sum_blocks(gr, in_fold);
+        cv += sse(&gv, &cvv, sv, &th);
+    }
+    Fit { theta, rank, mse, cv_mse: cv / p.rows() }
+}
+
+/// Block-bootstrap standard deviations of the parameters (`draws` resamples, fixed seed).
+pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
+    let nb = gr.g.len();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut sum = DVector::zeros(gr.k);
+    let mut sum2 = DVector::zeros(gr.k);
+    for _ in 0..draws {
+        let mut g = DMatrix::zeros(gr.k, gr.k);
+        let mut c = DVector::zeros(gr.k);
+        for _ in 0..nb {
+            let b = rng.random_range(0..nb);
+            g += &gr.g[b];
+            c += &gr.c[b];
+        }
+        let (th, _) = solve(&g, &c);
+        sum += &th;
+        sum2 += th.component_mul(&th);
+    }
+    let n = draws as f64;
+    (sum2 / n - (&sum / n).component_mul(&(&sum / n))).map(|v| v.max(0.0).sqrt())
+}
+
+/// Designs and fits a list of terms in one go.
+pub fn fit_terms(p: &Problem, data: &[FitData], terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
+    let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, data)).collect();
+    let refs: Vec<&TermDesign> = designs.iter().collect();
+    let gr = grams(p, &refs);
+    let f = fit(p, &gr);
+    (designs, gr, f)
+}

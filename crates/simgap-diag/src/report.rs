@@ -1,0 +1,157 @@
+//! The diagnosis report (BRIEF §3.3): JSON keys are a public contract.
+
+use crate::effects::{EffectReport, Param};
+use crate::locate::Where;
+use crate::resim::RunGap;
+use std::collections::BTreeMap;
+
+/// One candidate effect, fitted alone on the nominal model.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Candidate {
+    /// Rank (1 = explains most of the cross-validated residual).
+    pub rank: usize,
+    /// Contract name.
+    pub effect: String,
+    /// Joints fitted.
+    pub joints: Vec<String>,
+    /// Fitted parameters (as in `selected_effects`).
+    pub parameters: BTreeMap<String, Param>,
+    /// 95 % bootstrap half-widths.
+    pub uncertainty: BTreeMap<String, Param>,
+    /// Fraction of the nominal cross-validated torque residual it removes (fit runs).
+    pub cv_residual_reduction: f64,
+    /// Held-out L² after adding this effect alone [rad].
+    pub holdout_l2_after: f64,
+    /// `holdout_l2_after / holdout_l2_before`.
+    pub holdout_ratio: f64,
+    /// Part of the selected set.
+    pub selected: bool,
+    /// Why it was (not) selected.
+    pub reason: String,
+}
+
+/// The gap before and after (BRIEF §3.3 `gap`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Gap {
+    /// L² (eq. 127) over the held-out runs, nominal closed-loop simulation vs measured [rad].
+    pub holdout_l2_before: f64,
+    /// The same with the selected effects added.
+    pub holdout_l2_after: f64,
+    /// `after / before`.
+    pub ratio: f64,
+    /// Per joint, before.
+    pub per_joint_before: Vec<f64>,
+    /// Per joint, after.
+    pub per_joint_after: Vec<f64>,
+    /// Per held-out run, before.
+    pub runs_before: Vec<RunGap>,
+    /// Per held-out run, after.
+    pub runs_after: Vec<RunGap>,
+    /// The same index over the fit runs (before, after), for reference.
+    pub fit_l2_before: f64,
+    /// Fit runs, after.
+    pub fit_l2_after: f64,
+}
+
+/// A decision of the stepwise selection.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Decision {
+    /// Effect name.
+    pub effect: String,
+    /// Joint, when per joint.
+    pub joint: Option<String>,
+    /// Cross-validated weighted MSE with the term.
+    pub cv_mse: f64,
+    /// Entered or not.
+    pub accepted: bool,
+    /// Why.
+    pub reason: String,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Report {
+    /// simgap version.
+    pub simgap_version: String,
+    /// Robot name.
+    pub model: String,
+    /// Formulation of C under test.
+    pub formulation: String,
+    /// Joint names, model order.
+    pub joints: Vec<String>,
+    /// Fit logs.
+    pub fit_logs: Vec<String>,
+    /// Held-out logs.
+    pub holdout_logs: Vec<String>,
+    /// One-sentence conclusion.
+    pub verdict: String,
+    /// Effects the tool concludes explain the gap (empty when nothing significant remains).
+    pub selected_effects: Vec<EffectReport>,
+    /// Every effect tried, ranked.
+    pub candidates: Vec<Candidate>,
+    /// How far the gap shrinks on held-out runs.
+    pub gap: Gap,
+    /// Where the gap lies.
+    #[serde(rename = "where")]
+    pub location: Where,
+    /// The stepwise selection, step by step.
+    pub selection_log: Vec<Decision>,
+    /// Cross-validated weighted MSE of the nominal torque residual.
+    pub nominal_cv_mse: f64,
+}
+
+impl Report {
+    /// The JSON text (pretty-printed; non-finite numbers become `null`).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("report serialises")
+    }
+
+    /// A terminal summary.
+    pub fn summary(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(s, "simgap diagnosis of '{}' ({} C), joints {:?}", self.model, self.formulation, self.joints);
+        let _ = writeln!(s, "fit logs: {}   held-out logs: {}", self.fit_logs.len(), self.holdout_logs.len());
+        let _ = writeln!(s, "\nWHERE");
+        for j in &self.location.per_joint {
+            let _ = writeln!(s, "  {:<14} sim L2 {:>10.3e} rad  share {:>5.1} %  torque residual L2 {:>9.3e} N·m", j.joint, j.sim_l2, 100.0 * j.share, j.torque_residual_l2);
+        }
+        for seg in self.location.worst_segments.iter().take(3) {
+            let _ = writeln!(s, "  worst: {} t = {:.3}–{:.3} s, {} ({}), RMS {:.3e} rad", seg.log, seg.start, seg.end, seg.joint, seg.phase, seg.rms_error);
+        }
+        let _ = writeln!(s, "\nWHICH (candidates fitted alone, ranked by cross-validated residual removed)");
+        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>14} {:>8}  {}", "rank", "effect", "cv-resid", "held-out L2", "ratio", "selected");
+        for c in &self.candidates {
+            let _ = writeln!(
+                s,
+                "  {:<4} {:<20} {:>9.1}% {:>14.4e} {:>8.3}  {}",
+                c.rank,
+                c.effect,
+                100.0 * c.cv_residual_reduction,
+                c.holdout_l2_after,
+                c.holdout_ratio,
+                if c.selected { "yes" } else { "" }
+            );
+        }
+        let _ = writeln!(s, "\nSELECTED");
+        if self.selected_effects.is_empty() {
+            let _ = writeln!(s, "  nothing significant");
+        }
+        for e in &self.selected_effects {
+            let params: Vec<String> = e.parameters.iter().map(|(k, v)| format!("{k} = {}", fmt_param(v))).collect();
+            let _ = writeln!(s, "  {:<20} joints {:?}  {}", e.effect, e.joints, params.join(", "));
+        }
+        let _ = writeln!(s, "\nHOW FAR (held-out runs, closed loop, eq. 127)");
+        let _ = writeln!(s, "  L2 before {:.4e} rad   after {:.4e} rad   after/before {:.3}", self.gap.holdout_l2_before, self.gap.holdout_l2_after, self.gap.ratio);
+        let _ = writeln!(s, "\n{}", self.verdict);
+        s
+    }
+}
+
+fn fmt_param(p: &Param) -> String {
+    match p {
+        Param::Number(x) => format!("{x:.4}"),
+        Param::PerJoint(v) | Param::Vector(v) => format!("[{}]", v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")),
+        Param::PerLink(v) => format!("{} links", v.len()),
+    }
+}

@@ -1,0 +1,522 @@
+//! Which effect: candidate families, screening, forward stepwise selection validated by
+//! cross-validation across runs and time blocks, backward pruning.
+//!
+//! A term enters when it lowers the cross-validated residual by at least
+//! [`SelectOptions::min_relative_gain`] of the current value and
+//! [`SelectOptions::min_nominal_gain`] of the nominal one, and when the torque it explains is
+//! at least [`SelectOptions::min_torque_share`] of the commanded torque (RMS) on its joint:
+//! effects too small to matter are reported, not selected.
+
+use nalgebra::{DMatrix, DVector};
+use simgap_core::PARAMS_PER_LINK;
+
+use crate::dataset::FitData;
+use crate::fit::{fit, fit_terms, grams, solve, Fit, Problem};
+use crate::terms::{design, Column, Term, TermDesign};
+
+/// Thresholds of the selection.
+#[derive(Clone, Debug)]
+pub struct SelectOptions {
+    /// Minimum relative decrease of the cross-validated MSE for a term to enter (default 0.05).
+    pub min_relative_gain: f64,
+    /// Minimum decrease as a fraction of the nominal MSE (default 0.001).
+    pub min_nominal_gain: f64,
+    /// Minimum RMS torque of a term relative to the RMS commanded torque of its joint(s)
+    /// (default 0.01).
+    pub min_torque_share: f64,
+    /// At most this many terms (default 10).
+    pub max_terms: usize,
+}
+
+impl Default for SelectOptions {
+    fn default() -> Self {
+        SelectOptions { min_relative_gain: 0.05, min_nominal_gain: 0.001, min_torque_share: 0.01, max_terms: 10 }
+    }
+}
+
+/// A family of terms sharing an effect and a joint; nonlinear parameters are searched on a grid.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Family {
+    /// A fixed term.
+    Fixed(Term),
+    /// Stribeck velocity searched.
+    Stribeck(usize),
+    /// Saturation limit searched.
+    Saturation(usize),
+    /// Cogging periods searched.
+    Cogging(usize),
+    /// Delay searched.
+    Delay,
+    /// Payload centre of mass re-linearised.
+    Payload,
+}
+
+/// All candidate families for a model with `dof` joints.
+pub fn families(dof: usize) -> Vec<Family> {
+    let mut f = Vec::new();
+    for j in 0..dof {
+        f.push(Family::Fixed(Term::Viscous(j)));
+        f.push(Family::Fixed(Term::Coulomb(j)));
+        f.push(Family::Stribeck(j));
+        f.push(Family::Fixed(Term::Armature(j)));
+        f.push(Family::Fixed(Term::Gain(j)));
+        f.push(Family::Fixed(Term::Offset(j)));
+        f.push(Family::Saturation(j));
+        f.push(Family::Cogging(j));
+    }
+    f.push(Family::Delay);
+    f.push(Family::Fixed(Term::CoriolisStructure));
+    f.push(Family::Payload);
+    f
+}
+
+/// Shared context of a selection.
+pub struct Context<'a> {
+    /// Prepared fit runs.
+    pub data: &'a [FitData],
+    /// The problem.
+    pub problem: Problem,
+    /// Identifiable inertial directions.
+    pub inertial_basis: DMatrix<f64>,
+    /// Sample period (for the delay grid) [s].
+    pub sample_period: f64,
+    /// RMS commanded torque per joint.
+    pub tau_rms: Vec<f64>,
+}
+
+impl<'a> Context<'a> {
+    /// Builds the context.
+    pub fn new(data: &'a [FitData], sample_period: f64) -> Context<'a> {
+        let problem = Problem::new(data);
+        let dof = problem.dof;
+        let inertial_basis = inertial_basis(&problem, data);
+        let tau_rms = (0..dof)
+            .map(|j| {
+                let (s, n) = data.iter().fold((0.0, 0usize), |(s, n), d| (s + (0..d.len()).map(|k| d.tau[k * dof + j].powi(2)).sum::<f64>(), n + d.len()));
+                (s / n.max(1) as f64).sqrt()
+            })
+            .collect();
+        Context { data, problem, inertial_basis, sample_period, tau_rms }
+    }
+
+    fn grid(&self, family: &Family) -> Vec<Term> {
+        match *family {
+            Family::Fixed(ref t) => vec![t.clone()],
+            Family::Stribeck(j) => (0..12).map(|i| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i) }).collect(),
+            Family::Saturation(j) => {
+                let max = self.data.iter().flat_map(|d| d.raw.tau.iter().skip(j).step_by(d.dof)).fold(0.0f64, |m, v| m.max(v.abs()));
+                (1..=24).map(|i| Term::Saturation { joint: j, limit: max * (0.2 + 0.8 * (1.0 - (i as f64 / 25.0))) }).collect()
+            }
+            Family::Cogging(j) => (3..=64).map(|n| Term::Cogging { joint: j, periods: n as f64 }).collect(),
+            Family::Delay => {
+                let t = self.sample_period;
+                [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0].iter().map(|m| Term::Delay { delay: m * t }).collect()
+            }
+            Family::Payload => vec![Term::Payload { com: [0.0; 3] }],
+        }
+    }
+
+    fn refine(&self, best: &Term, resid: &Column) -> Term {
+        match *best {
+            Term::Saturation { joint, limit } => {
+                let cands: Vec<Term> = (-40..=40).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.005 * i as f64) }).collect();
+                screen_best(&self.problem, self.data, &cands, resid).0
+            }
+            Term::Delay { delay } => {
+                let cands: Vec<Term> = (-8..=8).map(|i| Term::Delay { delay: (delay * (1.0 + 0.05 * i as f64)).max(1e-6) }).collect();
+                screen_best(&self.problem, self.data, &cands, resid).0
+            }
+            Term::Stribeck { joint, vs } => {
+                let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i) }).collect();
+                screen_best(&self.problem, self.data, &cands, resid).0
+            }
+            Term::Payload { .. } => {
+                // re-linearise the rotational part about the fitted centre of mass
+                let mut term = best.clone();
+                for _ in 0..3 {
+                    let d = design(&term, self.data);
+                    let th = screen_fit(&self.problem, &d, resid).0;
+                    if th.len() == 4 && th[0].abs() > 1e-9 {
+                        term = Term::Payload { com: [th[1] / th[0], th[2] / th[0], th[3] / th[0]] };
+                    }
+                }
+                term
+            }
+            ref other => other.clone(),
+        }
+    }
+
+    /// The best member of a family against the current residual.
+    pub fn best_of(&self, family: &Family, resid: &Column) -> Term {
+        let cands = self.grid(family);
+        let (best, _) = screen_best(&self.problem, self.data, &cands, resid);
+        self.refine(&best, resid)
+    }
+
+    /// Designs a term (the inertial error uses the identifiable basis).
+    pub fn design(&self, t: &Term) -> TermDesign {
+        design(t, self.data)
+    }
+
+    /// The inertial-error term over the identifiable directions.
+    pub fn inertial_term(&self) -> Term {
+        Term::InertialError { basis: self.inertial_basis.clone() }
+    }
+}
+
+/// Directions of the stacked inertial parameters the fit data excites (eigenvectors of the
+/// weighted regressor Gram with eigenvalue above 1e-8 of the largest).
+fn inertial_basis(p: &Problem, data: &[FitData]) -> DMatrix<f64> {
+    let dof = p.dof;
+    let width = PARAMS_PER_LINK * dof;
+    if data.iter().any(|d| d.regressor.is_empty()) {
+        return DMatrix::zeros(width, 0);
+    }
+    let mut g = DMatrix::<f64>::zeros(width, width);
+    for d in data {
+        for s in 0..d.len() {
+            for j in 0..dof {
+                let row = &d.regressor[(s * dof + j) * width..(s * dof + j + 1) * width];
+                let w2 = p.weights[j].powi(2);
+                for a in 0..width {
+                    if row[a] == 0.0 {
+                        continue;
+                    }
+                    for b in a..width {
+                        g[(a, b)] += w2 * row[a] * row[b];
+                    }
+                }
+            }
+        }
+    }
+    let g = DMatrix::from_fn(width, width, |a, b| if a <= b { g[(a, b)] } else { g[(b, a)] });
+    let eig = g.symmetric_eigen();
+    let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let keep: Vec<usize> = (0..width).filter(|&i| eig.eigenvalues[i] > 1e-8 * max).collect();
+    DMatrix::from_fn(width, keep.len(), |r, c| eig.eigenvectors[(r, keep[c])])
+}
+
+/// Least-squares fit of one design against a residual column: (θ, weighted SSE).
+fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
+    let mut q = p.clone();
+    q.y = resid.clone();
+    let gr = grams(&q, &[d]);
+    let (mut g, mut c, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
+    for b in 0..gr.g.len() {
+        g += &gr.g[b];
+        c += &gr.c[b];
+        s += gr.s[b];
+    }
+    let (th, _) = solve(&g, &c);
+    let sse = s - 2.0 * th.dot(&c) + th.dot(&(&g * &th));
+    (th, sse)
+}
+
+fn screen_best(p: &Problem, data: &[FitData], cands: &[Term], resid: &Column) -> (Term, f64) {
+    let mut best = (cands[0].clone(), f64::INFINITY);
+    for t in cands {
+        let d = design(t, data);
+        let (th, sse) = screen_fit(p, &d, resid);
+        // Stribeck is physical only with a static level above the Coulomb level
+        if matches!(t, Term::Stribeck { .. }) && !(th[1] > th[0] && th[0] > 0.0) {
+            continue;
+        }
+        if sse < best.1 {
+            best = (t.clone(), sse);
+        }
+    }
+    best
+}
+
+/// The residual left by a fitted set of terms, as a global column.
+pub fn residual_after(p: &Problem, designs: &[TermDesign], theta: &DVector<f64>) -> Column {
+    let dof = p.dof;
+    let mut r = p.y.clone();
+    let mut c = 0;
+    for d in designs {
+        if let Some(off) = &d.offset {
+            for s in 0..p.samples {
+                for j in 0..dof {
+                    r.values[s * dof + j] -= off.at(s, j, dof);
+                }
+            }
+        }
+        for col in &d.cols {
+            let th = theta[c];
+            c += 1;
+            for s in 0..p.samples {
+                for j in 0..dof {
+                    r.values[s * dof + j] -= th * col.at(s, j, dof);
+                }
+            }
+        }
+    }
+    r
+}
+
+/// RMS torque a fitted term explains on each joint.
+pub fn term_torque_rms(p: &Problem, d: &TermDesign, theta: &[f64]) -> Vec<f64> {
+    let dof = p.dof;
+    let mut acc = vec![0.0; dof];
+    for s in 0..p.samples {
+        for (j, a) in acc.iter_mut().enumerate() {
+            let mut v = d.offset.as_ref().map_or(0.0, |o| o.at(s, j, dof));
+            for (col, th) in d.cols.iter().zip(theta) {
+                v += th * col.at(s, j, dof);
+            }
+            *a += v * v;
+        }
+    }
+    acc.iter().map(|a| (a / p.samples.max(1) as f64).sqrt()).collect()
+}
+
+/// One step of the selection log.
+#[derive(Clone, Debug)]
+pub struct Step {
+    /// The term considered.
+    pub term: Term,
+    /// Cross-validated MSE with it (weighted).
+    pub cv_mse: f64,
+    /// Whether it entered.
+    pub accepted: bool,
+    /// Why (not).
+    pub reason: String,
+}
+
+/// Outcome of the selection.
+#[derive(Clone, Debug)]
+pub struct Selection {
+    /// Selected terms.
+    pub terms: Vec<Term>,
+    /// Their joint fit.
+    pub fit: Fit,
+    /// Designs of the selected terms.
+    pub designs: Vec<TermDesign>,
+    /// Cross-validated MSE of the nominal model.
+    pub nominal_cv_mse: f64,
+    /// The log of decisions.
+    pub log: Vec<Step>,
+}
+
+/// Whether `t` may join `terms`: one term per slot, and no torque gain together with an
+/// inertial error (a gain on every joint and scaled inertial parameters are the same robot, so
+/// together they admit the trivial fit k = 0, π = 0).
+fn slot_taken(terms: &[Term], t: &Term) -> bool {
+    let gain_vs_inertia = |a: &Term, b: &Term| matches!(a, Term::Gain(_)) && matches!(b, Term::InertialError { .. });
+    terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
+}
+
+/// Whether fitted parameters are physical: dissipative friction (b, fc > 0, fs > fc), positive
+/// rotor inertia and payload mass, a gain between 0.2 and 5.
+pub fn physical(term: &Term, theta: &[f64]) -> bool {
+    match term {
+        Term::Viscous(_) | Term::Coulomb(_) | Term::Armature(_) => theta[0] > 0.0,
+        Term::Stribeck { .. } => theta[1] > theta[0] && theta[0] > 0.0,
+        Term::Gain(_) => (0.2..5.0).contains(&(1.0 - theta[0])),
+        Term::Payload { .. } => theta[0] > 0.0,
+        _ => true,
+    }
+}
+
+fn all_physical(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
+    let mut c = 0;
+    for (t, d) in terms.iter().zip(designs) {
+        let k = d.cols.len();
+        if !physical(t, &theta.as_slice()[c..c + k]) {
+            return false;
+        }
+        c += k;
+    }
+    true
+}
+
+/// One pass of exchange moves; true when a swap was made.
+fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: &mut Vec<TermDesign>, current: &mut Fit, opts: &SelectOptions, log: &mut Vec<Step>) -> bool {
+    let p = &ctx.problem;
+    let mut best: Option<(usize, Term, Fit, Vec<TermDesign>)> = None;
+    for i in 0..terms.len() {
+        let mut rest_terms = terms.clone();
+        rest_terms.remove(i);
+        let mut rest = designs.clone();
+        rest.remove(i);
+        let refs: Vec<&TermDesign> = rest.iter().collect();
+        let f0 = fit(p, &grams(p, &refs));
+        let resid = residual_after(p, &rest, &f0.theta);
+        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of(f, &resid)).filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i]).collect();
+        if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == "inertia") && !matches!(terms[i], Term::InertialError { .. }) {
+            let t = ctx.inertial_term();
+            if !slot_taken(&rest_terms, &t) {
+                cands.push(t);
+            }
+        }
+        for c in cands {
+            let mut ds = rest.clone();
+            ds.push(ctx.design(&c));
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut all = rest_terms.clone();
+            all.push(c.clone());
+            if !all_physical(&ds, &all, &f.theta) {
+                continue;
+            }
+            let bound = best.as_ref().map_or(current.cv_mse * (1.0 - 0.5 * opts.min_relative_gain), |b| b.2.cv_mse);
+            if f.cv_mse < bound {
+                best = Some((i, c, f, ds));
+            }
+        }
+    }
+    match best {
+        Some((i, c, f, ds)) => {
+            log.push(Step { term: c.clone(), cv_mse: f.cv_mse, accepted: true, reason: format!("exchanged for {} (cross-validated residual {:.3e} → {:.3e})", describe(&terms[i]), current.cv_mse, f.cv_mse) });
+            terms.remove(i);
+            terms.push(c);
+            *designs = ds;
+            *current = f;
+            true
+        }
+        None => false,
+    }
+}
+
+fn describe(t: &Term) -> String {
+    match t.joint() {
+        Some(j) => format!("{} on joint {j}", t.effect_name()),
+        None => t.effect_name().to_string(),
+    }
+}
+
+/// Forward stepwise selection with cross-validation, then backward pruning.
+pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
+    let p = &ctx.problem;
+    let (_, _, nominal) = fit_terms(p, ctx.data, &[]);
+    let mut terms: Vec<Term> = Vec::new();
+    let mut current = nominal.clone();
+    let mut designs: Vec<TermDesign> = Vec::new();
+    let mut log = Vec::new();
+    let fams = families(p.dof);
+    while terms.len() < opts.max_terms {
+        let resid = residual_after(p, &designs, &current.theta);
+        // best member of every family, then the inertial error, evaluated jointly with the set
+        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of(f, &resid)).filter(|t| !slot_taken(&terms, t)).collect();
+        if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == "inertia") {
+            cands.push(ctx.inertial_term());
+        }
+        let mut best: Option<(Term, Fit, Vec<TermDesign>)> = None;
+        for c in cands {
+            let mut ds = designs.clone();
+            ds.push(ctx.design(&c));
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut all = terms.clone();
+            all.push(c.clone());
+            if !all_physical(&ds, &all, &f.theta) {
+                continue;
+            }
+            if best.as_ref().is_none_or(|b| f.cv_mse < b.1.cv_mse) {
+                best = Some((c, f, ds));
+            }
+        }
+        let Some((term, f, ds)) = best else { break };
+        let gain = current.cv_mse - f.cv_mse;
+        let k0: usize = designs.iter().map(|d| d.cols.len()).sum();
+        let th: Vec<f64> = f.theta.iter().skip(k0).copied().collect();
+        let torque = term_torque_rms(p, ds.last().unwrap(), &th);
+        let share = match term.joint() {
+            Some(j) => torque[j] / ctx.tau_rms[j].max(1e-12),
+            None => (0..p.dof).map(|j| torque[j] / ctx.tau_rms[j].max(1e-12)).fold(0.0, f64::max),
+        };
+        let reason;
+        let accept = if gain < opts.min_relative_gain * current.cv_mse {
+            reason = format!("cross-validated residual falls by {:.1} % (< {:.0} %)", 100.0 * gain / current.cv_mse, 100.0 * opts.min_relative_gain);
+            false
+        } else if gain < opts.min_nominal_gain * nominal.cv_mse {
+            reason = format!("explains {:.2} % of the nominal residual (< {:.0} %)", 100.0 * gain / nominal.cv_mse, 100.0 * opts.min_nominal_gain);
+            false
+        } else if share < opts.min_torque_share {
+            reason = format!("torque {:.2} % of the commanded torque (< {:.0} %): too small to matter", 100.0 * share, 100.0 * opts.min_torque_share);
+            false
+        } else {
+            reason = format!("cross-validated residual falls by {:.1} %", 100.0 * gain / current.cv_mse);
+            true
+        };
+        log.push(Step { term: term.clone(), cv_mse: f.cv_mse, accepted: accept, reason });
+        if !accept {
+            break;
+        }
+        terms.push(term);
+        designs = ds;
+        current = f;
+        // exchange moves: swap a selected term for a candidate while that lowers the CV residual
+        for _ in 0..4 {
+            if !exchange(ctx, &fams, &mut terms, &mut designs, &mut current, opts, &mut log) {
+                break;
+            }
+        }
+    }
+    // backward pruning: drop a term whose removal costs less than the entry threshold
+    let mut changed = true;
+    while changed && terms.len() > 1 {
+        changed = false;
+        for i in 0..terms.len() {
+            let mut ds = designs.clone();
+            ds.remove(i);
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut rest = terms.clone();
+            rest.remove(i);
+            if !all_physical(&ds, &rest, &f.theta) {
+                continue;
+            }
+            if f.cv_mse - current.cv_mse < opts.min_relative_gain * f.cv_mse {
+                log.push(Step { term: terms[i].clone(), cv_mse: f.cv_mse, accepted: false, reason: "pruned: the others explain it".into() });
+                terms.remove(i);
+                designs = ds;
+                current = f;
+                changed = true;
+                break;
+            }
+        }
+    }
+    polish(ctx, &fams, &mut terms, &mut designs, &mut current);
+    Selection { terms, fit: current, designs, nominal_cv_mse: nominal.cv_mse, log }
+}
+
+/// The family a term belongs to.
+fn family_of(t: &Term) -> Option<Family> {
+    match *t {
+        Term::Stribeck { joint, .. } => Some(Family::Stribeck(joint)),
+        Term::Saturation { joint, .. } => Some(Family::Saturation(joint)),
+        Term::Cogging { joint, .. } => Some(Family::Cogging(joint)),
+        Term::Delay { .. } => Some(Family::Delay),
+        Term::Payload { .. } => Some(Family::Payload),
+        _ => None,
+    }
+}
+
+/// Re-searches the nonlinear parameter of each selected term against the residual of all the
+/// others (two rounds of coordinate descent), keeping a change only when the CV residual falls.
+fn polish(ctx: &Context<'_>, _fams: &[Family], terms: &mut [Term], designs: &mut [TermDesign], current: &mut Fit) {
+    let p = &ctx.problem;
+    for _ in 0..2 {
+        for i in 0..terms.len() {
+            let Some(family) = family_of(&terms[i]) else { continue };
+            let mut rest = designs.to_vec();
+            rest.remove(i);
+            let refs: Vec<&TermDesign> = rest.iter().collect();
+            let f0 = fit(p, &grams(p, &refs));
+            let resid = residual_after(p, &rest, &f0.theta);
+            let cand = ctx.best_of(&family, &resid);
+            let mut ds = designs.to_vec();
+            ds[i] = ctx.design(&cand);
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut all = terms.to_vec();
+            all[i] = cand.clone();
+            if f.cv_mse < current.cv_mse && all_physical(&ds, &all, &f.theta) {
+                terms[i] = cand;
+                designs[i] = ds.swap_remove(i);
+                *current = f;
+            }
+        }
+    }
+}

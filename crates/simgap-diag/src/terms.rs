@@ -1,0 +1,258 @@
+//! Candidate terms: each unmodelled effect of BRIEF §3.2, as columns of a linear model of the
+//! nominal residual `r = τ_cmd − (H q̈ + C q̇ + g)`.
+//!
+//! With the effect present, the robot obeys `(H + diag(ia)) q̈ + C q̇ + g = τ_applied + τ_eff`, so
+//!
+//! ```text
+//! viscous        r_j ∋  b_j q̇_j                        coulomb  r_j ∋ fc_j tanh(q̇_j / w)
+//! stribeck       r_j ∋  (fc + (fs − fc) e^{−(q̇/vs)²}) tanh(q̇/w)
+//! armature       r_j ∋  ia_j q̈_j                       gain     r_j ∋ (1 − k_j) τ_j
+//! offset         r_j ∋ −offset_j                        cogging  r_j ∋ A_j sin(N_j q_j)
+//! saturation     r_j ∋  τ_j − clamp(τ_j, ±L_j)          (fixed coefficient, L searched)
+//! time_delay     r   ∋  τ(t) − τ(t − d)                 (fixed coefficient, d searched)
+//! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
+//! payload        r   ∋  Y_last π_point(m, c)            (m, m c linear; re-linearised in c)
+//! inertial_error r   ∋  Y Δπ                            (identifiable directions only)
+//! ```
+
+use nalgebra::{DMatrix, Vector3};
+use simgap_core::PARAMS_PER_LINK;
+
+use crate::dataset::FitData;
+
+/// Width [rad/s] of the tanh that smooths sign(q̇) in fitting and in simulation.
+pub const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
+
+/// One candidate term.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Term {
+    /// Viscous friction on a joint.
+    Viscous(usize),
+    /// Coulomb friction on a joint.
+    Coulomb(usize),
+    /// Stribeck friction on a joint with Stribeck velocity `vs`.
+    Stribeck {
+        /// Joint index.
+        joint: usize,
+        /// Stribeck velocity [rad/s].
+        vs: f64,
+    },
+    /// Rotor inertia on a joint.
+    Armature(usize),
+    /// Torque gain on a joint.
+    Gain(usize),
+    /// Torque offset on a joint.
+    Offset(usize),
+    /// Torque saturation on a joint.
+    Saturation {
+        /// Joint index.
+        joint: usize,
+        /// Limit [N·m].
+        limit: f64,
+    },
+    /// Cogging on a joint.
+    Cogging {
+        /// Joint index.
+        joint: usize,
+        /// Periods per revolution.
+        periods: f64,
+    },
+    /// Whole-robot actuation delay.
+    Delay {
+        /// Delay [s].
+        delay: f64,
+    },
+    /// The other formulation of C.
+    CoriolisStructure,
+    /// A point mass on the last link, linearised about a centre of mass.
+    Payload {
+        /// Centre of mass used for the rotational part [m], last link frame.
+        com: [f64; 3],
+    },
+    /// Errors of the inertial parameters along identifiable directions (columns of `basis`,
+    /// `10 dof × r`).
+    InertialError {
+        /// Identifiable directions in the stacked parameter space.
+        basis: DMatrix<f64>,
+    },
+}
+
+impl Term {
+    /// The effect's contract name (BRIEF §3.2).
+    pub fn effect_name(&self) -> &'static str {
+        match self {
+            Term::Viscous(_) => "viscous_friction",
+            Term::Coulomb(_) => "coulomb_friction",
+            Term::Stribeck { .. } => "stribeck_friction",
+            Term::Armature(_) => "armature",
+            Term::Gain(_) => "torque_gain",
+            Term::Offset(_) => "torque_offset",
+            Term::Saturation { .. } => "torque_saturation",
+            Term::Cogging { .. } => "cogging",
+            Term::Delay { .. } => "time_delay",
+            Term::CoriolisStructure => "coriolis_structure",
+            Term::Payload { .. } => "payload",
+            Term::InertialError { .. } => "inertial_error",
+        }
+    }
+
+    /// The joint of a per-joint term.
+    pub fn joint(&self) -> Option<usize> {
+        match *self {
+            Term::Viscous(j) | Term::Coulomb(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) => Some(j),
+            Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
+            _ => None,
+        }
+    }
+
+    /// Identity of the slot the term occupies: at most one term per slot is selected
+    /// (Coulomb and Stribeck share one; payload and inertial error share one).
+    pub fn slot(&self) -> (&'static str, Option<usize>) {
+        let name = match self {
+            Term::Coulomb(_) | Term::Stribeck { .. } => "dry_friction",
+            Term::Payload { .. } | Term::InertialError { .. } => "inertia",
+            other => other.effect_name(),
+        };
+        (name, self.joint())
+    }
+}
+
+/// A column of the design: per-joint (values per sample, on that joint's rows) or global
+/// (values per sample and joint, row-major).
+#[derive(Clone, Debug)]
+pub struct Column {
+    /// `Some(j)`: nonzero only on joint j's rows.
+    pub joint: Option<usize>,
+    /// Values: length = samples (per-joint) or samples × dof (global).
+    pub values: Vec<f64>,
+}
+
+impl Column {
+    /// Value at (sample, joint).
+    #[inline]
+    pub fn at(&self, s: usize, j: usize, dof: usize) -> f64 {
+        match self.joint {
+            Some(jj) => {
+                if jj == j {
+                    self.values[s]
+                } else {
+                    0.0
+                }
+            }
+            None => self.values[s * dof + j],
+        }
+    }
+}
+
+/// The columns of a term: free columns (one per fitted parameter) and a fixed offset
+/// (coefficient 1) subtracted from the residual.
+#[derive(Clone, Debug, Default)]
+pub struct TermDesign {
+    /// Free columns.
+    pub cols: Vec<Column>,
+    /// Fixed part.
+    pub offset: Option<Column>,
+}
+
+/// Concatenation of a per-joint signal over runs.
+fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> Column {
+    let mut v = Vec::new();
+    for d in data {
+        for s in 0..d.len() {
+            v.push(f(d, s * d.dof + j));
+        }
+    }
+    Column { joint: Some(j), values: v }
+}
+
+/// The design of a term over all runs.
+pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
+    let dof = data[0].dof;
+    let tanh = |x: f64| (x / COULOMB_WIDTH).tanh();
+    match *term {
+        Term::Viscous(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.qd[i])], offset: None },
+        Term::Coulomb(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| tanh(d.qd[i]))], offset: None },
+        Term::Stribeck { joint, vs } => {
+            let e = |v: f64| (-(v / vs).powi(2)).exp();
+            TermDesign {
+                cols: vec![per_joint(data, joint, |d, i| (1.0 - e(d.qd[i])) * tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))],
+                offset: None,
+            }
+        }
+        Term::Armature(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.qdd[i])], offset: None },
+        Term::Gain(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.tau[i])], offset: None },
+        Term::Offset(j) => TermDesign { cols: vec![per_joint(data, j, |_, _| -1.0)], offset: None },
+        Term::Cogging { joint, periods } => TermDesign { cols: vec![per_joint(data, joint, |d, i| (periods * d.q[i]).sin())], offset: None },
+        Term::Saturation { joint, limit } => {
+            let mut v = Vec::new();
+            for d in data {
+                let m = d.smoothed_torque_map(|_, tau, out| {
+                    out.fill(0.0);
+                    out[joint] = tau[joint] - tau[joint].clamp(-limit, limit);
+                });
+                v.extend((0..d.len()).map(|s| m[s * dof + joint]));
+            }
+            TermDesign { cols: vec![], offset: Some(Column { joint: Some(joint), values: v }) }
+        }
+        Term::Delay { delay } => {
+            let mut v = Vec::new();
+            for d in data {
+                let period = d.raw.experiment.as_ref().map_or(d.raw.duration() / (d.raw.len().max(2) - 1) as f64, |e| e.sample_period);
+                let m = d.smoothed_torque_map(|k, tau, out| {
+                    for j in 0..dof {
+                        out[j] = tau[j] - d.delayed_torque(k, delay, period, j);
+                    }
+                });
+                v.extend(m);
+            }
+            TermDesign { cols: vec![], offset: Some(Column { joint: None, values: v }) }
+        }
+        Term::CoriolisStructure => {
+            let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
+            TermDesign { cols: vec![], offset: Some(Column { joint: None, values: v }) }
+        }
+        Term::Payload { com } => {
+            let last = dof - 1;
+            let c = Vector3::from(com);
+            // π_point = (m, m c, m (|c|² 1 − c cᵀ)); with c fixed in the rotational part
+            let rot = [c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y];
+            let width = PARAMS_PER_LINK * dof;
+            let col = |f: &dyn Fn(&[f64]) -> f64| -> Column {
+                let mut v = Vec::new();
+                for d in data {
+                    for s in 0..d.len() {
+                        for j in 0..dof {
+                            let row = &d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last..(s * dof + j) * width + PARAMS_PER_LINK * (last + 1)];
+                            v.push(f(row));
+                        }
+                    }
+                }
+                Column { joint: None, values: v }
+            };
+            TermDesign {
+                cols: vec![
+                    col(&|r| r[0] + (0..6).map(|p| r[4 + p] * rot[p]).sum::<f64>()),
+                    col(&|r| r[1]),
+                    col(&|r| r[2]),
+                    col(&|r| r[3]),
+                ],
+                offset: None,
+            }
+        }
+        Term::InertialError { ref basis } => {
+            let width = PARAMS_PER_LINK * dof;
+            let mut cols: Vec<Column> = (0..basis.ncols()).map(|_| Column { joint: None, values: Vec::new() }).collect();
+            for d in data {
+                for s in 0..d.len() {
+                    for j in 0..dof {
+                        let row = &d.regressor[(s * dof + j) * width..(s * dof + j + 1) * width];
+                        for (c, col) in cols.iter_mut().enumerate() {
+                            col.values.push((0..width).map(|p| row[p] * basis[(p, c)]).sum());
+                        }
+                    }
+                }
+            }
+            TermDesign { cols, offset: None }
+        }
+    }
+}
