@@ -1,7 +1,7 @@
 //! The plant: the nominal model plus unmodelled [`Effect`]s, as the simulator integrates it.
 
 use nalgebra::DMatrix;
-use simgap_core::{bias_torques_into, mass_matrix_into, Formulation, Model, Workspace};
+use simgap_core::{bias_torques_into, forward_dynamics_into, mass_matrix, mass_matrix_into, Formulation, Model, Workspace};
 
 use crate::effects::{apply_inertial_effects, armature, friction_torque, total_delay, Effect};
 use crate::error::Result;
@@ -22,6 +22,9 @@ pub struct Plant {
     effects: Vec<Effect>,
     armature: Vec<f64>,
     has_armature: bool,
+    /// H is positive definite at q = 0 and no armature is added: the one-pass
+    /// `forward_dynamics_into` can be used (it panics on a singular H).
+    fast_path: bool,
     delay: f64,
     effort_limits: Vec<f64>,
 }
@@ -48,7 +51,13 @@ impl Plant {
         let mut ia = vec![0.0; n];
         armature(effects, &mut ia);
         let coriolis_flip = effects.iter().filter(|e| matches!(e, Effect::CoriolisStructure)).count() % 2 == 1;
+        let h_ok = {
+            let mut h = mass_matrix(&changed, &mut Workspace::new(&changed), &vec![0.0; n]);
+            let mut b = vec![1.0; n];
+            cholesky_solve(&mut h, &mut b)
+        };
         Ok(Plant {
+            fast_path: h_ok && ia.iter().all(|x| *x == 0.0),
             formulation: if coriolis_flip { formulation.other() } else { formulation },
             effects: effects.to_vec(),
             has_armature: ia.iter().any(|x| *x != 0.0),
@@ -108,6 +117,15 @@ impl Plant {
         assert!(q.len() == n && qd.len() == n && tau_applied.len() == n && out.len() == n, "Plant::acceleration: lengths must be model.dof()");
         if q.iter().chain(qd).any(|x| !x.is_finite()) {
             out.fill(f64::NAN);
+            return;
+        }
+        // fast path: one kinematics pass, q̈ = H⁻¹ (τ + friction − C q̇ − g)
+        if self.fast_path {
+            friction_torque(&self.effects, q, qd, coulomb_width, &mut pws.friction);
+            for i in 0..n {
+                pws.friction[i] += tau_applied[i];
+            }
+            forward_dynamics_into(&self.model, &mut pws.ws, q, qd, &pws.friction, self.formulation, out);
             return;
         }
         // right-hand side: τ + friction − (C q̇ + g)

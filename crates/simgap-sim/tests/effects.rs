@@ -243,3 +243,14 @@ fn stribeck_friction_removes_energy() {
     assert!(e.windows(2).all(|w| w[1] <= w[0] + 1e-9), "energy increased");
     assert!(e[e.len() - 1] < e[0]);
 }
+
+#[test]
+fn a_non_physical_armature_diverges_instead_of_panicking() {
+    // H + diag(ia) not positive definite: the plant reports NaN, the run ends as diverged
+    let model = Model::paper_arm();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[Effect::Armature { ia: vec![0.0, -1.0] }]).unwrap();
+    let mut sink = MemorySink::new();
+    let end = simulate(&plant, &mut paper_pd(), &Step { target: paper_arm::Q_DESIRED.to_vec() }, &exact(1.0), &mut sink, None).unwrap();
+    assert!(matches!(end, RunEnd::Diverged { .. }), "{end:?}");
+    assert!(sink.into_run().q.iter().all(|x| x.is_finite()));
+}
