@@ -1,9 +1,268 @@
-//! `simgap diagnose`.
+//! `simgap diagnose` (BRIEF §3.3): where the gap lies, which effect causes it, how far it
+//! shrinks on held-out runs.
+//!
+//! Outputs are written atomically (to `X.tmp`, then renamed), and Ctrl-C removes the temporary
+//! file being written before exiting, so an interrupt never leaves a half-written report.
+//!
+//! The corrected MCAP (`--mcap`) holds every held-out run in one file, one topic prefix per run
+//! (`<name>` = the log's file stem, as a ROS name: letters, digits and `_`):
+//! - `/holdout/<name>/joint_states`: the closed-loop simulation **with** the selected effects;
+//! - `/holdout/<name>/joint_reference`: the reference it tracked;
+//! - `/holdout/<name>/nominal/joint_states`: the simulation of the nominal model;
+//! - `/holdout/<name>/measured/joint_states`: the log as measured.
+//!
+//! All are `sensor_msgs/msg/JointState` in CDR with the logged (absolute) stamps, so Foxglove
+//! or PlotJuggler overlay measured, nominal and corrected `position[i]` of a run in one plot.
+//! Metadata: `simgap.diagnosis` (verdict, selected effects, L² before and after) and one
+//! `simgap.holdout.<name>` record per run (its source log and `simgap.experiment` keys).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use anyhow::{bail, Context};
+use simgap::core::{Formulation, Model};
+use simgap::diag::{diagnose, DiagnoseOptions, Diagnosis, Progress};
+use simgap::sim::log::experiment_to_map;
+use simgap::sim::mcap_log::{JointState, CDR_ENCODING, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, ROS2MSG_ENCODING};
+use simgap::sim::{read_log, Run};
 
 /// Arguments of `simgap diagnose`.
 #[derive(clap::Args)]
-pub(crate) struct Args {}
+pub(crate) struct Args {
+    /// URDF of the robot.
+    #[arg(long)]
+    urdf: PathBuf,
+    /// Tip link of the chain when the tree branches.
+    #[arg(long)]
+    tip: Option<String>,
+    /// A log to fit and select effects on (MCAP or CSV), repeatable.
+    #[arg(long = "log", required = true)]
+    logs: Vec<PathBuf>,
+    /// A held-out log, only used to measure how far the gap shrinks, repeatable.
+    #[arg(long = "holdout", required = true)]
+    holdouts: Vec<PathBuf>,
+    /// Formulation of C under test: euler-lagrange or simplified.
+    #[arg(long, default_value = "euler-lagrange")]
+    formulation: Formulation,
+    /// Write the JSON report here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write a self-contained HTML report (tables and plots) here.
+    #[arg(long)]
+    html: Option<PathBuf>,
+    /// Write the measured, nominal and corrected held-out runs to one MCAP file here.
+    #[arg(long)]
+    mcap: Option<PathBuf>,
+    /// Experiment file (controller, joints, kp, kv, sample_period) for logs without
+    /// `simgap.experiment` metadata (e.g. CSV logs without a sidecar file).
+    #[arg(long)]
+    experiment: Option<PathBuf>,
+}
 
-pub(crate) fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`simgap diagnose` is not built yet")
+/// What to diagnose and where to write, shared by `simgap diagnose` and `simgap demo`.
+pub(crate) struct Job<'a> {
+    pub(crate) model: &'a Model,
+    pub(crate) formulation: Formulation,
+    pub(crate) logs: &'a [PathBuf],
+    pub(crate) holdouts: &'a [PathBuf],
+    pub(crate) experiment: Option<&'a Path>,
+    pub(crate) json: Option<&'a Path>,
+    pub(crate) html: Option<&'a Path>,
+    pub(crate) mcap: Option<&'a Path>,
+}
+
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
+    let model = super::load_model(Some(&args.urdf), args.tip.as_deref())?;
+    execute(&Job {
+        model: &model,
+        formulation: args.formulation,
+        logs: &args.logs,
+        holdouts: &args.holdouts,
+        experiment: args.experiment.as_deref(),
+        json: args.json.as_deref(),
+        html: args.html.as_deref(),
+        mcap: args.mcap.as_deref(),
+    })?;
+    Ok(())
+}
+
+/// Reads the logs, diagnoses, prints the summary and writes the outputs.
+pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
+    install_interrupt_cleanup();
+    // read: every error names its file
+    let experiment = job.experiment.map(simgap::sim::csv_log::read_experiment_file).transpose()?;
+    let read = |paths: &[PathBuf]| -> anyhow::Result<Vec<Run>> {
+        paths
+            .iter()
+            .map(|p| {
+                let mut run = read_log(p)?;
+                if run.experiment.is_none() {
+                    run.experiment = experiment.clone();
+                }
+                Ok(run)
+            })
+            .collect()
+    };
+    let fit = read(job.logs)?;
+    let holdout = read(job.holdouts)?;
+    for p in job.logs {
+        if job.holdouts.contains(p) {
+            bail!("{}: given both as --log and --holdout; held-out runs must never be used for fitting", p.display());
+        }
+    }
+
+    // diagnose with a progress bar (hidden when stderr is not a terminal)
+    let bar = indicatif::ProgressBar::new(1);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg:<16} [{bar:30}] {pos}/{len} {elapsed}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()).progress_chars("=> "),
+    );
+    let mut on_progress = |p: Progress| {
+        bar.set_message(p.stage);
+        bar.set_length(p.total.max(1) as u64);
+        bar.set_position(p.done as u64);
+    };
+    let result = diagnose(job.model, job.formulation, &fit, &holdout, &DiagnoseOptions::default(), &mut on_progress);
+    bar.finish_and_clear();
+    let diagnosis = result?;
+
+    println!("{}", diagnosis.report.summary());
+    if let Some(path) = job.json {
+        write_atomically(path, |tmp| std::fs::write(tmp, diagnosis.report.to_json() + "\n").map_err(Into::into))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(path) = job.html {
+        write_atomically(path, |tmp| simgap::diag::html::write_html(&diagnosis, tmp).map_err(Into::into))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(path) = job.mcap {
+        write_atomically(path, |tmp| write_corrected_mcap(&diagnosis, tmp))?;
+        println!("wrote {} (topics /holdout/<run>/{{joint_states,joint_reference,nominal/joint_states,measured/joint_states}})", path.display());
+    }
+    Ok(diagnosis)
+}
+
+/// Temporary files being written, removed by the Ctrl-C handler.
+static IN_PROGRESS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// On Ctrl-C: remove the temporary file being written (if any) and exit with status 130.
+/// Finished outputs are complete, and outputs not yet renamed were never visible.
+fn install_interrupt_cleanup() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let handler = || {
+            if let Ok(paths) = IN_PROGRESS.lock() {
+                for p in paths.iter() {
+                    let _ = std::fs::remove_file(p);
+                }
+            }
+            eprintln!("\ninterrupted: no output was left half-written");
+            std::process::exit(130);
+        };
+        if let Err(e) = ctrlc::set_handler(handler) {
+            eprintln!("warning: cannot install the Ctrl-C handler: {e}");
+        }
+    });
+}
+
+/// Writes `path` through `X.tmp` and a rename, so it is either the old file or the whole new one.
+pub(crate) fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> anyhow::Result<()>) -> anyhow::Result<()> {
+    let mut name = path.file_name().with_context(|| format!("{}: not a file name", path.display()))?.to_os_string();
+    name.push(".tmp");
+    let tmp = path.with_file_name(name);
+    IN_PROGRESS.lock().map(|mut v| v.push(tmp.clone())).ok();
+    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot rename {} into place", path.display(), tmp.display())));
+    IN_PROGRESS.lock().map(|mut v| v.retain(|p| p != &tmp)).ok();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A ROS 2 name segment from a log name: its file stem, with anything but letters, digits and
+/// `_` replaced by `_`, never starting with a digit.
+pub(crate) fn topic_name(source: &str) -> String {
+    let base = source.split(" (").next().unwrap_or(source);
+    let stem = Path::new(base).file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| base.to_string());
+    let stem = stem.strip_suffix(".gz").unwrap_or(&stem);
+    let stem = Path::new(stem).file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+    let mut s: String = stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' { c } else { '_' }).collect();
+    if s.is_empty() || s.starts_with(|c: char| c.is_ascii_digit()) {
+        s.insert_str(0, "run_");
+    }
+    s
+}
+
+/// Writes the held-out runs (measured, nominal, corrected) into one MCAP file (module docs).
+fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
+    let err = |e: mcap::McapError| anyhow::anyhow!("{}: {e}", path.display());
+    let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut w = simgap::sim::McapSink::default_options().create(std::io::BufWriter::new(file)).map_err(err)?;
+    let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(err)?;
+    let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), String::new())].into();
+
+    // the diagnosis as metadata
+    let r = &d.report;
+    let mut meta = BTreeMap::from([
+        ("verdict".to_string(), r.verdict.clone()),
+        ("model".to_string(), r.model.clone()),
+        ("formulation".to_string(), r.formulation.clone()),
+        ("holdout_l2_before".to_string(), format!("{}", r.gap.holdout_l2_before)),
+        ("holdout_l2_after".to_string(), format!("{}", r.gap.holdout_l2_after)),
+    ]);
+    meta.insert("selected_effects".to_string(), serde_json::to_string(&r.selected_effects).unwrap_or_default());
+    w.write_metadata(&mcap::records::Metadata { name: "simgap.diagnosis".into(), metadata: meta }).map_err(err)?;
+
+    let mut used: Vec<String> = Vec::new();
+    for (i, measured) in d.holdout.iter().enumerate() {
+        // a unique prefix per run
+        let mut name = topic_name(&measured.source);
+        if used.contains(&name) {
+            name = format!("{name}_{i}");
+        }
+        used.push(name.clone());
+        let mut run_meta = measured.experiment.as_ref().map(experiment_to_map).unwrap_or_default();
+        run_meta.insert("source".into(), measured.source.clone());
+        w.write_metadata(&mcap::records::Metadata { name: format!("simgap.holdout.{name}"), metadata: run_meta }).map_err(err)?;
+
+        let mut streams: Vec<(String, &Run, bool)> = vec![(format!("/holdout/{name}/measured/joint_states"), measured, false)];
+        if let Some(Some(nominal)) = d.holdout_nominal.get(i) {
+            streams.push((format!("/holdout/{name}/nominal/joint_states"), nominal, false));
+        }
+        if let Some(Some(corrected)) = d.holdout_corrected.get(i) {
+            streams.push((format!("/holdout/{name}/joint_states"), corrected, false));
+            if !corrected.q_ref.is_empty() {
+                streams.push((format!("/holdout/{name}/joint_reference"), corrected, true));
+            }
+        }
+        for (topic, run, reference) in streams {
+            let channel = w.add_channel(schema, &topic, CDR_ENCODING, &qos).map_err(err)?;
+            let dof = run.dof();
+            let mut msg = JointState { name: run.joints.clone(), ..JointState::default() };
+            let mut buf = Vec::new();
+            let row = |m: &[f64], k: usize| -> Vec<f64> { if m.len() >= (k + 1) * dof { m[k * dof..(k + 1) * dof].to_vec() } else { Vec::new() } };
+            for k in 0..run.len() {
+                let ns = (run.t[k] * 1e9).round() as i64;
+                msg.set_stamp_ns(ns);
+                if reference {
+                    msg.position = row(&run.q_ref, k);
+                    msg.velocity = row(&run.qd_ref, k);
+                    msg.effort.clear();
+                } else {
+                    msg.position = row(&run.q, k);
+                    msg.velocity = row(&run.qd, k);
+                    msg.effort = row(&run.tau, k);
+                }
+                msg.encode_cdr_into(&mut buf);
+                let time = ns.max(0) as u64;
+                let header = mcap::records::MessageHeader { channel_id: channel, sequence: k as u32, log_time: time, publish_time: time };
+                w.write_to_known_channel(&header, &buf).map_err(err)?;
+            }
+        }
+    }
+    w.finish().map_err(err)?;
+    let mut inner = w.into_inner();
+    std::io::Write::flush(&mut inner).with_context(|| format!("cannot write {}", path.display()))?;
+    inner.get_ref().sync_all().ok();
+    Ok(())
 }

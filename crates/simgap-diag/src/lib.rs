@@ -20,6 +20,7 @@ pub mod differentiate;
 pub mod effects;
 pub mod error;
 pub mod fit;
+pub mod html;
 pub mod locate;
 pub mod report;
 pub mod resim;
