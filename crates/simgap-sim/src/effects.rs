@@ -183,9 +183,9 @@ impl Effect {
         }
     }
 
-    /// Joints (model indices) where a per-joint effect is not neutral; for whole-robot effects
-    /// (payload, time delay, Coriolis structure) every joint of `0..dof` is not known here, so
-    /// they return an empty list; inertial errors return the joints of their links.
+    /// Joints (model indices, ascending) where a per-joint effect is not neutral; the joints
+    /// of the changed links for an inertial error; an empty list for the whole-robot effects
+    /// (payload, time delay, Coriolis structure), which act on every joint.
     pub fn joints_acted(&self) -> Vec<usize> {
         let nonzero = |v: &[f64]| v.iter().enumerate().filter(|(_, x)| **x != 0.0).map(|(i, _)| i).collect::<Vec<_>>();
         match self {
