@@ -71,7 +71,7 @@ pub use algorithms::rnea::{
 pub use algorithms::terms::{dynamics_terms, dynamics_terms_into, DynamicsTerms};
 pub use error::{Error, Result};
 pub use model::{Joint, JointKind, JointLimits, Model, STANDARD_GRAVITY};
-pub use robots::PAPER_ARM_URDF;
+pub use robots::{ARM7_URDF, PAPER_ARM_URDF, PENDULUM_URDF};
 pub use spatial::{Force, Motion, SpatialInertia, Transform};
 pub use urdf::UrdfOptions;
 pub use workspace::Workspace;

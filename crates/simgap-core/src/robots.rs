@@ -154,3 +154,10 @@ impl Model {
         Model::new(format!("random_chain_{n}_{seed}"), "base_link", joints).expect("a random chain is a valid model")
     }
 }
+
+/// The 1-link pendulum test model (`models/pendulum.urdf`).
+pub const PENDULUM_URDF: &str = include_str!("../models/pendulum.urdf");
+
+/// The 7-DOF Panda-like test arm (`models/arm7.urdf`); its gripper fingers branch off the hand,
+/// so load it with tip `panda_hand`.
+pub const ARM7_URDF: &str = include_str!("../models/arm7.urdf");

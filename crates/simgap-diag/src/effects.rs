@@ -46,13 +46,34 @@ pub struct FittedTerm {
     pub std: Vec<f64>,
 }
 
+/// The nearest physical rotational inertia: principal moments raised to be non-negative and to
+/// obey the triangle inequality (for a planar arm the raised moments are the unobservable ones).
+fn physical_inertia(i: &Matrix3<f64>) -> Matrix3<f64> {
+    let eig = i.symmetric_eigen();
+    let mut l: Vec<(f64, usize)> = eig.eigenvalues.iter().copied().enumerate().map(|(k, v)| (v.max(0.0), k)).collect();
+    l.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let deficit = l[2].0 - l[0].0 - l[1].0;
+    if deficit > 0.0 {
+        l[0].0 += deficit / 2.0 + 1e-12;
+        l[1].0 += deficit / 2.0 + 1e-12;
+    }
+    let mut d = Vector3::zeros();
+    for (v, k) in l {
+        d[k] = v;
+    }
+    eig.eigenvectors * Matrix3::from_diagonal(&d) * eig.eigenvectors.transpose()
+}
+
 fn delta_of(model: &Model, joint: usize, dpi: &[f64]) -> LinkDelta {
     let old = &model.joints()[joint].inertia;
     let mut p = inertial_parameters(old);
     for (a, b) in p.iter_mut().zip(dpi) {
         *a += b;
     }
-    let new: SpatialInertia = inertia_from_parameters(&p);
+    let raw: SpatialInertia = inertia_from_parameters(&p);
+    // a link keeps a positive mass and a physical rotational inertia
+    let mass = if raw.mass > 0.0 { raw.mass } else { 1e-3 * old.mass.max(1e-3) };
+    let new = SpatialInertia::from_com(mass, raw.first_moment / mass, physical_inertia(&raw.inertia_about_com()));
     let dc: Vector3<f64> = new.com() - old.com();
     let di: Matrix3<f64> = new.inertia_about_com() - old.inertia_about_com();
     LinkDelta { joint, mass: new.mass - old.mass, com: [dc.x, dc.y, dc.z], inertia: [di[(0, 0)], di[(0, 1)], di[(0, 2)], di[(1, 1)], di[(1, 2)], di[(2, 2)]] }

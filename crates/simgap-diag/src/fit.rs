@@ -54,7 +54,7 @@ impl Problem {
         Problem { dof, samples, block_of, blocks, weights, y }
     }
 
-    /// Weighted inner product of two columns per block.
+    /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
     fn dot_blocks(&self, a: &Column, b: &Column, out: &mut [f64]) {
         out.fill(0.0);
         let dof = self.dof;
@@ -63,7 +63,7 @@ impl Problem {
                 if ja == jb {
                     let w2 = self.weights[ja].powi(2);
                     for s in 0..self.samples {
-                        out[self.block_of[s]] += w2 * a.values[s] * b.values[s];
+                        out[self.block_of[s] * dof + ja] += w2 * a.values[s] * b.values[s];
                     }
                 }
             }
@@ -71,16 +71,15 @@ impl Problem {
                 let (pj, g) = if a.joint.is_some() { (a, b) } else { (b, a) };
                 let w2 = self.weights[j].powi(2);
                 for s in 0..self.samples {
-                    out[self.block_of[s]] += w2 * pj.values[s] * g.values[s * dof + j];
+                    out[self.block_of[s] * dof + j] += w2 * pj.values[s] * g.values[s * dof + j];
                 }
             }
             (None, None) => {
                 for s in 0..self.samples {
-                    let mut acc = 0.0;
+                    let base = self.block_of[s] * dof;
                     for j in 0..dof {
-                        acc += self.weights[j].powi(2) * a.values[s * dof + j] * b.values[s * dof + j];
+                        out[base + j] += self.weights[j].powi(2) * a.values[s * dof + j] * b.values[s * dof + j];
                     }
-                    out[self.block_of[s]] += acc;
                 }
             }
         }
@@ -97,12 +96,14 @@ impl Problem {
 pub struct Grams {
     /// Free columns (k).
     pub k: usize,
-    /// Per block: XᵀW²X (k × k).
+    /// Per (block, joint), index `block · dof + joint`: XᵀW²X (k × k).
     pub g: Vec<DMatrix<f64>>,
-    /// Per block: XᵀW²y'.
+    /// Per (block, joint): XᵀW²y'.
     pub c: Vec<DVector<f64>>,
-    /// Per block: y'ᵀW²y'.
+    /// Per (block, joint): y'ᵀW²y'.
     pub s: Vec<f64>,
+    /// Degrees of freedom (joints per block).
+    pub dof: usize,
     /// Which term each column belongs to.
     pub owner: Vec<usize>,
 }
@@ -124,7 +125,7 @@ pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
     let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
     let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat(i).take(d.cols.len())).collect();
     let k = cols.len();
-    let nb = p.blocks;
+    let nb = p.blocks * p.dof;
     let mut g = vec![DMatrix::zeros(k, k); nb];
     let mut c = vec![DVector::zeros(k); nb];
     let mut s = vec![0.0; nb];
@@ -144,7 +145,7 @@ pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
     }
     p.dot_blocks(&y, &y, &mut buf);
     s.copy_from_slice(&buf);
-    Grams { k, g, c, s, owner }
+    Grams { k, g, c, s, owner, dof: p.dof }
 }
 
 /// Minimum-norm least-squares solution of `G θ = c` (eigenvalues below `1e-10 · max` dropped);
@@ -179,14 +180,17 @@ pub struct Fit {
     pub mse: f64,
     /// Cross-validated weighted mean squared residual (contiguous folds).
     pub cv_mse: f64,
+    /// The same per joint (mean over that joint's rows).
+    pub cv_joint: Vec<f64>,
 }
 
-fn sum_blocks(gr: &Grams, keep: impl Fn(usize) -> bool) -> (DMatrix<f64>, DVector<f64>, f64) {
+/// Sums the Grams of the (block, joint) cells `keep(block, joint)` accepts.
+fn sum_blocks(gr: &Grams, keep: impl Fn(usize, usize) -> bool) -> (DMatrix<f64>, DVector<f64>, f64) {
     let mut g = DMatrix::zeros(gr.k, gr.k);
     let mut c = DVector::zeros(gr.k);
     let mut s = 0.0;
     for b in 0..gr.g.len() {
-        if keep(b) {
+        if keep(b / gr.dof, b % gr.dof) {
             g += &gr.g[b];
             c += &gr.c[b];
             s += gr.s[b];
@@ -201,34 +205,50 @@ fn sse(g: &DMatrix<f64>, c: &DVector<f64>, s: f64, theta: &DVector<f64>) -> f64 
 
 /// Fits and cross-validates.
 pub fn fit(p: &Problem, gr: &Grams) -> Fit {
-    let (g, c, s) = sum_blocks(gr, |_| true);
+    let (g, c, s) = sum_blocks(gr, |_, _| true);
     let (theta, rank) = solve(&g, &c);
     let mse = sse(&g, &c, s, &theta) / p.rows();
     let folds = p.blocks / BLOCKS_PER_FOLD;
-    let mut cv = 0.0;
+    let mut cv_joint = vec![0.0; p.dof];
     for f in 0..folds {
         let in_fold = |b: usize| b / BLOCKS_PER_FOLD == f;
-        let (gt, ct, _) = sum_blocks(gr, |b| !in_fold(b));
+        let (gt, ct, _) = sum_blocks(gr, |b, _| !in_fold(b));
         let (th, _) = solve(&gt, &ct);
-        let (gv, cvv, sv) = sum_blocks(gr, in_fold);
-        cv += sse(&gv, &cvv, sv, &th);
+        for (j, cv) in cv_joint.iter_mut().enumerate() {
+            let (gv, cvv, sv) = sum_blocks(gr, |b, jj| in_fold(b) && jj == j);
+            *cv += sse(&gv, &cvv, sv, &th);
+        }
     }
-    Fit { theta, rank, mse, cv_mse: cv / p.rows() }
+    let cv_mse = cv_joint.iter().sum::<f64>() / p.rows();
+    let cv_joint = cv_joint.iter().map(|v| v / p.samples.max(1) as f64).collect();
+    Fit { theta, rank, mse, cv_mse, cv_joint }
 }
 
 /// Block-bootstrap standard deviations of the parameters (`draws` resamples, fixed seed).
 pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
-    let nb = gr.g.len();
+    let nb = gr.g.len() / gr.dof;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut sum = DVector::zeros(gr.k);
     let mut sum2 = DVector::zeros(gr.k);
+    // whole blocks (all joints) are resampled
+    let blocks: Vec<(DMatrix<f64>, DVector<f64>)> = (0..nb)
+        .map(|b| {
+            let mut g = DMatrix::zeros(gr.k, gr.k);
+            let mut c = DVector::zeros(gr.k);
+            for j in 0..gr.dof {
+                g += &gr.g[b * gr.dof + j];
+                c += &gr.c[b * gr.dof + j];
+            }
+            (g, c)
+        })
+        .collect();
     for _ in 0..draws {
         let mut g = DMatrix::zeros(gr.k, gr.k);
         let mut c = DVector::zeros(gr.k);
         for _ in 0..nb {
             let b = rng.random_range(0..nb);
-            g += &gr.g[b];
-            c += &gr.c[b];
+            g += &blocks[b].0;
+            c += &blocks[b].1;
         }
         let (th, _) = solve(&g, &c);
         sum += &th;

@@ -25,6 +25,7 @@ pub mod locate;
 pub mod report;
 pub mod resim;
 pub mod select;
+pub mod selfcheck;
 pub mod terms;
 
 use simgap_core::{Formulation, Model};
