@@ -14,16 +14,21 @@ from simgap._simgap import (
     DimensionError,
     DynamicsError,
     FitError,
+    L2Report,
     LogError,
     Model,
+    Run,
     SimgapError,
     SimulationError,
     UrdfError,
     __version__,
+    compare,
+    l2,
+    l2_tracking,
+    read_log,
+    simulate,
+    write_log,
 )
-
-# Simulation (simgap-sim): simulate, read_log, write_log, l2, compare are re-exported here
-# as they are bound in python/src/sim.rs.
 
 # Diagnosis (simgap-diag): `diagnose` will be re-exported here once python/src/diagnosis.rs
 # binds it; it is deliberately absent from __all__ until then.
@@ -32,10 +37,18 @@ __all__ = [
     "DimensionError",
     "DynamicsError",
     "FitError",
+    "L2Report",
     "LogError",
     "Model",
+    "Run",
     "SimgapError",
     "SimulationError",
     "UrdfError",
     "__version__",
+    "compare",
+    "l2",
+    "l2_tracking",
+    "read_log",
+    "simulate",
+    "write_log",
 ]

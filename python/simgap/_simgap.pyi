@@ -174,3 +174,196 @@ class Model:
         ``q``, ``qd``: shape (dof,) or (N, dof). Returns ``(H, C, g)`` with shapes
         ((dof, dof), (dof, dof), (dof,)) or ((N, dof, dof), (N, dof, dof), (N, dof)).
         """
+
+@final
+class Run:
+    """A run of a robot or a simulation: time, measured and reference signals, and the experiment
+    (controller, gains, sample period) that produced it.
+
+    Matrices have shape (N, dof) with columns in ``joints`` order, as C-ordered float64 arrays.
+    """
+
+    def __new__(
+        cls,
+        joints: list[str],
+        t: _ArrayLike,
+        q: _ArrayLike,
+        qd: _ArrayLike,
+        tau: _ArrayLike | None = None,
+        q_ref: _ArrayLike | None = None,
+        qd_ref: _ArrayLike | None = None,
+        experiment: dict[str, str] | None = None,
+        source: str = "python",
+    ) -> Run:
+        """Builds a run from arrays; ``joints`` names the columns.
+
+        ``t``: shape (N,); ``q``, ``qd`` and the optional ``tau``, ``q_ref``, ``qd_ref``: shape
+        (N, len(joints)). ``experiment`` is the ``simgap.experiment`` metadata map
+        (``controller``, ``joints``, ``kp``, ``kv``, ``sample_period``, as strings).
+
+        Raises DimensionError for arrays of the wrong shape, LogError for an invalid run (time
+        not strictly increasing, non-finite values, duplicate joints, a bad experiment).
+        """
+
+    @property
+    def joints(self) -> list[str]:
+        """Joint names: the column order of every matrix."""
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+
+    @property
+    def t(self) -> _FloatArray:
+        """Sample times [s], shape (N,); absolute (a log need not start at 0)."""
+
+    @property
+    def q(self) -> _FloatArray:
+        """Measured positions [rad or m], shape (N, dof)."""
+
+    @property
+    def qd(self) -> _FloatArray:
+        """Measured velocities (as the controller saw them) [rad/s or m/s], shape (N, dof)."""
+
+    @property
+    def tau(self) -> _FloatArray | None:
+        """Commanded torques [N·m or N], shape (N, dof); None when the log has no effort."""
+
+    @property
+    def q_ref(self) -> _FloatArray | None:
+        """Reference positions, shape (N, dof); None when the run has no reference."""
+
+    @property
+    def qd_ref(self) -> _FloatArray | None:
+        """Reference velocities, shape (N, dof); None when absent (zero)."""
+
+    @property
+    def experiment(self) -> dict[str, str] | None:
+        """The ``simgap.experiment`` metadata as a dict of strings, or None."""
+
+    @property
+    def source(self) -> str:
+        """Where the run came from (file name, or "simulation")."""
+
+    @property
+    def duration(self) -> float:
+        """Duration [s]: last sample time minus first (0 for fewer than two samples)."""
+
+    def __len__(self) -> int:
+        """Number of samples."""
+
+@final
+class L2Report:
+    """L² indices of a difference signal (the seed paper's eq. 127)."""
+
+    @property
+    def joints(self) -> list[str]:
+        """Joint names (the order of the per-joint arrays)."""
+
+    @property
+    def overall(self) -> float:
+        """L² of the whole difference vector [rad or m]."""
+
+    @property
+    def per_joint(self) -> _FloatArray:
+        """L² of each joint, shape (dof,)."""
+
+    @property
+    def max_abs_per_joint(self) -> _FloatArray:
+        """Maximum absolute difference of each joint, shape (dof,)."""
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """Time span used, (start, end) [s]."""
+
+    @property
+    def samples(self) -> int:
+        """Number of samples used."""
+
+def read_log(path: str | PathLike[str], joints: list[str] | None = None) -> Run:
+    """Reads a log (ROS 2 MCAP ``.mcap``, or CSV ``.csv`` / ``.csv.gz``, chosen by extension).
+
+    With ``joints`` (e.g. ``model.joint_names``), the columns are put in that order, matched by
+    name. Raises LogError naming the file and the problem.
+    """
+
+def write_log(run: Run, path: str | PathLike[str]) -> None:
+    """Writes a run as a log, the format chosen by extension (``.mcap``, ``.csv``, ``.csv.gz``;
+    CSV logs get their experiment in a sidecar JSON file). Raises LogError."""
+
+def l2(t: _ArrayLike, x: _ArrayLike) -> float:
+    """The L² index (eq. 127): sqrt(1/(t_end − t_0) ∫ ‖x‖² dt), trapezoid rule.
+
+    ``t``: sample times, shape (N,); ``x``: the signal, shape (N,) or (N, k). Zero for fewer
+    than two samples.
+    """
+
+def compare(a: Run, b: Run, window: tuple[float, float] | None = None) -> L2Report:
+    """L² of the position difference a.q − b.q (eq. 127).
+
+    ``b`` is linearly resampled onto ``a``'s times and joints are matched by name; only samples
+    inside both runs and inside ``window = (start, end)`` [s] count. Raises LogError when a
+    joint of ``a`` is not in ``b``, SimulationError when fewer than two samples remain.
+    """
+
+def l2_tracking(run: Run, window: tuple[float, float] | None = None) -> L2Report:
+    """L² of a run's tracking error q_ref − q (eq. 127 as the paper uses it), optionally within
+    ``window = (start, end)`` [s]. Raises SimulationError when the run has no reference."""
+
+def simulate(
+    model: Model,
+    reference: Run | _ArrayLike,
+    *,
+    controller: Literal["pd", "pd_gravity", "replay"] | None = None,
+    kp: _ArrayLike | None = None,
+    kv: _ArrayLike | None = None,
+    replay: Run | None = None,
+    formulation: _Formulation = "euler_lagrange",
+    effects: list[str] = ...,
+    duration: float | None = None,
+    sample_period: float | None = None,
+    t0: float | None = None,
+    q0: _ArrayLike | None = None,
+    qd0: _ArrayLike | None = None,
+    substeps: int = 1,
+    integrator: Literal["rk4", "adaptive"] = "rk4",
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+    counts_per_rev: float | None = ...,
+    velocity: Literal["backward_difference", "exact"] = "backward_difference",
+    noise_std: float = 0.0,
+    seed: int = 0,
+    coulomb_width: float = 0.01,
+    torque_limits_from_model: bool = False,
+    divergence_bound: float = 10000.0,
+) -> Run:
+    """Simulates the sampled closed loop and returns the run as a log would record it.
+
+    The plant ``model`` (plus ``effects``) runs under a controller following ``reference``,
+    sampled like a real controller (zero-order hold, encoder quantisation, backward-difference
+    velocity), integrated by RK4. The run holds measured q and q̇ as the controller saw them,
+    the commanded τ, and the reference.
+
+    ``reference``: a target position, shape (dof,) (a step at t0; q̇_ref = 0), or a Run whose
+    reference (else measured q) is followed, joints matched by name. With a Run, ``t0``,
+    ``duration``, ``q0``, ``qd0``, the controller, its gains and the sample period default to
+    the run's (its first sample, its experiment); otherwise t0 = 0, duration = 3 s, q0 = qd0 =
+    0, sample period 2.5 ms.
+
+    ``controller``: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
+    g(q)) or "replay" (the logged effort of ``replay``, default the reference run, open loop).
+    ``kp``, ``kv``: gains, shape (dof,), in model order. ``effects``: unmodelled effects in the
+    CLI spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734".
+    ``integrator``: "rk4" (``substeps`` steps per sample, raised automatically for stiff
+    friction) or "adaptive" (Dormand–Prince with ``rtol``, ``atol``). ``counts_per_rev``:
+    encoder resolution (default 1,024,000 counts per revolution; None = exact positions); ``velocity``: "backward_difference" or
+    "exact"; ``noise_std``, ``seed``: Gaussian position noise. ``coulomb_width``: smoothing
+    of sign(q̇) [rad/s]. ``divergence_bound``: |q̇| beyond which the run has diverged.
+
+    The GIL is released while simulating; Ctrl-C stops the run at its next sample and raises
+    KeyboardInterrupt. Raises SimulationError when the run diverges or a parameter is invalid,
+    LogError when the reference or replay run does not match the model's joints,
+    DimensionError for vectors of the wrong length.
+    """
+
+# diagnose(...) is added here once simgap-diag is bound (python/src/diagnosis.rs).

@@ -3,7 +3,7 @@
 //! ```text
 //! SimgapError(Exception)
 //! ├── UrdfError            every simgap_core::Error (unreadable file, bad URDF, invalid model)
-//! ├── LogError             logs that cannot be read, written or matched to the model
+//! ├── LogError             logs that cannot be read, written, or matched to the model by joint name
 //! ├── DimensionError       also a ValueError: an array of the wrong shape
 //! ├── DynamicsError        also a ValueError: dynamics undefined at this input
 //! ├── SimulationError      a simulation that diverged, was interrupted or got bad parameters
@@ -122,6 +122,24 @@ pub(crate) fn core_error_kind(e: &simgap_core::Error) -> Kind {
 /// Converts a `simgap_core::Error` to its Python exception; the message is the Rust one.
 pub(crate) fn from_core(e: simgap_core::Error) -> PyErr {
     core_error_kind(&e).err(e.to_string())
+}
+
+/// The class of a `simgap_sim::Error`: logs are `LogError`, model errors keep their class, the
+/// rest concerns a simulation.
+pub(crate) fn sim_error_kind(e: &simgap_sim::Error) -> Kind {
+    use simgap_sim::Error as E;
+    match e {
+        E::Log { .. } | E::Write { .. } | E::JointMismatch { .. } => Kind::Log,
+        E::Diverged { .. } | E::Interrupted { .. } | E::Invalid { .. } => Kind::Simulation,
+        E::Model(core) => core_error_kind(core),
+        // variants added later concern a simulation until mapped here
+        _ => Kind::Simulation,
+    }
+}
+
+/// Converts a `simgap_sim::Error` to its Python exception; the message is the Rust one.
+pub(crate) fn from_sim(e: simgap_sim::Error) -> PyErr {
+    sim_error_kind(&e).err(e.to_string())
 }
 
 /// Adds every exception class to the module.

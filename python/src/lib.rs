@@ -5,6 +5,7 @@
 mod conv;
 mod errors;
 mod model;
+mod sim;
 
 use pyo3::prelude::*;
 
@@ -15,5 +16,14 @@ fn _simgap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     m.add_class::<model::PyModel>()?;
+    m.add_class::<sim::PyRun>()?;
+    m.add_class::<sim::PyL2Report>()?;
+    m.add_function(wrap_pyfunction!(sim::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::write_log, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::l2, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::l2_tracking, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::compare, m)?)?;
+    // diagnosis (simgap-diag): `diagnose` is registered here by diagnosis.rs once that crate lands
     Ok(())
 }

@@ -154,7 +154,7 @@ where
 }
 
 /// Parses a formulation name.
-fn formulation(name: &str) -> PyResult<Formulation> {
+pub(crate) fn formulation(name: &str) -> PyResult<Formulation> {
     match name {
         "euler_lagrange" | "euler-lagrange" => Ok(Formulation::EulerLagrange),
         "simplified" => Ok(Formulation::Simplified),
@@ -182,7 +182,7 @@ impl PyModel {
         PyModel { scratch: Mutex::new(Some(Scratch::new(&model))), model: RwLock::new(Arc::new(model)) }
     }
 
-    fn model(&self) -> Arc<Model> {
+    pub(crate) fn model(&self) -> Arc<Model> {
         self.model.read().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
