@@ -1,0 +1,197 @@
+//! `simgap demo` and `simgap diagnose` as a user runs them: the JSON contract (BRIEF §3.3), the
+//! blind recovery of the demo's hidden effects, and clear errors on bad input.
+//!
+//! The binary is `$SIMGAP_BIN` when set (e.g. `target/release/simgap`, built by `make test`),
+//! else the one cargo built for this test.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+use serde_json::Value;
+
+fn bin() -> PathBuf {
+    std::env::var_os("SIMGAP_BIN").map(PathBuf::from).unwrap_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_simgap")))
+}
+
+fn simgap(args: &[&str]) -> Output {
+    Command::new(bin()).args(args).output().expect("simgap runs")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("simgap-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+const PENDULUM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/simgap-core/models/pendulum.urdf");
+
+/// Runs `simgap demo` once for every test that needs it.
+fn demo() -> &'static (PathBuf, String, Value) {
+    static DEMO: OnceLock<(PathBuf, String, Value)> = OnceLock::new();
+    DEMO.get_or_init(|| {
+        let dir = scratch("demo");
+        let o = simgap(&["demo", "--out-dir", s(&dir)]);
+        assert!(o.status.success(), "simgap demo failed:\n{}", text(&o));
+        let report: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+        (dir, text(&o), report)
+    })
+}
+
+fn selected<'a>(report: &'a Value, effect: &str) -> &'a Value {
+    report["selected_effects"].as_array().unwrap().iter().find(|e| e["effect"] == effect).unwrap_or_else(|| panic!("{effect} not selected: {}", report["selected_effects"]))
+}
+
+fn param(report: &Value, effect: &str, name: &str, joint: &str) -> f64 {
+    let e = selected(report, effect);
+    let j = e["joints"].as_array().unwrap().iter().position(|x| x == joint).unwrap_or_else(|| panic!("{effect} not on {joint}: {e}"));
+    e["parameters"][name][j].as_f64().unwrap()
+}
+
+#[test]
+fn demo_report_has_every_contract_key() {
+    let (dir, _, r) = demo();
+    for f in ["paper_arm.urdf", "fit-step.mcap", "holdout-excitation.mcap", "report.json", "report.html", "corrected.mcap"] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    for e in r["selected_effects"].as_array().unwrap() {
+        assert!(e["effect"].is_string() && e["joints"].is_array() && e["parameters"].is_object(), "{e}");
+        for (_, v) in e["parameters"].as_object().unwrap() {
+            if let Some(list) = v.as_array() {
+                assert_eq!(list.len(), e["joints"].as_array().unwrap().len(), "per-joint parameters align with joints: {e}");
+            }
+        }
+    }
+    let candidates = r["candidates"].as_array().unwrap();
+    assert!(candidates.len() >= 10);
+    for (i, c) in candidates.iter().enumerate() {
+        assert_eq!(c["rank"].as_u64(), Some(i as u64 + 1));
+        assert!(c["effect"].is_string() && c["parameters"].is_object() && c["holdout_l2_after"].is_number(), "{c}");
+    }
+    assert!(r["gap"]["holdout_l2_before"].as_f64().unwrap() > 0.0);
+    assert!(r["gap"]["holdout_l2_after"].as_f64().unwrap() < 0.2 * r["gap"]["holdout_l2_before"].as_f64().unwrap());
+    for k in ["per_joint", "worst_segments", "correlations"] {
+        assert!(!r["where"][k].is_null(), "where.{k}");
+    }
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("viscous_friction") && !html.contains("<script"));
+}
+
+#[test]
+fn demo_recovers_the_hidden_effects_within_15_percent() {
+    let (_, out, r) = demo();
+    for (effect, p, joint, truth) in [
+        ("viscous_friction", "b", "shoulder", 2.288),
+        ("viscous_friction", "b", "elbow", 0.175),
+        ("coulomb_friction", "fc", "shoulder", 7.17),
+        ("coulomb_friction", "fc", "elbow", 1.734),
+        ("torque_saturation", "limit", "elbow", 15.0),
+    ] {
+        let v = param(r, effect, p, joint);
+        assert!((v - truth).abs() <= 0.15 * truth, "{effect}.{p} on {joint}: found {v}, truth {truth}");
+    }
+    assert!(out.contains("HIDDEN TRUTH vs FOUND") && out.contains("simgap diagnose --urdf"), "{out}");
+}
+
+#[test]
+fn diagnose_on_the_demo_files_reproduces_the_demo() {
+    let (dir, _, r) = demo();
+    let out = scratch("reproduce");
+    let json = out.join("again.json");
+    let mcap = out.join("again.mcap");
+    let o = simgap(&[
+        "diagnose",
+        "--urdf",
+        s(&dir.join("paper_arm.urdf")),
+        "--log",
+        s(&dir.join("fit-step.mcap")),
+        "--log",
+        s(&dir.join("fit-excitation.mcap")),
+        "--log",
+        s(&dir.join("fit-setpoints.mcap")),
+        "--holdout",
+        s(&dir.join("holdout-excitation.mcap")),
+        "--json",
+        s(&json),
+        "--mcap",
+        s(&mcap),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let again: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(again["selected_effects"], r["selected_effects"]);
+    assert_eq!(again["gap"], r["gap"]);
+    assert_eq!(again["verdict"], r["verdict"]);
+    assert!(mcap.is_file());
+    // no temporary file left behind
+    let left: Vec<_> = std::fs::read_dir(&out).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().ends_with(".tmp")).collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+fn simulate_pendulum(path: &Path, target: &str, duration: &str) {
+    let o = simgap(&["simulate", "--urdf", PENDULUM, "--kp", "20", "--kv", "2", "--target", target, "--duration", duration, "--out", s(path)]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+#[test]
+fn held_out_log_of_another_robot_fails_naming_the_file_and_the_joint() {
+    let d = scratch("other-robot");
+    let (fit, other) = (d.join("fit.mcap"), d.join("pendulum.mcap"));
+    let o = simgap(&["simulate", "--duration", "1", "--out", s(&fit)]);
+    assert!(o.status.success(), "{}", text(&o));
+    simulate_pendulum(&other, "0.5", "1");
+    let o = simgap(&["diagnose", "--urdf", concat!(env!("CARGO_MANIFEST_DIR"), "/crates/simgap-core/models/paper_arm.urdf"), "--log", s(&fit), "--holdout", s(&other)]);
+    let msg = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{msg}");
+    assert!(msg.contains("pendulum.mcap") && msg.contains("shoulder"), "{msg}");
+    assert!(!msg.contains("panicked"), "{msg}");
+}
+
+#[test]
+fn too_short_log_fails_naming_the_file() {
+    let d = scratch("short");
+    let (short, hold) = (d.join("short.mcap"), d.join("hold.mcap"));
+    simulate_pendulum(&short, "0.5", "0.05");
+    simulate_pendulum(&hold, "0.5", "1");
+    let o = simgap(&["diagnose", "--urdf", PENDULUM, "--log", s(&short), "--holdout", s(&hold)]);
+    let msg = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{msg}");
+    assert!(msg.contains("short.mcap") && msg.contains("too short"), "{msg}");
+}
+
+#[test]
+fn missing_file_fails_naming_it() {
+    let d = scratch("missing");
+    let hold = d.join("hold.mcap");
+    simulate_pendulum(&hold, "0.5", "1");
+    let o = simgap(&["diagnose", "--urdf", PENDULUM, "--log", s(&d.join("nowhere.mcap")), "--holdout", s(&hold)]);
+    let msg = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{msg}");
+    assert!(msg.contains("nowhere.mcap"), "{msg}");
+    let o = simgap(&["diagnose", "--urdf", s(&d.join("nowhere.urdf")), "--log", s(&hold), "--holdout", s(&hold)]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("nowhere.urdf"), "{}", text(&o));
+}
+
+#[test]
+fn no_motion_says_cannot_tell() {
+    // the pendulum hanging at rest, PD to the rest position: no gravity torque, no motion
+    let d = scratch("rest");
+    let (fit, hold, json, html) = (d.join("rest1.mcap"), d.join("rest2.mcap"), d.join("report.json"), d.join("report.html"));
+    simulate_pendulum(&fit, "0", "1");
+    simulate_pendulum(&hold, "0", "1");
+    let o = simgap(&["diagnose", "--urdf", PENDULUM, "--log", s(&fit), "--holdout", s(&hold), "--json", s(&json), "--html", s(&html)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(r["verdict"].as_str().unwrap().contains("cannot tell"), "{}", r["verdict"]);
+    assert_eq!(r["selected_effects"].as_array().unwrap().len(), 0);
+    assert!(std::fs::read_to_string(&html).unwrap().contains("cannot tell"));
+}
