@@ -87,8 +87,9 @@ where
     let input = |k: usize, a: usize| inputs.get(a).map_or(&[][..], |x| &x[k * n..(k + 1) * n]);
     let len = batch.len();
     // the outputs' row-major buffers and their widths per state (unused ones empty)
-    let mut guards: Vec<_> = outputs.iter().map(|o| o.readwrite()).collect();
-    let mut bufs = guards.iter_mut().map(|g| g.as_slice_mut().expect("a fresh array is contiguous"));
+    // SAFETY: every output was created by the caller in this call and is not yet visible to
+    // Python or borrowed elsewhere, so this is the only reference to its (contiguous) data.
+    let mut bufs = outputs.iter().map(|o| unsafe { o.as_slice_mut() }.expect("a fresh array is contiguous"));
     let mut outs: [&mut [f64]; 3] = std::array::from_fn(|_| bufs.next().unwrap_or_default());
     let widths = outs.each_ref().map(|o| o.len().checked_div(len).unwrap_or(0));
 
@@ -175,11 +176,13 @@ pub(crate) struct PyModel {
     model: RwLock<Arc<Model>>,
     /// Scratch for one-state calls.
     scratch: Mutex<Option<Scratch>>,
+    /// Degrees of freedom (fixed for the life of the object).
+    dof: usize,
 }
 
 impl PyModel {
     fn new(model: Model) -> Self {
-        PyModel { scratch: Mutex::new(Some(Scratch::new(&model))), model: RwLock::new(Arc::new(model)) }
+        PyModel { scratch: Mutex::new(Some(Scratch::new(&model))), dof: model.dof(), model: RwLock::new(Arc::new(model)) }
     }
 
     pub(crate) fn model(&self) -> Arc<Model> {
@@ -191,7 +194,7 @@ impl PyModel {
     where
         K: Fn(&Model, &mut Workspace, Inputs<'_>, &mut DMatrix<f64>) + Sync,
     {
-        let n = self.model().dof();
+        let n = self.dof;
         let (batch, data) = joint_vectors(n, args)?;
         let out = output(py, &batch.shape(&[n, n]));
         evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
@@ -207,7 +210,7 @@ impl PyModel {
     where
         K: Fn(&Model, &mut Workspace, Inputs<'_>, &mut [f64]) + Sync,
     {
-        let n = self.model().dof();
+        let n = self.dof;
         let (batch, data) = joint_vectors(n, args)?;
         let out = output(py, &batch.shape(&[n]));
         evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
@@ -222,7 +225,7 @@ impl PyModel {
     where
         K: Fn(&Model, &mut Workspace, Inputs<'_>) -> f64 + Sync,
     {
-        let n = self.model().dof();
+        let n = self.dof;
         let (batch, data) = joint_vectors(n, args)?;
         let out = output(py, &batch.shape(&[]));
         evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
@@ -266,7 +269,7 @@ impl PyModel {
     /// Number of degrees of freedom (movable joints of the chain).
     #[getter]
     fn dof(&self) -> usize {
-        self.model().dof()
+        self.dof
     }
 
     /// Joint names in chain order, root to tip: the order of every joint vector.
@@ -378,7 +381,7 @@ impl PyModel {
     #[pyo3(signature = (q, qd, tau, formulation = "euler_lagrange"))]
     fn forward_dynamics<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, tau: ArrayArg<'py>, formulation: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self::formulation(formulation)?;
-        let n = self.model().dof();
+        let n = self.dof;
         let (batch, data) = joint_vectors(n, &[("q", &q), ("qd", &qd), ("tau", &tau)])?;
         for (name, d) in ["q", "qd", "tau"].iter().zip(&data) {
             require_finite(name, d, n, batch)?;
@@ -410,7 +413,7 @@ impl PyModel {
     #[pyo3(signature = (q, qd, formulation = "euler_lagrange"))]
     fn dynamics_terms<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, formulation: &str) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let f = self::formulation(formulation)?;
-        let n = self.model().dof();
+        let n = self.dof;
         let (batch, data) = joint_vectors(n, &[("q", &q), ("qd", &qd)])?;
         let (mshape, vshape) = (batch.shape(&[n, n]), batch.shape(&[n]));
         let (h, c, g) = (output(py, &mshape), output(py, &mshape), output(py, &vshape));
