@@ -1,8 +1,9 @@
 //! `simgap demo` and `simgap diagnose` as a user runs them: the JSON contract (BRIEF §3.3), the
 //! blind recovery of the demo's hidden effects, and clear errors on bad input.
 //!
-//! The binary is `$SIMGAP_BIN` when set (e.g. `target/release/simgap`, built by `make test`),
-//! else the one cargo built for this test.
+//! The binary is `$SIMGAP_BIN` when set; else `target/release/simgap` when it is newer than
+//! every source file (as after `make test`'s release build: the demo takes ~3 s there against
+//! ~1 min in a debug build); else the debug binary cargo built for this test.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -11,7 +12,44 @@ use std::sync::OnceLock;
 use serde_json::Value;
 
 fn bin() -> PathBuf {
-    std::env::var_os("SIMGAP_BIN").map(PathBuf::from).unwrap_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_simgap")))
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        if let Some(b) = std::env::var_os("SIMGAP_BIN") {
+            return PathBuf::from(b);
+        }
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let release = root.join("target/release/simgap");
+        let built = std::fs::metadata(&release).and_then(|m| m.modified()).ok();
+        let newest_source = [root.join("src"), root.join("crates"), root.join("Cargo.toml"), root.join("Cargo.lock")].iter().filter_map(|p| newest(p)).max();
+        match (built, newest_source) {
+            (Some(b), Some(s)) if b > s => release,
+            _ => PathBuf::from(env!("CARGO_BIN_EXE_simgap")),
+        }
+    })
+    .clone()
+}
+
+/// Newest modification time of a file or of the `.rs`, `.toml` and `.urdf` files under a folder.
+fn newest(path: &Path) -> Option<std::time::SystemTime> {
+    let meta = std::fs::metadata(path).ok()?;
+    if meta.is_file() {
+        return meta.modified().ok();
+    }
+    std::fs::read_dir(path)
+        .ok()?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let p = e.path();
+            let name = e.file_name().to_string_lossy().to_string();
+            if p.is_dir() {
+                if name == "target" || name.starts_with('.') { None } else { newest(&p) }
+            } else if name.ends_with(".rs") || name.ends_with(".toml") || name.ends_with(".urdf") {
+                e.metadata().ok()?.modified().ok()
+            } else {
+                None
+            }
+        })
+        .max()
 }
 
 fn simgap(args: &[&str]) -> Output {
