@@ -100,6 +100,14 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
                 if run.experiment.is_none() {
                     run.experiment = experiment.clone();
                 }
+                if run.experiment.is_none() {
+                    bail!(
+                        "{}: no simgap.experiment metadata (controller, joints, kp, kv, sample_period), needed to re-simulate the closed loop; \
+                         give it with --experiment EXP.json, or for a CSV log as a sidecar file {}",
+                        p.display(),
+                        simgap::sim::csv_log::sidecar_path(p).display()
+                    );
+                }
                 Ok(run)
             })
             .collect()
