@@ -147,11 +147,7 @@ pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
             }
             Term::Delay { delay } => out.push(Effect::TimeDelay { delay }),
             Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
-            Term::Payload { .. } => {
-                let m = th[0];
-                let com = if m.abs() > 1e-12 { [th[1] / m, th[2] / m, th[3] / m] } else { [0.0; 3] };
-                out.push(Effect::Payload { mass: m, com });
-            }
+            Term::Payload { com } => out.push(Effect::Payload { mass: th[0], com }),
             Term::InertialError { ref basis } => {
                 let dpi = basis * nalgebra::DVector::from_column_slice(th);
                 let deltas = (0..n)
@@ -213,12 +209,10 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
                 e.uncertainty.insert("delay".into(), Param::Number(f64::NAN));
             }
             Term::CoriolisStructure => {}
-            Term::Payload { .. } => {
-                let m = th[0];
-                e.parameters.insert("mass".into(), Param::Number(m));
+            Term::Payload { com } => {
+                e.parameters.insert("mass".into(), Param::Number(th[0]));
                 e.uncertainty.insert("mass".into(), Param::Number(ci(sd[0])));
-                let com = if m.abs() > 1e-12 { vec![th[1] / m, th[2] / m, th[3] / m] } else { vec![0.0; 3] };
-                e.parameters.insert("com".into(), Param::Vector(com));
+                e.parameters.insert("com".into(), Param::Vector(com.to_vec()));
             }
             Term::InertialError { .. } => {
                 let effects = to_effects(model, std::slice::from_ref(f));

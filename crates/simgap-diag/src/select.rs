@@ -85,11 +85,12 @@ pub struct Context<'a> {
 }
 
 impl<'a> Context<'a> {
-    /// Builds the context.
-    pub fn new(data: &'a [FitData], sample_period: f64) -> Context<'a> {
+    /// Builds the context; `scales` are the nominal magnitudes of the stacked inertial
+    /// parameters (see [`parameter_scales`]).
+    pub fn new(data: &'a [FitData], sample_period: f64, scales: &[f64]) -> Context<'a> {
         let problem = Problem::new(data);
         let dof = problem.dof;
-        let inertial_basis = inertial_basis(&problem, data);
+        let inertial_basis = inertial_basis(&problem, data, scales);
         let tau_rms = (0..dof)
             .map(|j| {
                 let (s, n) = data.iter().fold((0.0, 0usize), |(s, n), d| (s + (0..d.len()).map(|k| d.tau[k * dof + j].powi(2)).sum::<f64>(), n + d.len()));
@@ -130,18 +131,7 @@ impl<'a> Context<'a> {
                 let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i) }).collect();
                 screen_best(&self.problem, self.data, &cands, resid).0
             }
-            Term::Payload { .. } => {
-                // re-linearise the rotational part about the fitted centre of mass
-                let mut term = best.clone();
-                for _ in 0..3 {
-                    let d = design(&term, self.data);
-                    let th = screen_fit(&self.problem, &d, resid).0;
-                    if th.len() == 4 && th[0].abs() > 1e-9 {
-                        term = Term::Payload { com: [th[1] / th[0], th[2] / th[0], th[3] / th[0]] };
-                    }
-                }
-                term
-            }
+            Term::Payload { .. } => self.payload_search(resid, &[]),
             ref other => other.clone(),
         }
     }
@@ -151,6 +141,39 @@ impl<'a> Context<'a> {
         let cands = self.grid(family);
         let (best, _) = screen_best(&self.problem, self.data, &cands, resid);
         self.refine(&best, resid)
+    }
+
+    /// [`Context::best_of`]; the payload's centre of mass is searched jointly with the other
+    /// selected terms `rest` (so they cannot absorb part of it first).
+    pub fn best_of_with(&self, family: &Family, resid: &Column, rest: &[TermDesign]) -> Term {
+        match family {
+            Family::Payload => self.payload_search(resid, rest),
+            _ => self.best_of(family, resid),
+        }
+    }
+
+    /// The payload's centre of mass: a linear first guess (mass and first moment of the last
+    /// link), then Nelder–Mead on the cross-validation-free fit residual of `rest` + payload.
+    fn payload_search(&self, resid: &Column, rest: &[TermDesign]) -> Term {
+        let p = &self.problem;
+        let (th, _) = screen_fit(p, &crate::terms::payload_linear_design(self.data), resid);
+        let c0 = if th.len() == 4 && th[0].abs() > 1e-9 { [th[1] / th[0], th[2] / th[0], th[3] / th[0]] } else { [0.0; 3] };
+        let c0 = c0.map(|x| if x.is_finite() { x.clamp(-2.0, 2.0) } else { 0.0 });
+        let sse = |c: &[f64; 3]| -> f64 {
+            let mut ds = rest.to_vec();
+            ds.push(TermDesign { cols: vec![crate::terms::payload_column(self.data, *c)], offset: None });
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let gr = grams(p, &refs);
+            let (mut g, mut cc, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
+            for b in 0..gr.g.len() {
+                g += &gr.g[b];
+                cc += &gr.c[b];
+                s += gr.s[b];
+            }
+            let (t, _) = solve(&g, &cc);
+            s - 2.0 * t.dot(&cc) + t.dot(&(&g * &t))
+        };
+        Term::Payload { com: nelder_mead(sse, c0, 0.02, 60) }
     }
 
     /// Designs a term (the inertial error uses the identifiable basis).
@@ -164,9 +187,73 @@ impl<'a> Context<'a> {
     }
 }
 
+/// Minimises `f` over 3-vectors by Nelder–Mead from `x0` with initial step `step`.
+fn nelder_mead(f: impl Fn(&[f64; 3]) -> f64, x0: [f64; 3], step: f64, iters: usize) -> [f64; 3] {
+    let mut pts: Vec<([f64; 3], f64)> = (0..4)
+        .map(|i| {
+            let mut x = x0;
+            if i > 0 {
+                x[i - 1] += step;
+            }
+            (x, f(&x))
+        })
+        .collect();
+    for _ in 0..iters {
+        pts.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let mut centroid = [0.0; 3];
+        for p in &pts[..3] {
+            for k in 0..3 {
+                centroid[k] += p.0[k] / 3.0;
+            }
+        }
+        let along = |t: f64| -> [f64; 3] { std::array::from_fn(|k| centroid[k] + t * (pts[3].0[k] - centroid[k])) };
+        let xr = along(-1.0);
+        let fr = f(&xr);
+        if fr < pts[0].1 {
+            let xe = along(-2.0);
+            let fe = f(&xe);
+            pts[3] = if fe < fr { (xe, fe) } else { (xr, fr) };
+        } else if fr < pts[2].1 {
+            pts[3] = (xr, fr);
+        } else {
+            let xc = along(0.5);
+            let fc = f(&xc);
+            if fc < pts[3].1 {
+                pts[3] = (xc, fc);
+            } else {
+                let best = pts[0].0;
+                for p in pts.iter_mut().skip(1) {
+                    p.0 = std::array::from_fn(|k| best[k] + 0.5 * (p.0[k] - best[k]));
+                    p.1 = f(&p.0);
+                }
+            }
+        }
+    }
+    pts.sort_by(|a, b| a.1.total_cmp(&b.1));
+    pts[0].0
+}
+
 /// Directions of the stacked inertial parameters the fit data excites (eigenvectors of the
 /// weighted regressor Gram with eigenvalue above 1e-8 of the largest).
-fn inertial_basis(p: &Problem, data: &[FitData]) -> DMatrix<f64> {
+/// Nominal magnitudes of the stacked inertial parameters: per link `m̄` for the mass, `m̄ ℓ` for
+/// the first moments and `m̄ ℓ²` for the rotational inertia, with `m̄` the link mass (at least
+/// 1 % of the average) and `ℓ = 0.1 m`. Fitting in these units makes the minimum-norm
+/// correction spread over the links as their nominal parameters do, which keeps it physical.
+pub fn parameter_scales(model: &simgap_core::Model) -> Vec<f64> {
+    let n = model.dof();
+    let avg = model.total_mass() / n as f64;
+    let l = 0.1;
+    model
+        .joints()
+        .iter()
+        .flat_map(|j| {
+            let m = j.inertia.mass.max(0.01 * avg).max(1e-6);
+            [m, m * l, m * l, m * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l]
+        })
+        .collect()
+}
+
+fn inertial_basis(p: &Problem, data: &[FitData], scales: &[f64]) -> DMatrix<f64> {
     let dof = p.dof;
     let width = PARAMS_PER_LINK * dof;
     if data.iter().any(|d| d.regressor.is_empty()) {
@@ -189,11 +276,12 @@ fn inertial_basis(p: &Problem, data: &[FitData]) -> DMatrix<f64> {
             }
         }
     }
-    let g = DMatrix::from_fn(width, width, |a, b| if a <= b { g[(a, b)] } else { g[(b, a)] });
+    // in scaled units: G_s = D G D, basis = D V
+    let g = DMatrix::from_fn(width, width, |a, b| if a <= b { g[(a, b)] } else { g[(b, a)] } * scales[a] * scales[b]);
     let eig = g.symmetric_eigen();
     let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
     let keep: Vec<usize> = (0..width).filter(|&i| eig.eigenvalues[i] > 1e-8 * max).collect();
-    DMatrix::from_fn(width, keep.len(), |r, c| eig.eigenvectors[(r, keep[c])])
+    DMatrix::from_fn(width, keep.len(), |r, c| scales[r] * eig.eigenvectors[(r, keep[c])])
 }
 
 /// Least-squares fit of one design against a residual column: (θ, weighted SSE).
@@ -344,7 +432,7 @@ pub fn n_params(t: &Term, d: &TermDesign) -> usize {
     d.cols.len()
         + match t {
             Term::Stribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
-            Term::Payload { .. } => 0,
+            Term::Payload { .. } => 3,
             _ => 0,
         }
 }
@@ -370,7 +458,7 @@ fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: 
         let refs: Vec<&TermDesign> = rest.iter().collect();
         let f0 = fit(p, &grams(p, &refs));
         let resid = residual_after(p, &rest, &f0.theta);
-        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of(f, &resid)).filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i]).collect();
+        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of_with(f, &resid, &rest)).filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i]).collect();
         if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == "inertia") && !matches!(terms[i], Term::InertialError { .. }) {
             let t = ctx.inertial_term();
             if !slot_taken(&rest_terms, &t) {
@@ -432,7 +520,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     while terms.len() < opts.max_terms {
         let resid = residual_after(p, &designs, &current.theta);
         // best member of every family, then the inertial error, evaluated jointly with the set
-        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of(f, &resid)).filter(|t| !slot_taken(&terms, t)).collect();
+        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
         if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == "inertia") {
             cands.push(ctx.inertial_term());
         }
@@ -449,12 +537,9 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
             }
             evaluated.push((c, f, ds));
         }
-        // the best candidate by the relative gain on the residual it acts on, then parsimony:
-        // the fewest parameters among candidates whose gain is within a tolerance of the best
-        let rel = |e: &(Term, Fit, Vec<TermDesign>)| {
-            let (now, new) = (cv_of(&current, &e.0), cv_of(&e.1, &e.0));
-            (now - new) / now.max(1e-300) * (current.cv_mse - e.1.cv_mse).signum().max(0.0)
-        };
+        // the best candidate by the whole-robot gain, then parsimony: the fewest parameters
+        // among candidates whose gain is within a tolerance of the best
+        let rel = |e: &(Term, Fit, Vec<TermDesign>)| current.cv_mse - e.1.cv_mse;
         let Some(best_rel) = evaluated.iter().map(rel).max_by(f64::total_cmp) else { break };
         let tol = best_rel * (1.0 - 0.5 * opts.min_relative_gain);
         let Some((term, f, ds)) = evaluated
@@ -497,6 +582,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         terms.push(term);
         designs = ds;
         current = f;
+        polish(ctx, &fams, &mut terms, &mut designs, &mut current);
         // exchange moves: swap a selected term for a candidate while that lowers the CV residual
         for _ in 0..4 {
             if !exchange(ctx, &fams, &mut terms, &mut designs, &mut current, opts, &mut log) {
@@ -556,7 +642,7 @@ fn polish(ctx: &Context<'_>, _fams: &[Family], terms: &mut [Term], designs: &mut
             let refs: Vec<&TermDesign> = rest.iter().collect();
             let f0 = fit(p, &grams(p, &refs));
             let resid = residual_after(p, &rest, &f0.theta);
-            let cand = ctx.best_of(&family, &resid);
+            let cand = ctx.best_of_with(&family, &resid, &rest);
             let mut ds = designs.to_vec();
             ds[i] = ctx.design(&cand);
             let refs: Vec<&TermDesign> = ds.iter().collect();

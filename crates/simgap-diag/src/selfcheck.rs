@@ -117,7 +117,13 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
             let name = all[rng.random_range(0..all.len())];
             // on a one-joint robot a torque gain is exactly a scaling of its inertial parameters,
             // and an inertial error of its only link is a payload: not identifiable apart
-            if n == 1 && matches!(name, "torque_gain" | "inertial_error") {
+            // a one-joint robot has no Coriolis terms at all, so neither formulation differs
+            if n == 1 && matches!(name, "torque_gain" | "inertial_error" | "payload" | "coriolis_structure") {
+                continue;
+            }
+            // Coulomb plus Stribeck on one joint is a single Stribeck friction
+            let dry = |e: &Effect| matches!(e.name(), "coulomb_friction" | "stribeck_friction");
+            if matches!(name, "coulomb_friction" | "stribeck_friction") && effects.iter().any(dry) {
                 continue;
             }
             if effects.iter().any(|e| e.name() == name) || (name == "payload" && effects.iter().any(|e| e.name() == "inertial_error")) || (name == "inertial_error" && effects.iter().any(|e| e.name() == "payload")) {

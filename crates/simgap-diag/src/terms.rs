@@ -11,7 +11,7 @@
 //! saturation     r_j ∋  τ_j − clamp(τ_j, ±L_j)          (fixed coefficient, L searched)
 //! time_delay     r   ∋  τ(t) − τ(t − d)                 (fixed coefficient, d searched)
 //! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
-//! payload        r   ∋  Y_last π_point(m, c)            (m, m c linear; re-linearised in c)
+//! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (identifiable directions only)
 //! ```
 
@@ -64,9 +64,10 @@ pub enum Term {
     },
     /// The other formulation of C.
     CoriolisStructure,
-    /// A point mass on the last link, linearised about a centre of mass.
+    /// A point mass on the last link at a searched centre of mass (its mass is the fitted
+    /// parameter).
     Payload {
-        /// Centre of mass used for the rotational part [m], last link frame.
+        /// Centre of mass [m], last link frame.
         com: [f64; 3],
     },
     /// Errors of the inertial parameters along identifiable directions (columns of `basis`,
@@ -165,6 +166,48 @@ fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> 
     Column { joint: Some(j), values: v }
 }
 
+/// The torque of a unit point mass at `com` on the last link (its ten inertial parameters
+/// `(1, c, |c|² 1 − c cᵀ)` through the regressor), as a global column.
+pub fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
+    let dof = data[0].dof;
+    let last = dof - 1;
+    let c = Vector3::from(com);
+    let pi = [1.0, c.x, c.y, c.z, c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y];
+    let width = PARAMS_PER_LINK * dof;
+    let mut v = Vec::new();
+    for d in data {
+        for s in 0..d.len() {
+            for j in 0..dof {
+                let row = &d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last..(s * dof + j) * width + PARAMS_PER_LINK * (last + 1)];
+                v.push(row.iter().zip(&pi).map(|(a, b)| a * b).sum());
+            }
+        }
+    }
+    Column { joint: None, values: v }
+}
+
+/// The linear first guess of a payload: mass and first moment of the last link, as four
+/// global columns (rotational part ignored).
+pub fn payload_linear_design(data: &[FitData]) -> TermDesign {
+    let dof = data[0].dof;
+    let last = dof - 1;
+    let width = PARAMS_PER_LINK * dof;
+    let cols = (0..4)
+        .map(|p| {
+            let mut v = Vec::new();
+            for d in data {
+                for s in 0..d.len() {
+                    for j in 0..dof {
+                        v.push(d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last + p]);
+                    }
+                }
+            }
+            Column { joint: None, values: v }
+        })
+        .collect();
+    TermDesign { cols, offset: None }
+}
+
 /// The design of a term over all runs.
 pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
     let dof = data[0].dof;
@@ -211,34 +254,7 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
             let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
             TermDesign { cols: vec![], offset: Some(Column { joint: None, values: v }) }
         }
-        Term::Payload { com } => {
-            let last = dof - 1;
-            let c = Vector3::from(com);
-            // π_point = (m, m c, m (|c|² 1 − c cᵀ)); with c fixed in the rotational part
-            let rot = [c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y];
-            let width = PARAMS_PER_LINK * dof;
-            let col = |f: &dyn Fn(&[f64]) -> f64| -> Column {
-                let mut v = Vec::new();
-                for d in data {
-                    for s in 0..d.len() {
-                        for j in 0..dof {
-                            let row = &d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last..(s * dof + j) * width + PARAMS_PER_LINK * (last + 1)];
-                            v.push(f(row));
-                        }
-                    }
-                }
-                Column { joint: None, values: v }
-            };
-            TermDesign {
-                cols: vec![
-                    col(&|r| r[0] + (0..6).map(|p| r[4 + p] * rot[p]).sum::<f64>()),
-                    col(&|r| r[1]),
-                    col(&|r| r[2]),
-                    col(&|r| r[3]),
-                ],
-                offset: None,
-            }
-        }
+        Term::Payload { com } => TermDesign { cols: vec![payload_column(data, com)], offset: None },
         Term::InertialError { ref basis } => {
             let width = PARAMS_PER_LINK * dof;
             let mut cols: Vec<Column> = (0..basis.ncols()).map(|_| Column { joint: None, values: Vec::new() }).collect();
