@@ -1,9 +1,119 @@
-//! `simgap selfcheck`.
+//! `simgap selfcheck`: random blind scenarios diagnosed and scored against the hidden truth.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use simgap::diag::selfcheck::{run_scenario, summarise, ScenarioScore, Summary};
 
 /// Arguments of `simgap selfcheck`.
 #[derive(clap::Args)]
-pub(crate) struct Args {}
+pub(crate) struct Args {
+    /// Number of scenarios.
+    #[arg(long, default_value_t = 100)]
+    scenarios: usize,
+    /// Seed of the scenario generator.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Write every scenario's score and the summary as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
 
-pub(crate) fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`simgap selfcheck` is not built yet")
+fn pct(a: usize, b: usize) -> String {
+    if b == 0 {
+        "  –".into()
+    } else {
+        format!("{:5.1} %", 100.0 * a as f64 / b as f64)
+    }
+}
+
+/// The human-readable table of a self-check.
+fn table(sum: &Summary, n: usize, seed: u64) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "simgap selfcheck: {n} blind scenarios, seed {seed}");
+    let _ = writeln!(s, "\nhidden effects   scenarios   true set selected exactly");
+    for (k, (count, exact)) in &sum.by_count {
+        let label = match k {
+            0 => "none".to_string(),
+            1 => "one".to_string(),
+            k => format!("{k}"),
+        };
+        let _ = writeln!(s, "  {label:<14} {count:>9}   {exact:>4}  ({})", pct(*exact, *count));
+    }
+    let _ = writeln!(s, "\nconfusion (rows: hidden effect, columns: selected effect; a scenario counts once per pair)");
+    let mut cols: Vec<String> = sum.confusion.values().flat_map(|m| m.keys().cloned()).collect();
+    cols.sort();
+    cols.dedup();
+    let short = |c: &str| c.replace("_friction", "").replace("torque_", "").replace("_structure", "").replace("inertial_error", "inertial").chars().take(9).collect::<String>();
+    let _ = write!(s, "  {:<20}", "");
+    for c in &cols {
+        let _ = write!(s, "{:>10}", short(c));
+    }
+    let _ = writeln!(s);
+    for (row, m) in &sum.confusion {
+        let _ = write!(s, "  {row:<20}");
+        for c in &cols {
+            let v = m.get(c).copied().unwrap_or(0);
+            let _ = write!(s, "{:>10}", if v == 0 { ".".to_string() } else { v.to_string() });
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "\nmedian relative parameter error (correctly found effects): {:.2} %", 100.0 * sum.median_parameter_error);
+    let _ = writeln!(s, "median held-out L2 after/before (true set found):          {:.4}", sum.median_holdout_ratio);
+    if sum.failures > 0 {
+        let _ = writeln!(s, "scenarios that failed to run: {}", sum.failures);
+    }
+    s
+}
+
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
+    if args.scenarios == 0 {
+        anyhow::bail!("--scenarios: expected at least 1");
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let bar = indicatif::ProgressBar::new(args.scenarios as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} scenarios  {elapsed_precise} (eta {eta})").expect("template"));
+    let scores: Vec<Option<ScenarioScore>> = (0..args.scenarios)
+        .into_par_iter()
+        .map(|i| {
+            if stop.load(Ordering::SeqCst) {
+                return None;
+            }
+            let s = run_scenario(args.seed, i);
+            bar.inc(1);
+            Some(s)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let scores: Vec<ScenarioScore> = scores.into_iter().flatten().collect();
+    if stop.load(Ordering::SeqCst) {
+        eprintln!("interrupted: scoring the {} scenarios that finished", scores.len());
+    }
+    for s in scores.iter().filter(|s| !s.exact) {
+        eprintln!(
+            "  scenario {:>3} ({}): hidden {:?}, selected {:?}{}",
+            s.index,
+            s.robot,
+            s.truth,
+            s.found,
+            s.error.as_deref().map(|e| format!(" — {e}")).unwrap_or_default()
+        );
+    }
+    let sum = summarise(&scores);
+    print!("{}", table(&sum, scores.len(), args.seed));
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&serde_json::json!({ "seed": args.seed, "summary": sum, "scenarios": scores }))?;
+        let tmp = path.with_extension("json.tmp");
+        std::fs::write(&tmp, text)?;
+        std::fs::rename(&tmp, path)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }

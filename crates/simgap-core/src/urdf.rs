@@ -141,6 +141,7 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
 
     // joints: kinds, references, numbers
     let mut joints: Vec<RawJoint> = Vec::new();
+    let mut world_welds: Vec<String> = Vec::new();
     for j in &robot.joints {
         let el = format!("joint '{}'", j.name);
         let kind = match j.joint_type {
@@ -152,6 +153,12 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
                 return Err(Error::UnsupportedJoint { source_name: src.into(), name: j.name.clone(), kind: format!("{other:?}").to_lowercase() })
             }
         };
+        // a fixed joint from an undefined link (Gazebo's `world`) welds the robot to the world
+        // frame: the undefined link is the world and the joint is dropped
+        if kind.is_none() && !link_inertia.contains_key(&j.parent.link) && link_inertia.contains_key(&j.child.link) {
+            world_welds.push(format!("{src}: fixed joint '{}' attaches '{}' to undefined link '{}', taken as the world frame", j.name, j.child.link, j.parent.link));
+            continue;
+        }
         for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
             if !link_inertia.contains_key(link) {
                 return Err(Error::MissingLink { source_name: src.into(), joint: j.name.clone(), role, link: link.clone() });
@@ -345,7 +352,7 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
         visit_link(current_link, &placement, body, &mut out, &mut locked);
     }
     let _ = base_massive;
-    let mut warnings = Vec::new();
+    let mut warnings = world_welds;
     if !locked.is_empty() {
         warnings.push(format!("{src}: joints {locked:?} are off the chain to '{tip}' and are locked at their zero position"));
     }

@@ -72,8 +72,10 @@ fn delta_of(model: &Model, joint: usize, dpi: &[f64]) -> LinkDelta {
     }
     let raw: SpatialInertia = inertia_from_parameters(&p);
     // a link keeps a positive mass and a physical rotational inertia
-    let mass = if raw.mass > 0.0 { raw.mass } else { 1e-3 * old.mass.max(1e-3) };
-    let new = SpatialInertia::from_com(mass, raw.first_moment / mass, physical_inertia(&raw.inertia_about_com()));
+    // a non-positive mass keeps the old centre of mass (the first moment cannot be honoured)
+    let (mass, com) = if raw.mass > 0.0 { (raw.mass, raw.first_moment / raw.mass) } else { (1e-3 * old.mass.max(1e-3), old.com()) };
+    let inertia_c = if raw.mass > 0.0 { raw.inertia_about_com() } else { old.inertia_about_com() };
+    let new = SpatialInertia::from_com(mass, com, physical_inertia(&inertia_c));
     let dc: Vector3<f64> = new.com() - old.com();
     let di: Matrix3<f64> = new.inertia_about_com() - old.inertia_about_com();
     LinkDelta { joint, mass: new.mass - old.mass, com: [dc.x, dc.y, dc.z], inertia: [di[(0, 0)], di[(0, 1)], di[(0, 2)], di[(1, 1)], di[(1, 2)], di[(2, 2)]] }

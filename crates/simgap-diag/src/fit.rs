@@ -23,7 +23,7 @@ pub struct Problem {
     pub block_of: Vec<usize>,
     /// Number of blocks.
     pub blocks: usize,
-    /// Weight of each joint's rows (1 / RMS of its nominal residual).
+    /// Weight of each joint's rows (1 / RMS of its commanded torque).
     pub weights: Vec<f64>,
     /// Nominal residual, global column.
     pub y: Column,
@@ -44,11 +44,12 @@ impl Problem {
         }
         let y = Column { joint: None, values: data.iter().flat_map(|d| d.residual.iter().copied()).collect() };
         let samples = block_of.len();
+        // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof)
             .map(|j| {
-                let ms = (0..samples).map(|s| y.values[s * dof + j].powi(2)).sum::<f64>() / samples.max(1) as f64;
                 let tau_ms = data.iter().flat_map(|d| (0..d.len()).map(move |s| d.tau[s * dof + j].powi(2))).sum::<f64>() / samples.max(1) as f64;
-                1.0 / ms.sqrt().max(1e-3 * tau_ms.sqrt()).max(1e-9)
+                let r_ms = (0..samples).map(|s| y.values[s * dof + j].powi(2)).sum::<f64>() / samples.max(1) as f64;
+                1.0 / tau_ms.sqrt().max(r_ms.sqrt()).max(1e-9)
             })
             .collect();
         Problem { dof, samples, block_of, blocks, weights, y }

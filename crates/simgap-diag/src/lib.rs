@@ -177,13 +177,22 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             c += k;
         }
         let rep = effects::to_reports(model, &fitted_c).into_iter().next();
-        let eff = effects::to_effects(model, &fitted_c);
-        let gaps: Vec<resim::RunGap> = hold_runs.iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
+        // a candidate whose fit is not physical (negative friction, rotor inertia, mass, a gain
+        // out of range) is reported but not simulated
+        let unphysical: Vec<String> = fitted_c.iter().filter(|f| !select::physical(&f.term, &f.theta)).map(|f| describe_term(&f.term, &joints)).collect();
+        let l2 = if unphysical.is_empty() {
+            let eff = effects::to_effects(model, &fitted_c);
+            let gaps: Vec<resim::RunGap> = hold_runs.iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
+            resim::combine(&gaps, &hold_runs).0
+        } else {
+            f64::NAN
+        };
         tick(progress, hold_runs.len());
-        let (l2, _) = resim::combine(&gaps, &hold_runs);
         let selected = selection.terms.iter().any(|t| t.effect_name() == name);
         let reason = if selected {
             "selected".to_string()
+        } else if !unphysical.is_empty() {
+            format!("fitted alone it is not physical ({}): not simulated", unphysical.join(", "))
         } else {
             selection
                 .log
@@ -307,6 +316,13 @@ fn closed_loop_prune(model: &Model, formulation: Formulation, ctx: &Context<'_>,
     let (designs, _, f) = fit_terms(&ctx.problem, ctx.data, &sel.terms);
     sel.designs = designs;
     sel.fit = f;
+}
+
+fn describe_term(t: &Term, joints: &[String]) -> String {
+    match t.joint() {
+        Some(j) => format!("{} on {}", t.effect_name(), joints[j]),
+        None => t.effect_name().to_string(),
+    }
 }
 
 fn select_nothing(ctx: &Context<'_>) -> select::Selection {

@@ -20,7 +20,8 @@ pub struct Candidate {
     pub uncertainty: BTreeMap<String, Param>,
     /// Fraction of the nominal cross-validated torque residual it removes (fit runs).
     pub cv_residual_reduction: f64,
-    /// Held-out L² after adding this effect alone [rad].
+    /// Held-out L² after adding this effect alone [rad]; `null` when its fit is not physical
+    /// (see `reason`) or its simulation failed.
     pub holdout_l2_after: f64,
     /// `holdout_l2_after / holdout_l2_before`.
     pub holdout_ratio: f64,

@@ -447,7 +447,7 @@ fn grid_penalty(t: &Term) -> f64 {
 }
 
 /// One pass of exchange moves; true when a swap was made.
-fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: &mut Vec<TermDesign>, current: &mut Fit, opts: &SelectOptions, log: &mut Vec<Step>) -> bool {
+fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: &mut Vec<TermDesign>, current: &mut Fit, nominal: &Fit, opts: &SelectOptions, log: &mut Vec<Step>) -> bool {
     let p = &ctx.problem;
     let mut best: Option<(usize, Term, Fit, Vec<TermDesign>)> = None;
     for i in 0..terms.len() {
@@ -481,7 +481,8 @@ fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: 
                 // a simpler term on the same joint that keeps that joint's residual within 1 %
                 cv_of(&f, &c) <= cv_of(current, &c) * 1.01 && f.cv_mse <= current.cv_mse * 1.01
             } else {
-                f.cv_mse < current.cv_mse * (1.0 - 0.5 * opts.min_relative_gain)
+                // a swap to a term as complex or more must gain visibly, also against the nominal
+                f.cv_mse < current.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
             };
             if ok && best.as_ref().is_none_or(|b| f.cv_mse < b.2.cv_mse) {
                 best = Some((i, c, f, ds));
@@ -585,7 +586,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         polish(ctx, &fams, &mut terms, &mut designs, &mut current);
         // exchange moves: swap a selected term for a candidate while that lowers the CV residual
         for _ in 0..4 {
-            if !exchange(ctx, &fams, &mut terms, &mut designs, &mut current, opts, &mut log) {
+            if !exchange(ctx, &fams, &mut terms, &mut designs, &mut current, &nominal, opts, &mut log) {
                 break;
             }
         }
