@@ -17,21 +17,20 @@ from simgap._simgap import (
     L2Report,
     LogError,
     Model,
+    Report,
     Run,
     SimgapError,
     SimulationError,
     UrdfError,
     __version__,
     compare,
+    diagnose,
     l2,
     l2_tracking,
     read_log,
     simulate,
     write_log,
 )
-
-# Diagnosis (simgap-diag): `diagnose` will be re-exported here once python/src/diagnosis.rs
-# binds it; it is deliberately absent from __all__ until then.
 
 __all__ = [
     "DimensionError",
@@ -40,12 +39,14 @@ __all__ = [
     "L2Report",
     "LogError",
     "Model",
+    "Report",
     "Run",
     "SimgapError",
     "SimulationError",
     "UrdfError",
     "__version__",
     "compare",
+    "diagnose",
     "l2",
     "l2_tracking",
     "read_log",

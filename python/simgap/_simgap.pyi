@@ -1,7 +1,8 @@
 """The simgap extension module (Rust). Import from :mod:`simgap` instead."""
 
 from os import PathLike
-from typing import Literal, TypeAlias, final
+from collections.abc import Sequence
+from typing import Any, Literal, TypeAlias, final
 
 import numpy as np
 import numpy.typing as npt
@@ -367,3 +368,107 @@ def simulate(
     """
 
 # diagnose(...) is added here once simgap-diag is bound (python/src/diagnosis.rs).
+
+_LogArg: TypeAlias = Run | str | PathLike[str]
+"""A run in memory (from ``read_log`` or ``simulate``) or the path of a log to read."""
+
+@final
+class Report:
+    """The result of :func:`diagnose`: the report of BRIEF §3.3, with the runs behind its figures.
+
+    Every dict attribute is the JSON report parsed afresh (``json.loads(report.to_json())``),
+    so ``to_dict()`` has exactly the keys of the CLI's ``--json`` output; ``where`` (a Python
+    keyword) is the ``location`` attribute, and ``report["where"]`` works for every key.
+    Non-finite numbers are None.
+    """
+
+    @property
+    def selected_effects(self) -> list[dict[str, Any]]:
+        """Effects the diagnosis concludes explain the gap: dicts ``{effect, joints, parameters,
+        uncertainty}``; empty when nothing significant remains."""
+    @property
+    def candidates(self) -> list[dict[str, Any]]:
+        """Every effect tried, ranked: dicts with ``rank``, ``effect``, ``joints``,
+        ``parameters``, ``uncertainty``, ``cv_residual_reduction``, ``holdout_l2_after``,
+        ``holdout_ratio``, ``selected``, ``reason``."""
+    @property
+    def gap(self) -> dict[str, Any]:
+        """How far the gap shrinks: ``holdout_l2_before``, ``holdout_l2_after``, ``ratio``, per
+        joint and per run, and the same over the fit runs."""
+    @property
+    def location(self) -> dict[str, Any]:
+        """Where the gap lies (the report's ``where``): ``per_joint`` shares, ``worst_segments``,
+        residual ``correlations``."""
+    @property
+    def selection_log(self) -> list[dict[str, Any]]:
+        """The stepwise selection, step by step."""
+    @property
+    def verdict(self) -> str:
+        """One-sentence conclusion."""
+    @property
+    def formulation(self) -> str:
+        """Formulation of C under test."""
+    @property
+    def joints(self) -> list[str]:
+        """Joint names, model order."""
+    @property
+    def model(self) -> str:
+        """Robot name."""
+    @property
+    def holdout(self) -> list[Run]:
+        """Held-out runs as measured, aligned to the model's joints."""
+    @property
+    def holdout_nominal(self) -> list[Run | None]:
+        """Closed-loop simulations of the held-out runs with the nominal model (None where one
+        failed)."""
+    @property
+    def holdout_corrected(self) -> list[Run | None]:
+        """Closed-loop simulations of the held-out runs with the selected effects added (None
+        where one failed)."""
+    def keys(self) -> list[str]:
+        """The report's keys (``report[key]`` works for each, ``where`` included)."""
+    def to_dict(self) -> dict[str, Any]:
+        """The report as a dict with the keys of the CLI's ``--json`` output
+        (``selected_effects``, ``candidates``, ``gap``, ``where``, ``verdict``, ...)."""
+    def to_json(self) -> str:
+        """The report as JSON text, the same as the CLI's ``--json`` output."""
+    def to_html(self, path: str | PathLike[str]) -> None:
+        """Writes the self-contained HTML report (verdict, tables, inline SVG plots of every
+        held-out run) to ``path``, like the CLI's ``--html``. Raises LogError when it cannot."""
+    def summary(self) -> str:
+        """The terminal summary the CLI prints."""
+    def __getitem__(self, key: str, /) -> Any:
+        """A report key, as in the JSON (``report["where"]``). Raises KeyError."""
+    def __contains__(self, key: str, /) -> bool:
+        """Whether the report has ``key``."""
+
+def diagnose(
+    model: Model,
+    fit: Sequence[_LogArg] | _LogArg,
+    holdout: Sequence[_LogArg] | _LogArg,
+    *,
+    formulation: _Formulation = "euler_lagrange",
+) -> Report:
+    """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
+    **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks
+    on held-out runs once that effect is added.
+
+    ``fit``: runs used to fit and select effects; ``holdout``: runs used only to measure the
+    gap before and after (never for fitting). Each is a sequence of :class:`Run` (from
+    ``read_log`` or ``simulate``) or paths to logs (read like ``read_log``), or a single one.
+    Every run must carry its experiment (controller, gains, sample period) to be re-simulated
+    in closed loop. ``formulation``: the C of the model under test.
+
+    Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
+    FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
+    LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
+    TypeError for arguments that are neither runs nor paths.
+
+    Example::
+
+        report = simgap.diagnose(model, ["fit1.mcap", "fit2.mcap"], ["held.mcap"])
+        print(report.summary())
+        report.selected_effects   # [{"effect": "viscous_friction", "joints": [...], ...}]
+        report.gap["holdout_l2_after"] < report.gap["holdout_l2_before"]
+        report.to_html("report.html")
+    """

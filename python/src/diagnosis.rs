@@ -1,14 +1,390 @@
-//! Binding of `simgap-diag` (`simgap.diagnose`): **not written yet**, so nothing is registered
-//! from this file and `diagnose` is absent from `simgap.__all__` and from the stubs.
+//! `simgap.diagnose` and `simgap.Report`: the Python face of `simgap diagnose` (BRIEF §3.3).
 //!
-//! What goes here (BRIEF §3.3, the Python face of `simgap diagnose`):
-//! - `diagnose(model, fit, holdout, *, formulation="euler_lagrange", ...) -> dict`, calling
-//!   `simgap_diag::diagnose(model, formulation, fit, holdout, options, progress)` on its own
-//!   thread like `sim::simulate` (GIL released, Ctrl-C checked between progress reports), and
-//!   returning the JSON report of §3.3 (`selected_effects`, `candidates`, `gap`, `where`) as
-//!   Python objects, with the same keys as the CLI's `--json` output;
-//! - error mapping in `errors.rs`: `simgap_diag::Error::{Fit, Input}` → `FitError`,
-//!   `Log`/`Write` → `LogError`, `Sim(_)` → `errors::from_sim`, `Model(_)` → `errors::from_core`;
-//! - stubs in `simgap/_simgap.pyi`, the export in `simgap/__init__.py`, and tests in
-//!   `python/tests/test_diagnosis.py` (a known friction recovered from simulated runs, held-out
-//!   L² reduced, `FitError` on a too-short log).
+//! `diagnose` reads the logs given as paths and runs `simgap_diag::diagnose` on its own thread
+//! while this one, with the GIL released in between, checks for Ctrl-C every 50 ms (as
+//! `sim::simulate` does). The diagnosis has no stop flag of its own: on Ctrl-C the next progress
+//! report unwinds the worker (`resume_unwind`, caught on that thread, no panic message), and
+//! `KeyboardInterrupt` is raised once the worker has ended.
+//!
+//! A `Report` holds the whole `Diagnosis` (for `to_html`) and its JSON text; every attribute is
+//! the JSON parsed by Python's `json` module, so `to_dict()` has exactly the keys of the CLI's
+//! `--json` output, `where` included.
+
+use std::any::Any;
+use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::Duration;
+
+use pyo3::exceptions::{PyKeyError, PyTypeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString};
+use simgap_core::{Formulation, Model};
+use simgap_diag::{DiagnoseOptions, Diagnosis, Progress};
+use simgap_sim::Run;
+
+use crate::errors::{from_diag, Kind};
+use crate::model::{formulation, PyModel};
+use crate::sim::PyRun;
+
+/// One log argument: a run already in memory, or a file to read.
+enum Source {
+    Run(Arc<Run>),
+    Path(PathBuf),
+}
+
+impl Source {
+    /// One item: a `Run`, or anything `os.fspath` accepts.
+    fn from_item(name: &str, item: &Bound<'_, PyAny>) -> PyResult<Source> {
+        if let Ok(run) = item.cast::<PyRun>() {
+            return Ok(Source::Run(run.get().shared()));
+        }
+        item.extract::<PathBuf>()
+            .map(Source::Path)
+            .map_err(|_| PyTypeError::new_err(format!("{name}: expected a simgap.Run or a path (str or os.PathLike), got {}", type_name(item))))
+    }
+
+    /// A sequence of runs or paths, or a single one.
+    fn from_arg(name: &str, arg: &Bound<'_, PyAny>) -> PyResult<Vec<Source>> {
+        if arg.is_instance_of::<PyString>() || arg.cast::<PyRun>().is_ok() || arg.hasattr("__fspath__")? {
+            return Ok(vec![Source::from_item(name, arg)?]);
+        }
+        let items = arg
+            .try_iter()
+            .map_err(|_| PyTypeError::new_err(format!("{name}: expected a sequence of simgap.Run or paths, got {}", type_name(arg))))?;
+        items.enumerate().map(|(i, item)| Source::from_item(&format!("{name}[{i}]"), &item?)).collect()
+    }
+
+    /// The run (read from its file when a path); errors name the file.
+    fn load(&self) -> simgap_diag::Result<Run> {
+        match self {
+            Source::Run(run) => Ok(Run::clone(run)),
+            Source::Path(path) => Ok(simgap_sim::read_log(path)?),
+        }
+    }
+
+    /// Whether two arguments are the same log (the same object, or the same file).
+    fn same_as(&self, other: &Source) -> bool {
+        match (self, other) {
+            (Source::Run(a), Source::Run(b)) => Arc::ptr_eq(a, b),
+            (Source::Path(a), Source::Path(b)) => same_file(a, b),
+            _ => false,
+        }
+    }
+
+    fn describe(&self) -> String {
+        match self {
+            Source::Run(run) => format!("run '{}'", run.source),
+            Source::Path(path) => path.display().to_string(),
+        }
+    }
+}
+
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "an unknown type".into())
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
+/// Everything a diagnosis needs, owned, so that it can run on another thread.
+struct Job {
+    model: Arc<Model>,
+    formulation: Formulation,
+    fit: Vec<Source>,
+    holdout: Vec<Source>,
+}
+
+/// The payload that unwinds a diagnosis stopped by Ctrl-C.
+struct Cancelled;
+
+/// How the worker ended.
+enum Outcome {
+    Done(simgap_diag::Result<Diagnosis>),
+    Cancelled,
+    Panicked(String),
+}
+
+impl Job {
+    /// Reads the logs and diagnoses; `stop` unwinds at the next progress report.
+    fn run(&self, stop: &AtomicBool) -> simgap_diag::Result<Diagnosis> {
+        for f in &self.fit {
+            if let Some(h) = self.holdout.iter().find(|h| f.same_as(h)) {
+                return Err(simgap_diag::Error::Input(format!(
+                    "{}: given both as fit and as held-out log; held-out runs must never be used for fitting",
+                    h.describe()
+                )));
+            }
+        }
+        let fit = self.fit.iter().map(Source::load).collect::<simgap_diag::Result<Vec<_>>>()?;
+        let holdout = self.holdout.iter().map(Source::load).collect::<simgap_diag::Result<Vec<_>>>()?;
+        let mut progress = |_: Progress| {
+            if stop.load(Ordering::Relaxed) {
+                // unwinds to `run_caught` without invoking the panic hook
+                resume_unwind(Box::new(Cancelled));
+            }
+        };
+        simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &DiagnoseOptions::default(), &mut progress)
+    }
+
+    /// `run`, with unwinding caught: never a panic out of the worker thread.
+    fn run_caught(&self, stop: &AtomicBool) -> Outcome {
+        match catch_unwind(AssertUnwindSafe(|| self.run(stop))) {
+            Ok(result) => Outcome::Done(result),
+            Err(payload) if payload.is::<Cancelled>() => Outcome::Cancelled,
+            Err(payload) => Outcome::Panicked(panic_message(payload.as_ref())),
+        }
+    }
+}
+
+fn panic_message(payload: &(dyn Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
+/// Runs `job` on its own thread while this one, with the GIL released in between, checks for
+/// Ctrl-C every 50 ms; on a signal the diagnosis stops at its next progress report.
+fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Diagnosis> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = mpsc::channel();
+    let worker = {
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name("simgap-diagnose".into())
+            .spawn(move || {
+                let _ = tx.send(job.run_caught(&stop));
+            })
+            .map_err(|e| Kind::Fit.err(format!("cannot start the diagnosis thread: {e}")))?
+    };
+    let mut interrupted: Option<PyErr> = None;
+    let mut rx = rx;
+    let outcome = loop {
+        // the receiver is Send but not Sync: move it in and out of the GIL-free closure
+        let (back, received) = py.detach(move || {
+            let r = rx.recv_timeout(Duration::from_millis(50));
+            (rx, r)
+        });
+        rx = back;
+        match received {
+            Ok(outcome) => break outcome,
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                if interrupted.is_none() {
+                    if let Err(e) = py.check_signals() {
+                        stop.store(true, Ordering::Relaxed);
+                        interrupted = Some(e);
+                    }
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                let _ = worker.join();
+                return Err(Kind::Simgap.err("the diagnosis thread ended without a result (a bug in simgap)"));
+            }
+        }
+    };
+    let _ = worker.join();
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    match outcome {
+        Outcome::Done(result) => result.map_err(from_diag),
+        Outcome::Cancelled => Err(Kind::Fit.err("the diagnosis was interrupted")),
+        Outcome::Panicked(message) => Err(Kind::Simgap.err(format!("the diagnosis failed unexpectedly (a bug in simgap): {message}"))),
+    }
+}
+
+/// Diagnoses the gap between `model` and logged runs (the `simgap diagnose` pipeline, BRIEF
+/// §3.3): **where** the gap lies, **which** unmodelled effect causes it, and **how far** it
+/// shrinks on held-out runs once that effect is added.
+///
+/// `fit`: runs used to fit and select effects; `holdout`: runs used only to measure the gap
+/// before and after (never for fitting). Each is a sequence of `Run` (from `read_log` or
+/// `simulate`) or paths to logs (read like `read_log`), or a single one. Every run must carry
+/// its experiment (controller, gains, sample period) to be re-simulated in closed loop.
+/// `formulation`: the C of the model under test, "euler_lagrange" or "simplified".
+///
+/// Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
+/// FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
+/// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
+/// TypeError for arguments that are neither runs nor paths.
+#[pyfunction]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange"))]
+pub(crate) fn diagnose(py: Python<'_>, model: &PyModel, fit: &Bound<'_, PyAny>, holdout: &Bound<'_, PyAny>, formulation: &str) -> PyResult<PyReport> {
+    let job = Job { model: model.model(), formulation: self::formulation(formulation)?, fit: Source::from_arg("fit", fit)?, holdout: Source::from_arg("holdout", holdout)? };
+    let diagnosis = run_interruptible(py, job)?;
+    let json = diagnosis.report.to_json();
+    Ok(PyReport { diagnosis: Arc::new(diagnosis), json })
+}
+
+/// The result of `diagnose`: the report of BRIEF §3.3, with the runs behind its figures.
+#[pyclass(module = "simgap._simgap", name = "Report", frozen)]
+pub(crate) struct PyReport {
+    diagnosis: Arc<Diagnosis>,
+    json: String,
+}
+
+impl PyReport {
+    /// The whole report as Python objects (a fresh dict: callers may change it).
+    fn dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("json")?.call_method1("loads", (self.json.as_str(),))
+    }
+
+    fn field<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.dict(py)?.get_item(key)
+    }
+
+    fn runs<'py>(py: Python<'py>, runs: impl IntoIterator<Item = Option<Run>>) -> PyResult<Bound<'py, PyList>> {
+        let items = runs.into_iter().map(|r| r.map(PyRun::from_run)).collect::<Vec<_>>();
+        let list = PyList::empty(py);
+        for item in items {
+            match item {
+                Some(run) => list.append(Bound::new(py, run)?)?,
+                None => list.append(py.None())?,
+            }
+        }
+        Ok(list)
+    }
+}
+
+#[pymethods]
+impl PyReport {
+    /// The report's keys (`report[key]` works for each, `where` included).
+    fn keys<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        Ok(self.dict(py)?.cast_into::<PyDict>()?.keys())
+    }
+
+    /// The report as a dict with the keys of the CLI's `--json` output (`selected_effects`,
+    /// `candidates`, `gap`, `where`, `verdict`, ...); non-finite numbers are None.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.dict(py)
+    }
+
+    /// The report as JSON text, the same as the CLI's `--json` output.
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// Writes the self-contained HTML report (verdict, tables, inline SVG plots of every
+    /// held-out run) to `path`, like the CLI's `--html`. Raises LogError when it cannot.
+    fn to_html(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let diagnosis = self.diagnosis.clone();
+        py.detach(move || simgap_diag::html::write_html(&diagnosis, &path)).map_err(from_diag)
+    }
+
+    /// The terminal summary the CLI prints.
+    fn summary(&self) -> String {
+        self.diagnosis.report.summary()
+    }
+
+    /// Effects the diagnosis concludes explain the gap: dicts `{effect, joints, parameters,
+    /// uncertainty}`; empty when nothing significant remains.
+    #[getter]
+    fn selected_effects<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "selected_effects")
+    }
+
+    /// Every effect tried, ranked: dicts with `rank`, `effect`, `joints`, `parameters`,
+    /// `uncertainty`, `cv_residual_reduction`, `holdout_l2_after`, `holdout_ratio`,
+    /// `selected`, `reason`.
+    #[getter]
+    fn candidates<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "candidates")
+    }
+
+    /// How far the gap shrinks: `holdout_l2_before`, `holdout_l2_after`, `ratio`, per joint
+    /// and per run, and the same over the fit runs.
+    #[getter]
+    fn gap<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "gap")
+    }
+
+    /// Where the gap lies (the report's `where`): `per_joint` shares, `worst_segments`,
+    /// residual `correlations`.
+    #[getter]
+    fn location<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "where")
+    }
+
+    /// The stepwise selection, step by step.
+    #[getter]
+    fn selection_log<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "selection_log")
+    }
+
+    /// One-sentence conclusion.
+    #[getter]
+    fn verdict(&self) -> String {
+        self.diagnosis.report.verdict.clone()
+    }
+
+    /// Formulation of C under test.
+    #[getter]
+    fn formulation(&self) -> String {
+        self.diagnosis.report.formulation.clone()
+    }
+
+    /// Joint names, model order.
+    #[getter]
+    fn joints(&self) -> Vec<String> {
+        self.diagnosis.report.joints.clone()
+    }
+
+    /// Robot name.
+    #[getter]
+    fn model(&self) -> String {
+        self.diagnosis.report.model.clone()
+    }
+
+    /// Held-out runs as measured, aligned to the model's joints.
+    #[getter]
+    fn holdout<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        Self::runs(py, self.diagnosis.holdout.iter().cloned().map(Some))
+    }
+
+    /// Closed-loop simulations of the held-out runs with the nominal model (None where one
+    /// failed).
+    #[getter]
+    fn holdout_nominal<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        Self::runs(py, self.diagnosis.holdout_nominal.iter().cloned())
+    }
+
+    /// Closed-loop simulations of the held-out runs with the selected effects added (None
+    /// where one failed).
+    #[getter]
+    fn holdout_corrected<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        Self::runs(py, self.diagnosis.holdout_corrected.iter().cloned())
+    }
+
+    /// A report key, as in the JSON (`report["where"]`). Raises KeyError.
+    fn __getitem__<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        let dict = self.dict(py)?;
+        if !dict.contains(key)? {
+            return Err(PyKeyError::new_err(key.to_owned()));
+        }
+        dict.get_item(key)
+    }
+
+    fn __contains__(&self, py: Python<'_>, key: &str) -> PyResult<bool> {
+        self.dict(py)?.contains(key)
+    }
+
+    fn __str__(&self) -> String {
+        self.summary()
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.diagnosis.report;
+        let selected: Vec<String> = r.selected_effects.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{}[{}]", e.effect, e.joints.join(",")) }).collect();
+        format!(
+            "Report(model={:?}, formulation={:?}, selected_effects={:?}, holdout_l2_before={}, holdout_l2_after={})",
+            r.model, r.formulation, selected, r.gap.holdout_l2_before, r.gap.holdout_l2_after
+        )
+    }
+}

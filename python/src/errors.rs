@@ -7,7 +7,7 @@
 //! ├── DimensionError       also a ValueError: an array of the wrong shape
 //! ├── DynamicsError        also a ValueError: dynamics undefined at this input
 //! ├── SimulationError      a simulation that diverged, was interrupted or got bad parameters
-//! └── FitError             identification / diagnosis that cannot proceed
+//! └── FitError             identification / diagnosis that cannot proceed (no data, singular fit)
 //! ```
 //!
 //! The classes are created once per interpreter with `type(name, bases, namespace)` so that
@@ -148,4 +148,23 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add(kind.name(), kind.type_object(m.py())?)?;
     }
     Ok(())
+}
+
+/// The class of a `simgap_diag::Error`: fits and missing inputs are `FitError`, logs and
+/// reports that cannot be written are `LogError`, simulator and model errors keep their class.
+pub(crate) fn diag_error_kind(e: &simgap_diag::Error) -> Kind {
+    use simgap_diag::Error as E;
+    match e {
+        E::Fit(_) | E::Input(_) => Kind::Fit,
+        E::Log { .. } | E::Write { .. } => Kind::Log,
+        E::Sim(sim) => sim_error_kind(sim),
+        E::Model(core) => core_error_kind(core),
+        // variants added later concern the diagnosis until mapped here
+        _ => Kind::Fit,
+    }
+}
+
+/// Converts a `simgap_diag::Error` to its Python exception; the message is the Rust one.
+pub(crate) fn from_diag(e: simgap_diag::Error) -> PyErr {
+    diag_error_kind(&e).err(e.to_string())
 }

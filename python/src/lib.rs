@@ -1,9 +1,8 @@
-//! The `simgap._simgap` extension module: thin bindings over `simgap-core` (and, as they land,
-//! `simgap-sim` and `simgap-diag`). `lib.rs` registers, `errors.rs` maps errors, `conv.rs`
-//! converts arrays, and one file per exposed area holds the classes and functions.
+//! The `simgap._simgap` extension module: thin bindings over `simgap-core`, `simgap-sim` and
+//! `simgap-diag`. `lib.rs` registers, `errors.rs` maps errors, `conv.rs` converts arrays, and
+//! one file per exposed area holds the classes and functions.
 
 mod conv;
-// not written yet: see its module documentation
 mod diagnosis;
 mod errors;
 mod model;
@@ -26,6 +25,7 @@ fn _simgap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::l2, m)?)?;
     m.add_function(wrap_pyfunction!(sim::l2_tracking, m)?)?;
     m.add_function(wrap_pyfunction!(sim::compare, m)?)?;
-    // diagnosis (simgap-diag): `diagnose` will be registered here from diagnosis.rs (not written yet)
+    m.add_class::<diagnosis::PyReport>()?;
+    m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
     Ok(())
 }

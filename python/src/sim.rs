@@ -36,6 +36,11 @@ impl PyRun {
         PyRun { run: Arc::new(run) }
     }
 
+    /// The run, shared.
+    pub(crate) fn shared(&self) -> Arc<Run> {
+        self.run.clone()
+    }
+
     fn matrix<'py>(&self, py: Python<'py>, m: &[f64]) -> Option<Bound<'py, PyAny>> {
         (!m.is_empty() || self.run.is_empty()).then(|| to_array(py, m.to_vec(), &[self.run.len(), self.run.dof()]).into_any())
     }

@@ -23,10 +23,12 @@ def test_all_names_exist_and_are_documented() -> None:
         obj = getattr(simgap, name)
         if name != "__version__":
             assert obj.__doc__, name
-    assert "diagnose" not in simgap.__all__
+    assert "diagnose" in simgap.__all__
+    assert "Report" in simgap.__all__
 
 
 def test_every_public_method_has_a_docstring() -> None:
-    for name in dir(simgap.Model):
-        if not name.startswith("_"):
-            assert getattr(simgap.Model, name).__doc__, name
+    for cls in (simgap.Model, simgap.Report):
+        for name in dir(cls):
+            if not name.startswith("_"):
+                assert getattr(cls, name).__doc__, f"{cls.__name__}.{name}"

@@ -1,0 +1,168 @@
+"""simgap.diagnose: a hidden viscous friction recovered from simulated runs of the paper's arm,
+checked on a held-out run; the report's contract (BRIEF §3.3); errors."""
+
+from __future__ import annotations
+
+import _thread
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pytest
+
+import simgap
+
+HIDDEN_B = [2.288, 0.175]
+HIDDEN = f"viscous_friction:b={HIDDEN_B[0]},{HIDDEN_B[1]}"
+KP = [64.72, 32.36]
+KV = [48.54, 6.472]
+PENDULUM_URDF = Path(__file__).resolve().parents[2] / "crates" / "simgap-core" / "models" / "pendulum.urdf"
+
+
+def sine_reference(model: simgap.Model, duration: float, freqs: tuple[float, float], amps: tuple[float, float], name: str) -> simgap.Run:
+    """A smooth reference run (q_ref, q̇_ref) starting at rest at q = 0."""
+    t = np.arange(0.0, duration + 1e-9, 0.0025)
+    w = 2 * np.pi * np.asarray(freqs)
+    a = np.asarray(amps)
+    q = a * (1 - np.cos(np.outer(t, w)))
+    qd = a * w * np.sin(np.outer(t, w))
+    return simgap.Run(model.joint_names, t, q, qd, q_ref=q, qd_ref=qd, source=name)
+
+
+def run(model: simgap.Model, reference: simgap.Run | list[float], controller: Literal["pd", "pd_gravity"], duration: float = 3.0) -> simgap.Run:
+    return simgap.simulate(model, reference, controller=controller, kp=KP, kv=KV, effects=[HIDDEN], duration=duration)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[simgap.Run], list[Path]]:
+    """Three fit runs (two steps, one excitation) in memory and one held-out run as an MCAP file."""
+    model = simgap.Model.paper_arm()
+    fit = [
+        run(model, [np.pi / 4, np.pi / 2], "pd"),
+        run(model, [-0.6, 1.0], "pd_gravity"),
+        run(model, sine_reference(model, 3.0, (0.5, 0.8), (0.6, 0.8), "fit-sine"), "pd_gravity"),
+    ]
+    held = run(model, sine_reference(model, 3.0, (0.35, 1.1), (0.8, 0.5), "held-sine"), "pd_gravity")
+    path = tmp_path_factory.mktemp("logs") / "held.mcap"
+    simgap.write_log(held, path)
+    return fit, [path]
+
+
+@pytest.fixture(scope="module")
+def report(logs: tuple[list[simgap.Run], list[Path]]) -> simgap.Report:
+    fit, held = logs
+    return simgap.diagnose(simgap.Model.paper_arm(), fit, held)
+
+
+def test_hidden_viscous_friction_is_recovered(report: simgap.Report) -> None:
+    names = [e["effect"] for e in report.selected_effects]
+    assert "viscous_friction" in names, report.summary()
+    effect = next(e for e in report.selected_effects if e["effect"] == "viscous_friction")
+    joints = simgap.Model.paper_arm().joint_names
+    for joint, b in zip(effect["joints"], effect["parameters"]["b"], strict=True):
+        truth = HIDDEN_B[joints.index(joint)]
+        assert b == pytest.approx(truth, rel=0.15), report.summary()
+    assert set(effect["uncertainty"]) == set(effect["parameters"])
+    # the larger friction (joint 1) must be among the joints found
+    assert joints[0] in effect["joints"]
+
+
+def test_gap_shrinks_on_held_out_run(report: simgap.Report) -> None:
+    gap = report.gap
+    assert 0 < gap["holdout_l2_after"] < gap["holdout_l2_before"]
+    assert report["gap"] == gap
+
+
+def test_report_contract(report: simgap.Report) -> None:
+    data = json.loads(report.to_json())
+    for key in ("selected_effects", "candidates", "gap", "where", "verdict", "formulation", "joints"):
+        assert key in data, key
+    for key in ("holdout_l2_before", "holdout_l2_after"):
+        assert key in data["gap"]
+    for key in ("per_joint", "worst_segments", "correlations"):
+        assert key in data["where"]
+    for effect in data["selected_effects"]:
+        assert {"effect", "joints", "parameters"} <= set(effect)
+    assert data["candidates"], "every effect tried is listed"
+    for c in data["candidates"]:
+        assert {"effect", "joints", "parameters", "holdout_l2_after", "rank"} <= set(c)
+    assert [c["rank"] for c in data["candidates"]] == sorted(c["rank"] for c in data["candidates"])
+    # the Python views are the same report
+    assert report.to_dict() == data
+    assert report.location == data["where"] == report["where"]
+    assert "where" in report and "nope" not in report
+    assert report.keys() == list(data)
+    assert report.verdict == data["verdict"] and report.formulation == data["formulation"]
+    assert report.joints == simgap.Model.paper_arm().joint_names
+    with pytest.raises(KeyError):
+        report["nope"]
+    assert "viscous_friction" in repr(report) and "WHERE" in report.summary() == str(report)
+
+
+def test_figure_runs(report: simgap.Report) -> None:
+    assert len(report.holdout) == len(report.holdout_nominal) == len(report.holdout_corrected) == 1
+    measured, corrected = report.holdout[0], report.holdout_corrected[0]
+    assert corrected is not None
+    assert simgap.compare(measured, corrected).overall == pytest.approx(report.gap["holdout_l2_after"], rel=0.05)
+
+
+def test_to_html_writes_a_file(report: simgap.Report, tmp_path: Path) -> None:
+    path = tmp_path / "report.html"
+    report.to_html(path)
+    text = path.read_text()
+    assert text.startswith("<!DOCTYPE html>") and "viscous_friction" in text and "<svg" in text
+    with pytest.raises(simgap.LogError, match="cannot write"):
+        report.to_html(tmp_path / "missing-dir" / "report.html")
+
+
+def test_too_short_log_is_rejected(logs: tuple[list[simgap.Run], list[Path]]) -> None:
+    model = simgap.Model.paper_arm()
+    short = run(model, [0.3, 0.3], "pd", duration=0.01)
+    with pytest.raises(simgap.LogError, match="short") as info:
+        simgap.diagnose(model, [short], logs[1])
+    assert "simulation" in str(info.value), "the message names the log"
+
+
+def test_log_of_another_robot_names_the_missing_joint(logs: tuple[list[simgap.Run], list[Path]]) -> None:
+    pendulum = simgap.Model.from_urdf(PENDULUM_URDF)
+    other = simgap.simulate(pendulum, [0.5], controller="pd", kp=[10.0], kv=[1.0], duration=1.0)
+    model = simgap.Model.paper_arm()
+    with pytest.raises(simgap.LogError, match=model.joint_names[0]) as info:
+        simgap.diagnose(model, [other], logs[1])
+    assert "hinge" in str(info.value)
+
+
+def test_input_errors(logs: tuple[list[simgap.Run], list[Path]]) -> None:
+    fit, held = logs
+    model = simgap.Model.paper_arm()
+    with pytest.raises(simgap.FitError, match="no fit log"):
+        simgap.diagnose(model, [], held)
+    with pytest.raises(simgap.FitError, match="held-out"):
+        simgap.diagnose(model, fit, [])
+    with pytest.raises(simgap.FitError, match="both"):
+        simgap.diagnose(model, held, held)
+    with pytest.raises(simgap.LogError, match="nonexistent"):
+        simgap.diagnose(model, fit, ["/nonexistent/held.mcap"])
+    with pytest.raises(TypeError, match=r"fit\[1\]"):
+        simgap.diagnose(model, [fit[0], 3], held)  # type: ignore[list-item]
+    with pytest.raises(ValueError, match="formulation"):
+        simgap.diagnose(model, fit, held, formulation="lagrange")  # type: ignore[arg-type]
+
+
+def test_diagnosis_is_interrupted_by_ctrl_c() -> None:
+    model = simgap.Model.paper_arm()
+    fit = run(model, sine_reference(model, 40.0, (0.5, 0.8), (0.6, 0.8), "fit-long"), "pd_gravity", duration=40.0)
+    held = run(model, sine_reference(model, 40.0, (0.35, 1.1), (0.8, 0.5), "held-long"), "pd_gravity", duration=40.0)
+    timer = threading.Timer(0.05, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            simgap.diagnose(model, [fit], [held])
+            time.sleep(5.0)
+    finally:
+        timer.cancel()
+    assert time.perf_counter() - t0 < 5.0
