@@ -108,7 +108,18 @@ impl Smoother {
         let mut out = vec![0.0; x.len()];
         let h = self.half;
         let mut local;
+        // samples whose row is all zero; a window of them filters to zero (sparse signals,
+        // such as the torque above a saturation limit, cost almost nothing)
+        let mut zeros_before = Vec::with_capacity(n + 1);
+        zeros_before.push(0usize);
+        for k in 0..n {
+            let z = x[k * dof..(k + 1) * dof].iter().all(|v| *v == 0.0);
+            zeros_before.push(zeros_before[k] + usize::from(z));
+        }
         for k in self.valid() {
+            if zeros_before[k + h + 1] - zeros_before[k - h] == 2 * h + 1 {
+                continue;
+            }
             let w = if self.uniform {
                 &self.weights[0][deriv]
             } else {

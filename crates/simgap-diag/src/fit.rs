@@ -76,10 +76,12 @@ impl Problem {
                 }
             }
             (None, None) => {
+                let w2: Vec<f64> = self.weights.iter().map(|w| w * w).collect();
                 for s in 0..self.samples {
                     let base = self.block_of[s] * dof;
+                    let (ra, rb) = (&a.values[s * dof..(s + 1) * dof], &b.values[s * dof..(s + 1) * dof]);
                     for j in 0..dof {
-                        out[base + j] += self.weights[j].powi(2) * a.values[s * dof + j] * b.values[s * dof + j];
+                        out[base + j] += w2[j] * ra[j] * rb[j];
                     }
                 }
             }

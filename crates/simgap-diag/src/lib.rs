@@ -28,6 +28,7 @@ pub mod select;
 pub mod selfcheck;
 pub mod terms;
 
+use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
 use simgap_sim::{Effect, Run};
 
@@ -122,9 +123,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         sims_done += n;
         progress(Progress { stage: "re-simulating", done: sims_done, total: total_sims });
     };
-    let fit_nominal: Vec<(resim::RunGap, Option<Run>)> = fit_runs.iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
+    let fit_nominal: Vec<(resim::RunGap, Option<Run>)> = fit_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
     tick(progress, fit_runs.len());
-    let hold_nominal: Vec<(resim::RunGap, Option<Run>)> = hold_runs.iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
+    let hold_nominal: Vec<(resim::RunGap, Option<Run>)> = hold_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
     tick(progress, hold_runs.len());
     let before_runs: Vec<resim::RunGap> = hold_nominal.iter().map(|g| g.0.clone()).collect();
     let (before, before_joint) = resim::combine(&before_runs, &hold_runs);
@@ -152,14 +153,14 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let sel_effects = effects::to_effects(model, &fitted);
 
     // how far: the selected set on held-out runs, and every candidate alone
-    let hold_after: Vec<(resim::RunGap, Option<Run>)> = hold_runs.iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect();
+    let hold_after: Vec<(resim::RunGap, Option<Run>)> = hold_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect();
     tick(progress, hold_runs.len());
     let after_runs: Vec<resim::RunGap> = hold_after.iter().map(|g| g.0.clone()).collect();
     let (after, after_joint) = if sel_effects.is_empty() { (before, before_joint.clone()) } else { resim::combine(&after_runs, &hold_runs) };
     let fit_after = if sel_effects.is_empty() {
         fit_before
     } else {
-        let g: Vec<resim::RunGap> = fit_runs.iter().map(|r| resim::gap(model, formulation, &sel_effects, r).0).collect();
+        let g: Vec<resim::RunGap> = fit_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r).0).collect();
         resim::combine(&g, &fit_runs).0
     };
 
@@ -182,7 +183,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         let unphysical: Vec<String> = fitted_c.iter().filter(|f| !select::physical(&f.term, &f.theta)).map(|f| describe_term(&f.term, &joints)).collect();
         let l2 = if unphysical.is_empty() {
             let eff = effects::to_effects(model, &fitted_c);
-            let gaps: Vec<resim::RunGap> = hold_runs.iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
+            let gaps: Vec<resim::RunGap> = hold_runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
             resim::combine(&gaps, &hold_runs).0
         } else {
             f64::NAN
@@ -283,7 +284,7 @@ fn fit_gap(model: &Model, formulation: Formulation, ctx: &Context<'_>, runs: &[R
         c += k;
     }
     let eff = effects::to_effects(model, &fitted);
-    let gaps: Vec<resim::RunGap> = runs.iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
+    let gaps: Vec<resim::RunGap> = runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
     resim::combine(&gaps, runs).0
 }
 
@@ -295,10 +296,15 @@ fn closed_loop_prune(model: &Model, formulation: Formulation, ctx: &Context<'_>,
     let mut current = fit_gap(model, formulation, ctx, runs, &sel.terms);
     loop {
         let mut best: Option<(usize, f64)> = None;
-        for i in 0..sel.terms.len() {
-            let mut rest = sel.terms.clone();
-            rest.remove(i);
-            let g = fit_gap(model, formulation, ctx, runs, &rest);
+        let gaps: Vec<f64> = (0..sel.terms.len())
+            .into_par_iter()
+            .map(|i| {
+                let mut rest = sel.terms.clone();
+                rest.remove(i);
+                fit_gap(model, formulation, ctx, runs, &rest)
+            })
+            .collect();
+        for (i, g) in gaps.into_iter().enumerate() {
             if g <= current * (1.0 + threshold) + 1e-12 && best.is_none_or(|b| g < b.1) {
                 best = Some((i, g));
             }

@@ -82,6 +82,8 @@ pub struct Context<'a> {
     pub sample_period: f64,
     /// RMS commanded torque per joint.
     pub tau_rms: Vec<f64>,
+    /// Designs already built, by term (the same grid members recur at every step).
+    cache: std::sync::Mutex<std::collections::HashMap<String, std::sync::Arc<TermDesign>>>,
 }
 
 impl<'a> Context<'a> {
@@ -97,7 +99,7 @@ impl<'a> Context<'a> {
                 (s / n.max(1) as f64).sqrt()
             })
             .collect();
-        Context { data, problem, inertial_basis, sample_period, tau_rms }
+        Context { data, problem, inertial_basis, sample_period, tau_rms, cache: Default::default() }
     }
 
     fn grid(&self, family: &Family) -> Vec<Term> {
@@ -120,16 +122,19 @@ impl<'a> Context<'a> {
     fn refine(&self, best: &Term, resid: &Column) -> Term {
         match *best {
             Term::Saturation { joint, limit } => {
-                let cands: Vec<Term> = (-40..=40).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.005 * i as f64) }).collect();
-                screen_best(&self.problem, self.data, &cands, resid).0
+                // coarse (±20 % in 2 % steps), then fine (±2 % in 0.2 % steps)
+                let coarse: Vec<Term> = (-10..=10).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.02 * i as f64) }).collect();
+                let Term::Saturation { limit, .. } = screen_best(self, &coarse, resid).0 else { unreachable!() };
+                let fine: Vec<Term> = (-10..=10).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.002 * i as f64) }).collect();
+                screen_best(self, &fine, resid).0
             }
             Term::Delay { delay } => {
                 let cands: Vec<Term> = (-8..=8).map(|i| Term::Delay { delay: (delay * (1.0 + 0.05 * i as f64)).max(1e-6) }).collect();
-                screen_best(&self.problem, self.data, &cands, resid).0
+                screen_best(self, &cands, resid).0
             }
             Term::Stribeck { joint, vs } => {
                 let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i) }).collect();
-                screen_best(&self.problem, self.data, &cands, resid).0
+                screen_best(self, &cands, resid).0
             }
             Term::Payload { .. } => self.payload_search(resid, &[]),
             ref other => other.clone(),
@@ -139,7 +144,7 @@ impl<'a> Context<'a> {
     /// The best member of a family against the current residual.
     pub fn best_of(&self, family: &Family, resid: &Column) -> Term {
         let cands = self.grid(family);
-        let (best, _) = screen_best(&self.problem, self.data, &cands, resid);
+        let (best, _) = screen_best(self, &cands, resid);
         self.refine(&best, resid)
     }
 
@@ -176,9 +181,23 @@ impl<'a> Context<'a> {
         Term::Payload { com: nelder_mead(sse, c0, 0.02, 60) }
     }
 
-    /// Designs a term (the inertial error uses the identifiable basis).
+    /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
+    /// was built before.
     pub fn design(&self, t: &Term) -> TermDesign {
-        design(t, self.data)
+        self.design_shared(t).as_ref().clone()
+    }
+
+    fn design_shared(&self, t: &Term) -> std::sync::Arc<TermDesign> {
+        if matches!(t, Term::InertialError { .. }) {
+            return std::sync::Arc::new(design(t, self.data));
+        }
+        let key = format!("{t:?}");
+        if let Some(d) = self.cache.lock().expect("design cache").get(&key) {
+            return d.clone();
+        }
+        let d = std::sync::Arc::new(design(t, self.data));
+        self.cache.lock().expect("design cache").insert(key, d.clone());
+        d
     }
 
     /// The inertial-error term over the identifiable directions.
@@ -300,10 +319,11 @@ fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64
     (th, sse)
 }
 
-fn screen_best(p: &Problem, data: &[FitData], cands: &[Term], resid: &Column) -> (Term, f64) {
+fn screen_best(ctx: &Context<'_>, cands: &[Term], resid: &Column) -> (Term, f64) {
+    let p = &ctx.problem;
     let mut best = (cands[0].clone(), f64::INFINITY);
     for t in cands {
-        let d = design(t, data);
+        let d = ctx.design_shared(t);
         let (th, sse) = screen_fit(p, &d, resid);
         // Stribeck is physical only with a static level above the Coulomb level
         if matches!(t, Term::Stribeck { .. }) && !(th[1] > th[0] && th[0] > 0.0) {

@@ -52,7 +52,7 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
     let n = model.dof();
     let tau = rms(nominal, &nominal.tau, joint).max(1e-6);
     let qd = rms(nominal, &nominal.qd, joint).max(1e-3);
-    let mut v = |neutral: f64, x: f64| {
+    let v = |neutral: f64, x: f64| {
         let mut out = vec![neutral; n];
         out[joint] = x;
         out
@@ -102,7 +102,7 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
         let n = model.dof();
         let (kp, kv) = gains_for(&model, rng.random_range(2.0..4.0));
         let amp = if n > 2 { 0.5 } else { 1.0 };
-        let mut spec = |name: String, duration: f64, rng: &mut ChaCha8Rng| -> RunSpec {
+        let spec = |name: String, duration: f64, rng: &mut ChaCha8Rng| -> RunSpec {
             let controller = if rng.random_bool(0.7) { ControllerKind::PdGravity } else { ControllerKind::Pd };
             let reference = if rng.random_bool(0.6) { RefSpec::Fourier(random_fourier(n, amp, rng)) } else { random_setpoints(n, amp, duration, rng.random_range(0.6..1.2), rng) };
             RunSpec { name, controller, kp: kp.clone(), kv: kv.clone(), reference, duration }
