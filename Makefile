@@ -11,9 +11,11 @@ export CARGO_TERM_COLOR ?= never
 
 test: rust-test python-test
 
+# Tests build in release: they share the artefacts of the CLI build, and the diagnosis tests
+# simulate and fit real runs (20x slower unoptimised).
 rust-test:
 	cargo build --release --bin simgap
-	cargo test --workspace --exclude simgap-python
+	SIMGAP_BIN=$(CURDIR)/target/release/simgap cargo test --release --workspace --exclude simgap-python
 
 venv: $(VENV)/.requirements-stamp
 

@@ -1,4 +1,4 @@
-//! simgap: why your simulation disagrees with your robot.
+#![doc = include_str!("../README.md")]
 //!
 //! The umbrella crate re-exports [`core`] (dynamics), [`sim`] (closed-loop simulation and logs)
 //! and [`diag`] (sim-to-real gap diagnosis), and owns the `simgap` command-line tool.

@@ -54,7 +54,7 @@ impl Plant {
         let h_ok = {
             let mut h = mass_matrix(&changed, &mut Workspace::new(&changed), &vec![0.0; n]);
             let mut b = vec![1.0; n];
-            cholesky_solve(&mut h, &mut b)
+            simgap_core::try_solve_spd_in_place(&mut h, &mut b)
         };
         Ok(Plant {
             fast_path: h_ok && ia.iter().all(|x| *x == 0.0),
@@ -141,50 +141,9 @@ impl Plant {
                 pws.h[(i, i)] += self.armature[i];
             }
         }
-        if !cholesky_solve(&mut pws.h, out) {
+        if !simgap_core::try_solve_spd_in_place(&mut pws.h, out) {
             out.fill(f64::NAN);
         }
     }
 }
 
-/// Solves `A x = b` in place by Cholesky; false (and `b` unspecified) when `A` is not
-/// positive definite.
-fn cholesky_solve(a: &mut DMatrix<f64>, b: &mut [f64]) -> bool {
-    let n = b.len();
-    // factorise A = L Lᵀ (lower triangle)
-    for j in 0..n {
-        let mut d = a[(j, j)];
-        for k in 0..j {
-            d -= a[(j, k)] * a[(j, k)];
-        }
-        if !(d > 0.0) {
-            return false;
-        }
-        let d = d.sqrt();
-        a[(j, j)] = d;
-        for i in j + 1..n {
-            let mut s = a[(i, j)];
-            for k in 0..j {
-                s -= a[(i, k)] * a[(j, k)];
-            }
-            a[(i, j)] = s / d;
-        }
-    }
-    // forward substitution L y = b
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= a[(i, k)] * b[k];
-        }
-        b[i] = s / a[(i, i)];
-    }
-    // back substitution Lᵀ x = y
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= a[(k, i)] * b[k];
-        }
-        b[i] = s / a[(i, i)];
-    }
-    true
-}

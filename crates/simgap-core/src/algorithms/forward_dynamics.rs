@@ -49,8 +49,14 @@ pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &
 /// factor and `b` with `x`.
 ///
 /// # Panics
-/// If `A` is not positive definite.
+/// If `A` is not positive definite (see [`try_solve_spd_in_place`]).
 pub fn solve_spd_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut [f64]) {
+    assert!(try_solve_spd_in_place(a, b), "matrix is not positive definite");
+}
+
+/// [`solve_spd_in_place`] that reports a matrix that is not positive definite by returning
+/// false (`b` is then unspecified) instead of panicking.
+pub fn try_solve_spd_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut [f64]) -> bool {
     let n = b.len();
     // factorise A = L Lᵀ (lower triangle)
     for j in 0..n {
@@ -58,7 +64,9 @@ pub fn solve_spd_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut [f64]) {
         for k in 0..j {
             d -= a[(j, k)] * a[(j, k)];
         }
-        assert!(d > 0.0, "matrix is not positive definite (pivot {j} = {d})");
+        if !(d > 0.0) {
+            return false;
+        }
         let d = d.sqrt();
         a[(j, j)] = d;
         for i in j + 1..n {
@@ -85,4 +93,5 @@ pub fn solve_spd_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut [f64]) {
         }
         b[i] = s / a[(i, i)];
     }
+    true
 }
