@@ -190,7 +190,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         };
         tick(progress, hold_runs.len());
         let selected = selection.terms.iter().any(|t| t.effect_name() == name);
-        let reason = if selected {
+        let reason = if selected && !unphysical.is_empty() {
+            format!("selected; fitted alone (without the other selected effects) it is not physical ({}), so it is not simulated alone", unphysical.join(", "))
+        } else if selected {
             "selected".to_string()
         } else if !unphysical.is_empty() {
             format!("fitted alone it is not physical ({}): not simulated", unphysical.join(", "))
