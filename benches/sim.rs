@@ -1,7 +1,8 @@
 //! Closed-loop simulation benchmarks, id `what/robot`:
 //! - `simulate/paper_experiment`: the seed paper's experiment end to end (PD, 3 s at 2.5 ms =
 //!   1201 samples, paper encoders, default substeps), without logging (a sink that drops
-//!   samples); also `simulate/paper_experiment_memory` into a `MemorySink`, and
+//!   samples); also `simulate/paper_experiment_memory` into a `MemorySink`,
+//!   `simulate/paper_experiment_mcap` written as ROS 2 MCAP as it goes (logging cost), and
 //!   `simulate/paper_experiment_friction` with the reported viscous and Coulomb friction.
 //! - `rk4_step/<robot>`: one RK4 step of the plant (four accelerations), throughput in steps
 //!   per second, on the paper arm and a random 7-joint chain.
@@ -16,7 +17,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use simgap::core::robots::paper_arm;
 use simgap::core::{Formulation, Model};
 use simgap::sim::integrate::Rk4;
-use simgap::sim::{simulate, Effect, Experiment, MemorySink, Pd, Plant, RunEnd, Sample, SimParams, Sink, Step};
+use simgap::sim::{simulate, Effect, Experiment, McapSink, MemorySink, Pd, Plant, RunEnd, Sample, SimParams, Sink, Step};
 
 /// A sink that drops every sample.
 struct NullSink;
@@ -60,6 +61,37 @@ fn paper_experiment(c: &mut Criterion) {
             sink.into_run()
         })
     });
+    // the cost of writing the run as ROS 2 MCAP (zstd chunks) as it goes, at 400 Hz
+    let dir = std::env::temp_dir().join(format!("simgap-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("paper.mcap");
+    group.bench_function("paper_experiment_mcap", |b| {
+        b.iter(|| {
+            let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
+            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut sink = McapSink::create(&path).unwrap();
+            simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap()
+        })
+    });
+    // the same over 30 s (12001 samples), so the per-file cost (create, summary) is amortised
+    let long = SimParams { duration: 30.0, ..params.clone() };
+    group.sample_size(10);
+    group.bench_function("paper_30s", |b| {
+        b.iter(|| {
+            let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
+            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            simulate(&plant, &mut pd, &reference, &long, &mut NullSink, None).unwrap()
+        })
+    });
+    group.bench_function("paper_30s_mcap", |b| {
+        b.iter(|| {
+            let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
+            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut sink = McapSink::create(&path).unwrap();
+            simulate(&plant, &mut pd, &reference, &long, &mut sink, None).unwrap()
+        })
+    });
+    let _ = std::fs::remove_dir_all(&dir);
     group.finish();
 }
 

@@ -344,12 +344,13 @@ impl std::fmt::Debug for McapSink {
 }
 
 impl McapSink {
-    /// The default writer options: ROS 2 profile, zstd chunks, single-threaded compression.
+    /// The default writer options: ROS 2 profile, lz4 chunks (measured as cheap as no compression
+    /// when writing as the run goes, where zstd cost about 50 % more), single-threaded.
     pub fn default_options() -> mcap::WriteOptions {
         mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("simgap-sim ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Zstd))
+            .compression(Some(mcap::Compression::Lz4))
             .compression_threads(0)
     }
 
