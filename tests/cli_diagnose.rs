@@ -11,46 +11,8 @@ use std::sync::OnceLock;
 
 use serde_json::Value;
 
-fn bin() -> PathBuf {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        if let Some(b) = std::env::var_os("SIMGAP_BIN") {
-            return PathBuf::from(b);
-        }
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let release = root.join("target/release/simgap");
-        let built = std::fs::metadata(&release).and_then(|m| m.modified()).ok();
-        let newest_source = [root.join("src"), root.join("crates"), root.join("Cargo.toml"), root.join("Cargo.lock")].iter().filter_map(|p| newest(p)).max();
-        match (built, newest_source) {
-            (Some(b), Some(s)) if b > s => release,
-            _ => PathBuf::from(env!("CARGO_BIN_EXE_simgap")),
-        }
-    })
-    .clone()
-}
-
-/// Newest modification time of a file or of the `.rs`, `.toml` and `.urdf` files under a folder.
-fn newest(path: &Path) -> Option<std::time::SystemTime> {
-    let meta = std::fs::metadata(path).ok()?;
-    if meta.is_file() {
-        return meta.modified().ok();
-    }
-    std::fs::read_dir(path)
-        .ok()?
-        .filter_map(|e| e.ok())
-        .filter_map(|e| {
-            let p = e.path();
-            let name = e.file_name().to_string_lossy().to_string();
-            if p.is_dir() {
-                if name == "target" || name.starts_with('.') { None } else { newest(&p) }
-            } else if name.ends_with(".rs") || name.ends_with(".toml") || name.ends_with(".urdf") {
-                e.metadata().ok()?.modified().ok()
-            } else {
-                None
-            }
-        })
-        .max()
-}
+mod common;
+use common::bin;
 
 fn simgap(args: &[&str]) -> Output {
     Command::new(bin()).args(args).output().expect("simgap runs")

@@ -14,7 +14,7 @@ use nalgebra::{Matrix3, Vector3};
 #[inline]
 pub fn sin_cos(x: f64) -> (f64, f64) {
     const TOINT: f64 = 1.5 / f64::EPSILON;
-    const INVPIO2: f64 = 6.366_197_723_675_813_824_33e-1;
+    const INVPIO2: f64 = std::f64::consts::FRAC_2_PI;
     const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
     const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
     const PIO2_2: f64 = 6.077_100_506_303_965_976_60e-11;
