@@ -14,8 +14,7 @@ use std::any::Any;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
-use std::time::Duration;
+use std::sync::Arc;
 
 use pyo3::exceptions::{PyKeyError, PyTypeError};
 use pyo3::prelude::*;
@@ -27,6 +26,7 @@ use simgap_sim::Run;
 use crate::errors::{from_diag, Kind};
 use crate::model::{formulation, PyModel};
 use crate::sim::PyRun;
+use crate::worker::WorkerError;
 
 /// One log argument: a run already in memory, or a file to read.
 enum Source {
@@ -150,49 +150,15 @@ fn panic_message(payload: &(dyn Any + Send)) -> String {
         .unwrap_or_else(|| "unknown panic".into())
 }
 
-/// Runs `job` on its own thread while this one, with the GIL released in between, checks for
-/// Ctrl-C every 50 ms; on a signal the diagnosis stops at its next progress report.
+/// Runs `job` on its own thread (see [`crate::worker`]); on Ctrl-C the diagnosis stops at its
+/// next progress report.
 fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Diagnosis> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let (tx, rx) = mpsc::channel();
-    let worker = {
-        let stop = stop.clone();
-        std::thread::Builder::new()
-            .name("simgap-diagnose".into())
-            .spawn(move || {
-                let _ = tx.send(job.run_caught(&stop));
-            })
-            .map_err(|e| Kind::Fit.err(format!("cannot start the diagnosis thread: {e}")))?
+    let outcome = match crate::worker::run_interruptible(py, "simgap-diagnose", move |stop| job.run_caught(stop)) {
+        Ok(outcome) => outcome,
+        Err(WorkerError::Signal(e)) => return Err(e),
+        Err(WorkerError::Spawn(e)) => return Err(Kind::Fit.err(format!("cannot start the diagnosis thread: {e}"))),
+        Err(WorkerError::Lost) => return Err(Kind::Simgap.err("the diagnosis thread ended without a result (a bug in simgap)")),
     };
-    let mut interrupted: Option<PyErr> = None;
-    let mut rx = rx;
-    let outcome = loop {
-        // the receiver is Send but not Sync: move it in and out of the GIL-free closure
-        let (back, received) = py.detach(move || {
-            let r = rx.recv_timeout(Duration::from_millis(50));
-            (rx, r)
-        });
-        rx = back;
-        match received {
-            Ok(outcome) => break outcome,
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                if interrupted.is_none() {
-                    if let Err(e) = py.check_signals() {
-                        stop.store(true, Ordering::Relaxed);
-                        interrupted = Some(e);
-                    }
-                }
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                let _ = worker.join();
-                return Err(Kind::Simgap.err("the diagnosis thread ended without a result (a bug in simgap)"));
-            }
-        }
-    };
-    let _ = worker.join();
-    if let Some(e) = interrupted {
-        return Err(e);
-    }
     match outcome {
         Outcome::Done(result) => result.map_err(from_diag),
         Outcome::Cancelled => Err(Kind::Fit.err("the diagnosis was interrupted")),

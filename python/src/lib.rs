@@ -7,6 +7,7 @@ mod diagnosis;
 mod errors;
 mod model;
 mod sim;
+mod worker;
 
 use pyo3::prelude::*;
 

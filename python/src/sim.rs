@@ -7,9 +7,8 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
-use std::time::Duration;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
@@ -21,6 +20,7 @@ use simgap_sim::{ControllerKind, Effect, Experiment, Integrator, L2Report, Memor
 use crate::conv::{row_major, to_array, ArrayArg};
 use crate::errors::{from_sim, Kind};
 use crate::model::{formulation, PyModel};
+use crate::worker::WorkerError;
 
 /// A run of a robot or a simulation: time, measured and reference signals, and the experiment
 /// (controller, gains, sample period) that produced it.
@@ -327,49 +327,15 @@ impl Job {
     }
 }
 
-/// Runs `job` on its own thread while this one, with the GIL released in between, checks for
-/// Ctrl-C every 50 ms; on a signal the simulation stops at its next sample.
+/// Runs `job` on its own thread (see [`crate::worker`]); on Ctrl-C the simulation stops at its
+/// next sample.
 fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Run> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let (tx, rx) = mpsc::channel();
-    let worker = {
-        let stop = stop.clone();
-        std::thread::Builder::new()
-            .name("simgap-simulate".into())
-            .spawn(move || {
-                let _ = tx.send(job.run(&stop));
-            })
-            .map_err(|e| Kind::Simulation.err(format!("cannot start the simulation thread: {e}")))?
+    let result = match crate::worker::run_interruptible(py, "simgap-simulate", move |stop| job.run(stop)) {
+        Ok(result) => result,
+        Err(WorkerError::Signal(e)) => return Err(e),
+        Err(WorkerError::Spawn(e)) => return Err(Kind::Simulation.err(format!("cannot start the simulation thread: {e}"))),
+        Err(WorkerError::Lost) => return Err(Kind::Simulation.err("the simulation thread ended without a result")),
     };
-    let mut interrupted: Option<PyErr> = None;
-    let mut rx = rx;
-    let result = loop {
-        // the receiver is Send but not Sync: move it in and out of the GIL-free closure
-        let (back, received) = py.detach(move || {
-            let r = rx.recv_timeout(Duration::from_millis(50));
-            (rx, r)
-        });
-        rx = back;
-        match received {
-            Ok(result) => break result,
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                if interrupted.is_none() {
-                    if let Err(e) = py.check_signals() {
-                        stop.store(true, Ordering::Relaxed);
-                        interrupted = Some(e);
-                    }
-                }
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                let _ = worker.join();
-                return Err(Kind::Simulation.err("the simulation thread ended without a result"));
-            }
-        }
-    };
-    let _ = worker.join();
-    if let Some(e) = interrupted {
-        return Err(e);
-    }
     match result.map_err(from_sim)? {
         (run, RunEnd::Completed) => Ok(run),
         (_, RunEnd::Interrupted { t }) => Err(from_sim(simgap_sim::Error::Interrupted { t })),
