@@ -336,13 +336,9 @@ fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Run> {
         Err(WorkerError::Spawn(e)) => return Err(Kind::Simulation.err(format!("cannot start the simulation thread: {e}"))),
         Err(WorkerError::Lost) => return Err(Kind::Simulation.err("the simulation thread ended without a result")),
     };
-    match result.map_err(from_sim)? {
-        (run, RunEnd::Completed) => Ok(run),
-        (_, RunEnd::Interrupted { t }) => Err(from_sim(simgap_sim::Error::Interrupted { t })),
-        (_, RunEnd::Diverged { t, joint }) => {
-            Err(from_sim(simgap_sim::Error::Diverged { t, joint, detail: "state not finite or |q̇| above the divergence bound".into() }))
-        }
-    }
+    let (run, end) = result.map_err(from_sim)?;
+    end.into_result().map_err(from_sim)?;
+    Ok(run)
 }
 
 /// A joint vector argument of length `dof`.

@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use anyhow::{bail, Context};
-use simgap::core::{Formulation, Model};
+use simgap::core::Model;
 use simgap::sim::mcap_log::McapSink;
 use simgap::sim::{
     l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink,
@@ -15,15 +15,8 @@ use simgap::sim::{
 /// Arguments of `simgap simulate`.
 #[derive(clap::Args)]
 pub(crate) struct Args {
-    /// URDF of the robot (default: the built-in paper arm).
-    #[arg(long)]
-    urdf: Option<PathBuf>,
-    /// Tip link of the chain when the tree branches.
-    #[arg(long)]
-    tip: Option<String>,
-    /// Formulation of C: euler-lagrange or simplified.
-    #[arg(long, default_value = "euler-lagrange")]
-    formulation: Formulation,
+    #[command(flatten)]
+    model: super::ModelArgs,
     /// Controller: pd or pd_gravity (gravity from the nominal model, without effects).
     #[arg(long, default_value = "pd")]
     controller: String,
@@ -157,7 +150,7 @@ fn is_paper_arm(model: &Model) -> bool {
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     use simgap::core::robots::paper_arm;
-    let model = super::load_model(args.urdf.as_deref(), args.tip.as_deref())?;
+    let model = args.model.load()?;
     let n = model.dof();
     let paper = is_paper_arm(&model);
     // gains and reference (the paper's experiment by default on the paper arm)
@@ -190,7 +183,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         Box::new(parse_fourier(&args.fourier, offset, n)?)
     };
     let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse(s, n).with_context(|| format!("--effect '{s}'"))).collect::<anyhow::Result<_>>()?;
-    let plant = Plant::new(&model, args.formulation, &effects)?;
+    let plant = Plant::new(&model, args.model.formulation, &effects)?;
     let params = SimParams {
         duration: args.duration,
         sample_period: args.sample_period,
@@ -220,7 +213,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let elapsed = start.elapsed();
     let run = memory.into_run();
     // summary
-    println!("model {} ({} joints: {}), formulation {}", model.name(), n, model.joint_names().join(", "), args.formulation.as_str());
+    println!("model {} ({} joints: {}), formulation {}", model.name(), n, model.joint_names().join(", "), args.model.formulation.as_str());
     if !effects.is_empty() {
         println!("effects: {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "));
     }

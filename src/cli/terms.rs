@@ -4,20 +4,13 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use simgap::core::{coriolis_matrix_into, dynamics_terms_into, mass_matrix_derivative_into, DynamicsTerms, Formulation, Model, Workspace};
+use simgap::core::{coriolis_matrix_into, dynamics_terms_into, mass_matrix_derivative_into, DynamicsTerms, Model, Workspace};
 
 /// Arguments of `simgap terms`.
 #[derive(clap::Args)]
 pub(crate) struct Args {
-    /// URDF of the robot (default: the built-in paper arm).
-    #[arg(long)]
-    urdf: Option<PathBuf>,
-    /// Tip link of the chain when the tree branches.
-    #[arg(long)]
-    tip: Option<String>,
-    /// Formulation of C: euler-lagrange or simplified.
-    #[arg(long, default_value = "euler-lagrange")]
-    formulation: Formulation,
+    #[command(flatten)]
+    model: super::ModelArgs,
     /// Joint positions, comma-separated, in model order.
     #[arg(long, allow_hyphen_values = true, requires = "qd", conflicts_with = "states")]
     q: Option<String>,
@@ -75,7 +68,7 @@ fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
-    let model = super::load_model(args.urdf.as_deref(), args.tip.as_deref())?;
+    let model = args.model.load()?;
     let n = model.dof();
     let states = match (&args.q, &args.qd, &args.states) {
         (Some(q), Some(qd), None) => vec![(parse_list("q", q, n)?, parse_list("qd", qd, n)?)],
@@ -89,13 +82,13 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     for (q, qd) in &states {
-        dynamics_terms_into(&model, &mut ws, q, qd, args.formulation, &mut terms);
+        dynamics_terms_into(&model, &mut ws, q, qd, args.model.formulation, &mut terms);
         mass_matrix_derivative_into(&model, &mut ws, q, qd, &mut hdot);
         // C again through its own entry point, so the output is exactly coriolis_matrix
-        coriolis_matrix_into(&model, &mut ws, q, qd, args.formulation, &mut terms.coriolis_matrix);
+        coriolis_matrix_into(&model, &mut ws, q, qd, args.model.formulation, &mut terms.coriolis_matrix);
         let line = serde_json::json!({
             "joints": names,
-            "formulation": args.formulation.as_str(),
+            "formulation": args.model.formulation.as_str(),
             "q": q,
             "qd": qd,
             "H": rows(&terms.mass_matrix),

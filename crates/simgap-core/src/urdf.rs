@@ -321,13 +321,12 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
     let mut out: Vec<Joint> = Vec::new();
     let mut placement = Transform::IDENTITY; // from the current body frame to the current link frame
     let mut body: Option<usize> = None; // index in `out` of the body being accumulated
-    let mut base_massive = false;
     let mut current_link = root.as_str();
-    let mut visit_link = |link: &str, placement: &Transform, body: Option<usize>, out: &mut Vec<Joint>, locked: &mut Vec<String>| {
+    let visit_link = |link: &str, placement: &Transform, body: Option<usize>, out: &mut Vec<Joint>, locked: &mut Vec<String>| {
         let inertia = rigid_subtree(link, &children, &joints, &on_path, &link_inertia, locked).transformed(placement);
-        match body {
-            Some(b) => out[b].inertia += inertia,
-            None => base_massive |= inertia.mass > 0.0,
+        // links before the first movable joint are the fixed base: their inertia does not enter
+        if let Some(b) = body {
+            out[b].inertia += inertia;
         }
     };
     visit_link(current_link, &placement, body, &mut out, &mut locked);
@@ -351,7 +350,6 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
         current_link = j.child.as_str();
         visit_link(current_link, &placement, body, &mut out, &mut locked);
     }
-    let _ = base_massive;
     let mut warnings = world_welds;
     if !locked.is_empty() {
         warnings.push(format!("{src}: joints {locked:?} are off the chain to '{tip}' and are locked at their zero position"));

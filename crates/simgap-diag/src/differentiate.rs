@@ -19,11 +19,15 @@ use nalgebra::{Matrix4, Vector4};
 pub struct Smoother {
     t: Vec<f64>,
     half: usize,
-    /// Per-sample weights (value, first and second derivative, zero-order-hold kernel),
-    /// `2 half + 1` each, or one shared set when the sampling is uniform.
+    /// Weights (value, first and second derivative, zero-order-hold kernel), `2 half + 1` each:
+    /// one shared set when the sampling is uniform, else one set per valid sample (from
+    /// `half`) when they fit in [`MAX_CACHED_WEIGHTS`], else none (computed on the fly).
     weights: Vec<[Vec<f64>; 4]>,
     uniform: bool,
 }
+
+/// At most this many weights are kept per smoother for non-uniform stamps (32 MB).
+const MAX_CACHED_WEIGHTS: usize = 4_000_000;
 
 impl Smoother {
     /// A smoother over times `t` (strictly increasing) with a window of about `window` seconds.
@@ -36,6 +40,9 @@ impl Smoother {
         if uniform && n > 2 * half {
             let w = s.compute_weights(half);
             s.weights.push(w);
+        } else if !uniform && n > 2 * half && n * (2 * half + 1) * 4 <= MAX_CACHED_WEIGHTS {
+            // non-uniform stamps: every signal filtered here reuses the per-sample fits
+            s.weights = s.valid().map(|k| s.compute_weights(k)).collect();
         }
         s
     }
@@ -122,6 +129,8 @@ impl Smoother {
             }
             let w = if self.uniform {
                 &self.weights[0][deriv]
+            } else if !self.weights.is_empty() {
+                &self.weights[k - h][deriv]
             } else {
                 local = self.compute_weights(k);
                 &local[deriv]

@@ -25,6 +25,8 @@ pub struct Problem {
     pub blocks: usize,
     /// Weight of each joint's rows (1 / RMS of its commanded torque).
     pub weights: Vec<f64>,
+    /// RMS commanded torque per joint (filtered, fit samples).
+    pub tau_rms: Vec<f64>,
     /// Nominal residual, global column.
     pub y: Column,
 }
@@ -44,15 +46,12 @@ impl Problem {
         }
         let y = Column { joint: None, values: data.iter().flat_map(|d| d.residual.iter().copied()).collect() };
         let samples = block_of.len();
+        let rms = |f: &dyn Fn(usize, usize) -> f64, j: usize| ((0..samples).map(|s| f(s, j).powi(2)).sum::<f64>() / samples.max(1) as f64).sqrt();
+        let tau: Vec<f64> = data.iter().flat_map(|d| d.tau.iter().copied()).collect();
+        let tau_rms: Vec<f64> = (0..dof).map(|j| rms(&|s, j| tau[s * dof + j], j)).collect();
         // each joint's rows in units of its own commanded torque, so joints count alike
-        let weights = (0..dof)
-            .map(|j| {
-                let tau_ms = data.iter().flat_map(|d| (0..d.len()).map(move |s| d.tau[s * dof + j].powi(2))).sum::<f64>() / samples.max(1) as f64;
-                let r_ms = (0..samples).map(|s| y.values[s * dof + j].powi(2)).sum::<f64>() / samples.max(1) as f64;
-                1.0 / tau_ms.sqrt().max(r_ms.sqrt()).max(1e-9)
-            })
-            .collect();
-        Problem { dof, samples, block_of, blocks, weights, y }
+        let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();
+        Problem { dof, samples, block_of, blocks, weights, tau_rms, y }
     }
 
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
@@ -111,11 +110,16 @@ pub struct Grams {
     pub owner: Vec<usize>,
 }
 
-/// Builds the Gram matrices of `terms` (their designs given) against the residual minus their
-/// fixed offsets.
+/// Builds the Gram matrices of `terms` (their designs given) against the nominal residual
+/// minus their fixed offsets.
 pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
+    grams_against(p, &p.y, designs)
+}
+
+/// [`grams`] against another residual `y` (a global column over the problem's rows).
+pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams {
     // y' = y − Σ offsets, as a global column
-    let mut y = p.y.clone();
+    let mut y = y.clone();
     for d in designs {
         if let Some(off) = &d.offset {
             for s in 0..p.samples {
@@ -259,6 +263,19 @@ pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
     }
     let n = draws as f64;
     (sum2 / n - (&sum / n).component_mul(&(&sum / n))).map(|v| v.max(0.0).sqrt())
+}
+
+/// Splits a joint parameter vector (and its standard deviations, if any) per term.
+pub fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>, std: Option<&DVector<f64>>) -> Vec<crate::FittedTerm> {
+    let mut out = Vec::with_capacity(terms.len());
+    let mut c = 0;
+    for (t, d) in terms.iter().zip(designs) {
+        let k = d.cols.len();
+        let sd = std.map_or_else(|| vec![0.0; k], |s| s.as_slice()[c..c + k].to_vec());
+        out.push(crate::FittedTerm { term: t.clone(), theta: theta.as_slice()[c..c + k].to_vec(), std: sd });
+        c += k;
+    }
+    out
 }
 
 /// Designs and fits a list of terms in one go.

@@ -38,8 +38,8 @@ pub use error::{Error, Result};
 pub use report::{Candidate, Decision, Gap, Report};
 pub use select::SelectOptions;
 
-use crate::fit::{bootstrap_std, fit_terms, grams};
-use crate::select::{families, select, Context, Family};
+use crate::fit::{bootstrap_std, fit_terms, fitted_terms};
+use crate::select::{families, select, Context};
 use crate::terms::Term;
 
 /// Options of [`diagnose`].
@@ -117,7 +117,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let p = &ctx.problem;
 
     // nominal closed loop: fit runs (for "where") and held-out runs (the gap before)
-    let total_sims = fit_runs.len() + hold_runs.len() * (families_count(model.dof()) + 2);
+    // every effect of the vocabulary as a candidate, fitted alone on the nominal residual
+    let groups = candidate_groups(&ctx, &p.y);
+    let total_sims = fit_runs.len() + hold_runs.len() * (groups.len() + 2);
     let mut sims_done = 0;
     let mut tick = |progress: &mut dyn FnMut(Progress), n: usize| {
         sims_done += n;
@@ -142,13 +144,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     closed_loop_prune(model, formulation, &ctx, &fit_runs, &mut selection, options.select.min_relative_gain);
     let (_, sel_grams, _) = fit_terms(p, &data, &selection.terms);
     let sel_std = bootstrap_std(&sel_grams, 100, 7);
-    let mut fitted = Vec::new();
-    let mut c = 0;
-    for (t, d) in selection.terms.iter().zip(&selection.designs) {
-        let k = d.cols.len();
-        fitted.push(FittedTerm { term: t.clone(), theta: selection.fit.theta.as_slice()[c..c + k].to_vec(), std: sel_std.as_slice()[c..c + k].to_vec() });
-        c += k;
-    }
+    let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
     let selected_effects = effects::to_reports(model, &fitted);
     let sel_effects = effects::to_effects(model, &fitted);
 
@@ -164,19 +160,11 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         resim::combine(&g, &fit_runs).0
     };
 
-    let nominal_resid = p.y.clone();
     let mut candidates = Vec::new();
-    let groups = candidate_groups(&ctx, &nominal_resid);
     for (name, terms) in groups {
         let (designs, gr, f) = fit_terms(p, &data, &terms);
         let std = bootstrap_std(&gr, 50, 11);
-        let mut fitted_c = Vec::new();
-        let mut c = 0;
-        for (t, d) in terms.iter().zip(&designs) {
-            let k = d.cols.len();
-            fitted_c.push(FittedTerm { term: t.clone(), theta: f.theta.as_slice()[c..c + k].to_vec(), std: std.as_slice()[c..c + k].to_vec() });
-            c += k;
-        }
+        let fitted_c = fitted_terms(&terms, &designs, &f.theta, Some(&std));
         let rep = effects::to_reports(model, &fitted_c).into_iter().next();
         // a candidate whose fit is not physical (negative friction, rotor inertia, mass, a gain
         // out of range) is reported but not simulated
@@ -225,7 +213,6 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     for (i, c) in candidates.iter_mut().enumerate() {
         c.rank = i + 1;
     }
-    let _ = grams;
 
     let verdict = if !moving {
         "cannot tell: the fit logs show no motion (all velocities below 1e-3 rad/s), so no effect can be told apart".to_string()
@@ -278,13 +265,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
 /// Closed-loop L² over the fit runs with `terms` fitted and added.
 fn fit_gap(model: &Model, formulation: Formulation, ctx: &Context<'_>, runs: &[Run], terms: &[Term]) -> f64 {
     let (designs, _, f) = fit_terms(&ctx.problem, ctx.data, terms);
-    let mut fitted = Vec::new();
-    let mut c = 0;
-    for (t, d) in terms.iter().zip(&designs) {
-        let k = d.cols.len();
-        fitted.push(FittedTerm { term: t.clone(), theta: f.theta.as_slice()[c..c + k].to_vec(), std: vec![0.0; k] });
-        c += k;
-    }
+    let fitted = fitted_terms(terms, &designs, &f.theta, None);
     let eff = effects::to_effects(model, &fitted);
     let gaps: Vec<resim::RunGap> = runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
     resim::combine(&gaps, runs).0
@@ -338,10 +319,6 @@ fn select_nothing(ctx: &Context<'_>) -> select::Selection {
     select::Selection { terms: vec![], nominal_cv_mse: f.cv_mse, fit: f, designs, log: vec![] }
 }
 
-fn families_count(_dof: usize) -> usize {
-    12
-}
-
 /// Every effect of the vocabulary as one candidate: per-joint families on every joint (best
 /// grid member per joint against the nominal residual), whole-robot ones once.
 fn candidate_groups(ctx: &Context<'_>, resid: &terms::Column) -> Vec<(&'static str, Vec<Term>)> {
@@ -356,7 +333,6 @@ fn candidate_groups(ctx: &Context<'_>, resid: &terms::Column) -> Vec<(&'static s
             None => groups.push((name, vec![t])),
         }
     }
-    let _ = Family::Delay;
     if ctx.inertial_basis.ncols() > 0 {
         groups.push(("inertial_error", vec![ctx.inertial_term()]));
     }

@@ -11,7 +11,7 @@ use nalgebra::{DMatrix, DVector};
 use simgap_core::PARAMS_PER_LINK;
 
 use crate::dataset::FitData;
-use crate::fit::{fit, fit_terms, grams, solve, Fit, Problem};
+use crate::fit::{fit, fit_terms, grams, grams_against, solve, Fit, Problem};
 use crate::terms::{design, Column, Term, TermDesign};
 
 /// Thresholds of the selection.
@@ -80,8 +80,6 @@ pub struct Context<'a> {
     pub inertial_basis: DMatrix<f64>,
     /// Sample period (for the delay grid) [s].
     pub sample_period: f64,
-    /// RMS commanded torque per joint.
-    pub tau_rms: Vec<f64>,
     /// Designs already built, by term (the same grid members recur at every step).
     cache: std::sync::Mutex<std::collections::HashMap<String, std::sync::Arc<TermDesign>>>,
 }
@@ -91,15 +89,8 @@ impl<'a> Context<'a> {
     /// parameters (see [`parameter_scales`]).
     pub fn new(data: &'a [FitData], sample_period: f64, scales: &[f64]) -> Context<'a> {
         let problem = Problem::new(data);
-        let dof = problem.dof;
         let inertial_basis = inertial_basis(&problem, data, scales);
-        let tau_rms = (0..dof)
-            .map(|j| {
-                let (s, n) = data.iter().fold((0.0, 0usize), |(s, n), d| (s + (0..d.len()).map(|k| d.tau[k * dof + j].powi(2)).sum::<f64>(), n + d.len()));
-                (s / n.max(1) as f64).sqrt()
-            })
-            .collect();
-        Context { data, problem, inertial_basis, sample_period, tau_rms, cache: Default::default() }
+        Context { data, problem, inertial_basis, sample_period, cache: Default::default() }
     }
 
     fn grid(&self, family: &Family) -> Vec<Term> {
@@ -305,9 +296,7 @@ fn inertial_basis(p: &Problem, data: &[FitData], scales: &[f64]) -> DMatrix<f64>
 
 /// Least-squares fit of one design against a residual column: (θ, weighted SSE).
 fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
-    let mut q = p.clone();
-    q.y = resid.clone();
-    let gr = grams(&q, &[d]);
+    let gr = grams_against(p, resid, &[d]);
     let (mut g, mut c, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
     for b in 0..gr.g.len() {
         g += &gr.g[b];
@@ -579,8 +568,8 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         let th: Vec<f64> = f.theta.iter().skip(k0).copied().collect();
         let torque = term_torque_rms(p, ds.last().unwrap(), &th);
         let share = match term.joint() {
-            Some(j) => torque[j] / ctx.tau_rms[j].max(1e-12),
-            None => (0..p.dof).map(|j| torque[j] / ctx.tau_rms[j].max(1e-12)).fold(0.0, f64::max),
+            Some(j) => torque[j] / p.tau_rms[j].max(1e-12),
+            None => (0..p.dof).map(|j| torque[j] / p.tau_rms[j].max(1e-12)).fold(0.0, f64::max),
         };
         let reason;
         let accept = if f.cv_mse >= current.cv_mse || gain < grid_penalty(&term) * opts.min_relative_gain * now_t {
@@ -603,7 +592,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         terms.push(term);
         designs = ds;
         current = f;
-        polish(ctx, &fams, &mut terms, &mut designs, &mut current);
+        polish(ctx, &mut terms, &mut designs, &mut current);
         // exchange moves: swap a selected term for a candidate while that lowers the CV residual
         for _ in 0..4 {
             if !exchange(ctx, &fams, &mut terms, &mut designs, &mut current, &nominal, opts, &mut log) {
@@ -635,7 +624,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
             }
         }
     }
-    polish(ctx, &fams, &mut terms, &mut designs, &mut current);
+    polish(ctx, &mut terms, &mut designs, &mut current);
     Selection { terms, fit: current, designs, nominal_cv_mse: nominal.cv_mse, log }
 }
 
@@ -653,7 +642,7 @@ fn family_of(t: &Term) -> Option<Family> {
 
 /// Re-searches the nonlinear parameter of each selected term against the residual of all the
 /// others (two rounds of coordinate descent), keeping a change only when the CV residual falls.
-fn polish(ctx: &Context<'_>, _fams: &[Family], terms: &mut [Term], designs: &mut [TermDesign], current: &mut Fit) {
+fn polish(ctx: &Context<'_>, terms: &mut [Term], designs: &mut [TermDesign], current: &mut Fit) {
     let p = &ctx.problem;
     for _ in 0..2 {
         for i in 0..terms.len() {

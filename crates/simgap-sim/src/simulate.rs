@@ -334,11 +334,8 @@ pub fn simulate_experiment(
     replay: Option<&Run>,
 ) -> Result<Run> {
     let (run, end) = simulate_experiment_with_end(model, formulation, effects, experiment, reference, params, replay)?;
-    match end {
-        RunEnd::Diverged { t, joint } => Err(Error::Diverged { t, joint, detail: "state not finite or |q̇| above the divergence bound".into() }),
-        RunEnd::Interrupted { t } => Err(Error::Interrupted { t }),
-        RunEnd::Completed => Ok(run),
-    }
+    end.into_result()?;
+    Ok(run)
 }
 
 /// [`simulate_experiment`] returning the (possibly partial) run and how it ended.

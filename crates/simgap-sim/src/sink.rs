@@ -22,6 +22,22 @@ pub enum RunEnd {
     },
 }
 
+impl RunEnd {
+    /// `Ok` for a completed run; the matching [`Error`](crate::Error) for an interrupted or a
+    /// diverged one.
+    ///
+    /// # Errors
+    /// [`Error::Interrupted`](crate::Error::Interrupted) or
+    /// [`Error::Diverged`](crate::Error::Diverged).
+    pub fn into_result(self) -> Result<()> {
+        match self {
+            RunEnd::Completed => Ok(()),
+            RunEnd::Interrupted { t } => Err(crate::Error::Interrupted { t }),
+            RunEnd::Diverged { t, joint } => Err(crate::Error::Diverged { t, joint, detail: "state not finite or |q̇| above the divergence bound".into() }),
+        }
+    }
+}
+
 /// Receives the samples of a run as it goes. Implementations must leave a complete, readable
 /// result after [`Sink::finish`], whatever the [`RunEnd`].
 pub trait Sink {
