@@ -37,7 +37,7 @@ impl Model {
     /// Any [`Error`] of the URDF family, naming the file and the offending element.
     pub fn from_urdf_file_with(path: impl AsRef<Path>, options: &UrdfOptions) -> Result<Model> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|cause| Error::Io { path: path.to_path_buf(), cause })?;
         from_urdf(&text, &path.display().to_string(), options)
     }
 
