@@ -62,6 +62,9 @@ pub fn align_run(model: &Model, run: &Run) -> Result<Run> {
     out.tau = take(&run.tau);
     out.q_ref = take(&run.q_ref);
     out.qd_ref = take(&run.qd_ref);
+    out.tau_ff = take(&run.tau_ff);
+    out.tau_measured = take(&run.tau_measured);
+    out.start_ns = run.start_ns;
     out.experiment = run.experiment.clone();
     out.source = log.clone();
     let samples = out.t.len();

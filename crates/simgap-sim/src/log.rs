@@ -217,6 +217,9 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
         tau: pick(&run.tau),
         q_ref: pick(&run.q_ref),
         qd_ref: pick(&run.qd_ref),
+        tau_ff: pick(&run.tau_ff),
+        tau_measured: pick(&run.tau_measured),
+        start_ns: run.start_ns,
         experiment: run.experiment.clone(),
         source: run.source.clone(),
     })

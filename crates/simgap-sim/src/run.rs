@@ -71,6 +71,15 @@ pub struct Run {
     pub q_ref: Vec<f64>,
     /// Reference velocities q̇_ref (empty when the log has none, meaning zero).
     pub qd_ref: Vec<f64>,
+    /// Feed-forward torque τ_ff [N·m or N] the controller adds to its feedback (the `effort` of
+    /// `/joint_reference`; empty means zero).
+    pub tau_ff: Vec<f64>,
+    /// Torque the drives report delivering [N·m or N] (`/joint_effort_measured`; empty when
+    /// the log has none).
+    pub tau_measured: Vec<f64>,
+    /// Absolute time of the log's first sample [ns since the Unix epoch] when the log had
+    /// absolute stamps; `t` is then time since that start (`t[0]` = 0).
+    pub start_ns: Option<i64>,
     /// The experiment, when known.
     pub experiment: Option<Experiment>,
     /// Where the run came from (file name, or `simulation`).
@@ -80,7 +89,20 @@ pub struct Run {
 impl Run {
     /// An empty run for these joints.
     pub fn new(joints: Vec<String>) -> Self {
-        Run { joints, t: Vec::new(), q: Vec::new(), qd: Vec::new(), tau: Vec::new(), q_ref: Vec::new(), qd_ref: Vec::new(), experiment: None, source: String::new() }
+        Run {
+            joints,
+            t: Vec::new(),
+            q: Vec::new(),
+            qd: Vec::new(),
+            tau: Vec::new(),
+            q_ref: Vec::new(),
+            qd_ref: Vec::new(),
+            tau_ff: Vec::new(),
+            tau_measured: Vec::new(),
+            start_ns: None,
+            experiment: None,
+            source: String::new(),
+        }
     }
 
     /// Number of joints.
