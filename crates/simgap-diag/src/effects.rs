@@ -31,8 +31,29 @@ pub struct EffectReport {
     pub joints: Vec<String>,
     /// Parameters.
     pub parameters: BTreeMap<String, Param>,
-    /// Half-widths of 95 % block-bootstrap intervals, same layout as `parameters`.
+    /// Half-widths of 95 % intervals, same layout as `parameters`.
     pub uncertainty: BTreeMap<String, Param>,
+    /// The unit of each parameter (`N·m·s/rad`, `kg`, `-`, …).
+    pub units: BTreeMap<String, String>,
+    /// The effect in words, for people (e.g. "link 2: mass −12 %, inertia about the COM −48 %").
+    pub description: String,
+}
+
+/// The SI unit of a parameter of an effect of the vocabulary (`-` for dimensionless values).
+/// Torques are written for revolute joints (`N·m`); a prismatic joint's are in `N`.
+pub fn param_unit(effect: &str, param: &str) -> &'static str {
+    match (effect, param) {
+        ("viscous_friction", "b") => "N·m·s/rad",
+        ("coulomb_friction" | "stribeck_friction", "fc" | "fs") => "N·m",
+        ("stribeck_friction", "vs") => "rad/s",
+        ("armature", "ia") => "kg·m²",
+        ("payload", "mass") | ("inertial_error", "delta_mass") => "kg",
+        ("payload", "com") | ("inertial_error", "delta_com") => "m",
+        ("inertial_error", "delta_inertia") => "kg·m²",
+        ("torque_offset", "offset") | ("torque_saturation", "limit") | ("cogging", "amplitude") => "N·m",
+        ("time_delay", "delay") => "s",
+        _ => "-",
+    }
 }
 
 /// A fitted term with its parameter values and standard deviations.
@@ -172,7 +193,14 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
         let idx = match out.iter().position(|e| e.effect == effect) {
             Some(i) => i,
             None => {
-                out.push(EffectReport { effect: effect.into(), joints: vec![], parameters: BTreeMap::new(), uncertainty: BTreeMap::new() });
+                out.push(EffectReport {
+                    effect: effect.into(),
+                    joints: vec![],
+                    parameters: BTreeMap::new(),
+                    uncertainty: BTreeMap::new(),
+                    units: BTreeMap::new(),
+                    description: String::new(),
+                });
                 out.len() - 1
             }
         };
@@ -227,6 +255,9 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
                 }
             }
         }
+    }
+    for e in &mut out {
+        e.units = e.parameters.keys().map(|k| (k.clone(), param_unit(&e.effect, k).to_string())).collect();
     }
     out
 }

@@ -35,7 +35,7 @@ use simgap_sim::{Effect, Run};
 pub use dataset::{align_run, FitData, PrepareOptions};
 pub use effects::{EffectReport, FittedTerm, Param};
 pub use error::{Error, Result};
-pub use report::{Candidate, Decision, Gap, Report};
+pub use report::{Alternative, Candidate, Decision, Gap, KStep, Report, RunKStep};
 pub use select::SelectOptions;
 
 use crate::fit::{bootstrap_std, fit_terms, fitted_terms};
@@ -205,6 +205,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             cv_residual_reduction: if selection.nominal_cv_mse > 0.0 { 1.0 - f.cv_mse / selection.nominal_cv_mse } else { 0.0 },
             holdout_l2_after: l2,
             holdout_ratio: if before > 0.0 { l2 / before } else { f64::NAN },
+            holdout_kstep_after: vec![],
+            fit_kstep_cv: vec![],
             selected,
             reason,
         });
@@ -237,7 +239,12 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         verdict,
         selected_effects,
         candidates,
+        alternatives: vec![],
+        notes: vec![],
         gap: Gap {
+            headline: "closed_loop".into(),
+            headline_reason: String::new(),
+            kstep: KStep::default(),
             holdout_l2_before: before,
             holdout_l2_after: after,
             ratio: if before > 0.0 { after / before } else { f64::NAN },

@@ -25,15 +25,75 @@ pub struct Candidate {
     pub holdout_l2_after: f64,
     /// `holdout_l2_after / holdout_l2_before`.
     pub holdout_ratio: f64,
+    /// Held-out k-step prediction error after adding this effect alone [rad], aligned with
+    /// `gap.kstep.horizons_s`.
+    pub holdout_kstep_after: Vec<f64>,
+    /// Cross-validated k-step prediction error on the fit runs with this effect alone [rad],
+    /// aligned with `gap.kstep.horizons_s`.
+    pub fit_kstep_cv: Vec<f64>,
     /// Part of the selected set.
     pub selected: bool,
     /// Why it was (not) selected.
     pub reason: String,
 }
 
+/// k-step-ahead prediction error: windows of each run restart the model from the measured
+/// (smoothed) state and drive it with the logged torque (open-loop runs) or the logged
+/// controller (feedback runs); the error is the RMS position error at the window ends [rad].
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct KStep {
+    /// Prediction horizons [s].
+    pub horizons_s: Vec<f64>,
+    /// Nominal model, one value per horizon, pooled over the held-out runs [rad].
+    pub before: Vec<f64>,
+    /// With the selected effects [rad].
+    pub after: Vec<f64>,
+    /// Constant-velocity extrapolation over the same windows [rad]: a model that does not beat
+    /// it says nothing about physics.
+    pub floor: Vec<f64>,
+    /// Per joint (model order), per horizon: nominal [rad].
+    pub per_joint_before: Vec<Vec<f64>>,
+    /// Per joint, per horizon: with the selected effects [rad].
+    pub per_joint_after: Vec<Vec<f64>>,
+    /// Per held-out run.
+    pub runs: Vec<RunKStep>,
+}
+
+/// k-step errors of one held-out run.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RunKStep {
+    /// Log name.
+    pub log: String,
+    /// Number of prediction windows.
+    pub windows: usize,
+    /// Nominal, per horizon [rad].
+    pub before: Vec<f64>,
+    /// Selected effects, per horizon [rad].
+    pub after: Vec<f64>,
+    /// Constant-velocity floor, per horizon [rad].
+    pub floor: Vec<f64>,
+}
+
+/// Effect sets that explain the fit runs as well as the selected set: what these data cannot
+/// tell apart.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Alternative {
+    /// Effect names of the alternative set.
+    pub effects: Vec<String>,
+    /// Why it is an alternative (an exact equivalence, or a tie within the cross-validation
+    /// noise, with the figures).
+    pub why: String,
+}
+
 /// The gap before and after (BRIEF §3.3 `gap`).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Gap {
+    /// Which figure answers "how far" for these runs: `closed_loop` or `k_step`.
+    pub headline: String,
+    /// Why that figure.
+    pub headline_reason: String,
+    /// Held-out k-step prediction error before and after.
+    pub kstep: KStep,
     /// L² (eq. 127) over the held-out runs, nominal closed-loop simulation vs measured [rad].
     pub holdout_l2_before: f64,
     /// The same with the selected effects added.
@@ -90,6 +150,11 @@ pub struct Report {
     pub selected_effects: Vec<EffectReport>,
     /// Every effect tried, ranked.
     pub candidates: Vec<Candidate>,
+    /// Effect sets the data cannot tell apart from the selected set (empty when they decide).
+    pub alternatives: Vec<Alternative>,
+    /// Warnings about the logs and the answer (glitches removed, sensors inferred, URDF
+    /// pitfalls the data reveal, what the residual still holds).
+    pub notes: Vec<String>,
     /// How far the gap shrinks on held-out runs.
     pub gap: Gap,
     /// Where the gap lies.
