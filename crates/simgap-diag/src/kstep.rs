@@ -29,8 +29,11 @@ use crate::error::Result;
 /// Default prediction horizons [s].
 pub const DEFAULT_HORIZONS: [f64; 3] = [0.1, 0.25, 0.5];
 
-/// At most this many windows per run (the stride grows on long runs).
+/// At most this many windows per held-out run (the stride grows on long runs).
 pub const MAX_WINDOWS_PER_RUN: usize = 200;
+
+/// At most this many windows per fit run, where every candidate set is scored.
+pub const FIT_WINDOWS_PER_RUN: usize = 60;
 
 /// Largest error counted per joint [rad]: half a turn.
 const ERROR_CAP: f64 = std::f64::consts::PI;
@@ -61,8 +64,8 @@ pub const FOLDS_PER_RUN: usize = crate::fit::BLOCKS_PER_RUN / crate::fit::BLOCKS
 
 impl PredictionRun {
     /// Prepares `run` (model-aligned) for prediction at `horizons`, smoothing with a window of
-    /// `window` seconds; windows are numbered in folds from `fold_base`.
-    pub fn new(run: Run, horizons: &[f64], window: f64, sensor: SensorParams, fold_base: usize) -> PredictionRun {
+    /// `window` seconds; at most `max_windows` windows, numbered in folds from `fold_base`.
+    pub fn new(run: Run, horizons: &[f64], window: f64, sensor: SensorParams, fold_base: usize, max_windows: usize) -> PredictionRun {
         let n = run.dof();
         let smoother = Smoother::new(&run.t, window);
         let q_hat = smoother.apply(&run.q, n, 0);
@@ -79,7 +82,7 @@ impl PredictionRun {
             let usable = valid.clone().filter(|&k| run.t[k] + h_max.min(last_t - run.t[valid.start]) <= last_t).count();
             let stride_t = horizons.iter().cloned().fold(f64::INFINITY, f64::min).max(period);
             let span = run.t[valid.end - 1] - run.t[valid.start];
-            let stride_t = stride_t.max(span / MAX_WINDOWS_PER_RUN as f64);
+            let stride_t = stride_t.max(span / max_windows.max(1) as f64);
             let mut next_t = run.t[valid.start];
             for k in valid.clone() {
                 if run.t[k] + 1e-12 < next_t {
@@ -426,4 +429,50 @@ pub fn score(rms: &[f64], reference: &[f64]) -> f64 {
         return f64::INFINITY;
     }
     (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+}
+
+/// k-step prediction of logged runs by `model` alone (`before`) and with `effects` (`after`),
+/// with the constant-velocity floor: how well a model predicts logs, without a diagnosis
+/// (e.g. to compare a published identified model with a corrected one on the same runs).
+///
+/// Runs are aligned to the model by joint name, glitches repaired and sensors inferred as in
+/// [`crate::diagnose`]; `window` is the smoothing window [s] of the restart states.
+///
+/// # Errors
+/// [`crate::Error::Log`] for runs that do not match the model, have no experiment or are too
+/// short for a window; controller set-up errors.
+pub fn evaluate(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[Run], horizons: &[f64], window: f64) -> Result<crate::report::KStep> {
+    if let Some(h) = horizons.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+        return Err(crate::Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
+    }
+    let mut prepared = Vec::with_capacity(runs.len());
+    for r in runs {
+        let mut run = crate::dataset::align_run(model, r)?;
+        if run.experiment.is_none() {
+            return Err(crate::Error::Log { log: run.source.clone(), message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into() });
+        }
+        crate::robust::repair_glitches(&mut run);
+        let sensor = crate::resim::infer_sensors(&run).params();
+        let pr = PredictionRun::new(run, horizons, window, sensor, 0, MAX_WINDOWS_PER_RUN);
+        if pr.windows() == 0 {
+            return Err(crate::Error::Log { log: pr.run.source.clone(), message: format!("too short to predict: {:.3} s; expected at least the shortest horizon plus the smoothing window", pr.run.duration()) });
+        }
+        prepared.push(pr);
+    }
+    let (floor_all, floor_runs) = floor_all(&prepared, horizons, model.dof());
+    let (before, before_runs) = predict_all(model, formulation, &[], &prepared, horizons)?;
+    let (after, after_runs) = if effects.is_empty() { (before.clone(), before_runs.clone()) } else { predict_all(model, formulation, effects, &prepared, horizons)? };
+    Ok(crate::report::KStep {
+        horizons_s: horizons.to_vec(),
+        before: before.rms(),
+        after: after.rms(),
+        floor: floor_all.rms(),
+        per_joint_before: before.rms_per_joint(),
+        per_joint_after: after.rms_per_joint(),
+        runs: prepared
+            .iter()
+            .enumerate()
+            .map(|(i, pr)| crate::report::RunKStep { log: pr.run.source.clone(), windows: pr.windows(), before: before_runs[i].rms(), after: after_runs[i].rms(), floor: floor_runs[i].rms() })
+            .collect(),
+    })
 }

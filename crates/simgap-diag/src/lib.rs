@@ -483,8 +483,8 @@ fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run]
         return Err(Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
     }
     let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
-    let fit_pred: Vec<PredictionRun> = fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN)).collect();
-    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0)).collect();
+    let fit_pred: Vec<PredictionRun> = fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN)).collect();
+    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
     if let Some(pr) = hold_pred.iter().find(|p| p.windows() == 0) {
         return Err(Error::Log { log: pr.run.source.clone(), message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]) });
     }
@@ -502,30 +502,58 @@ fn fits_in(terms: &[Term], t: &Term) -> bool {
     !terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
 }
 
-/// The prune stage: backward elimination and forward completion by cross-validated prediction.
+/// The prune stage: two paths, the better kept. (a) The torque-residual selection pruned by
+/// backward elimination and completed with whole effects, by cross-validated prediction;
+/// (b) forward selection of whole effects by prediction from the nominal model, then pruned.
+/// A set that does not beat the nominal model's prediction by [`ADD_GAIN`] is emptied: the
+/// data then support no effect.
 fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], sel: &mut select::Selection, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<()> {
-    let mut current = scorer.score(&sel.terms);
+    let mut path_a = (sel.terms.clone(), Vec::new());
+    let score_a = refine_by_prediction(scorer, groups, alone_score, &mut path_a.0, &mut path_a.1, progress, options)?;
+    let mut path_b = (Vec::new(), Vec::new());
+    let score_b = refine_by_prediction(scorer, groups, alone_score, &mut path_b.0, &mut path_b.1, progress, options)?;
+    let (best, score) = if score_b < score_a * (1.0 - PRUNE_TOLERANCE) { (path_b, score_b) } else { (path_a, score_a) };
+    let (mut terms, mut log) = best;
+    if score >= 1.0 - ADD_GAIN {
+        for t in terms.drain(..) {
+            log.push(select::Step {
+                term: t,
+                cv_mse: f64::NAN,
+                accepted: false,
+                reason: format!("dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, not better by {:.0} %", 100.0 * ADD_GAIN),
+            });
+        }
+    }
+    sel.log.extend(log);
+    sel.terms = terms;
+    Ok(())
+}
+
+/// Backward elimination, then forward completion with whole effects (at most three), repeated;
+/// returns the final prediction score.
+fn refine_by_prediction(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], terms: &mut Vec<Term>, log: &mut Vec<select::Step>, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<f64> {
+    let mut current = scorer.score(terms);
     let mut added = 0;
     loop {
         // backward: a term whose removal does not worsen prediction goes
         loop {
             check_stop(options)?;
-            if sel.terms.is_empty() {
+            if terms.is_empty() {
                 break;
             }
-            progress(Progress { stage: "pruning by prediction", done: 0, total: sel.terms.len() });
-            let without: Vec<f64> = (0..sel.terms.len())
+            progress(Progress { stage: "pruning by prediction", done: 0, total: terms.len() });
+            let without: Vec<f64> = (0..terms.len())
                 .into_par_iter()
                 .map(|i| {
-                    let mut rest = sel.terms.clone();
+                    let mut rest = terms.clone();
                     rest.remove(i);
                     scorer.score(&rest)
                 })
                 .collect();
             let (i, best) = without.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).expect("non-empty");
             if best <= current * (1.0 + PRUNE_TOLERANCE) {
-                let term = sel.terms.remove(i);
-                sel.log.push(select::Step {
+                let term = terms.remove(i);
+                log.push(select::Step {
                     term,
                     cv_mse: f64::NAN,
                     accepted: false,
@@ -546,13 +574,13 @@ fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)],
             .iter()
             .enumerate()
             .filter(|(i, _)| alone_score[*i] < 1.0 - ADD_GAIN)
-            .map(|(i, (_, g))| (i, g.iter().filter(|t| fits_in(&sel.terms, t)).cloned().collect::<Vec<_>>()))
+            .map(|(i, (_, g))| (i, g.iter().filter(|t| fits_in(terms, t)).cloned().collect::<Vec<_>>()))
             .filter(|(_, g)| !g.is_empty())
             .collect();
         let scores: Vec<f64> = tries
             .par_iter()
             .map(|(_, g)| {
-                let mut with = sel.terms.clone();
+                let mut with = terms.clone();
                 with.extend(g.iter().cloned());
                 scorer.score(&with)
             })
@@ -561,21 +589,21 @@ fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)],
         if best < current * (1.0 - ADD_GAIN) {
             let (gi, g) = &tries[k];
             for t in g {
-                sel.log.push(select::Step {
+                log.push(select::Step {
                     term: t.clone(),
                     cv_mse: f64::NAN,
                     accepted: true,
                     reason: format!("added by prediction: with {} the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (without it {current:.4})", groups[*gi].0),
                 });
             }
-            sel.terms.extend(g.iter().cloned());
+            terms.extend(g.iter().cloned());
             current = best;
             added += 1;
         } else {
             break;
         }
     }
-    Ok(())
+    Ok(current)
 }
 
 /// Orders the selected effects by how much prediction worsens without each (most needed first).
