@@ -351,6 +351,12 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let (headline, headline_reason) = headline(&prep, &before_runs, &after_runs, before);
     let alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
     let mut notes = prep.notes.clone();
+    for j in &location.per_joint {
+        if let (Some(a), Some(m)) = (j.actuator_residual_l2, j.mechanics_residual_l2) {
+            let (part, other) = if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };
+            notes.push(format!("{}: with the measured torque the gap splits into actuator {a:.3e} N·m and mechanics {m:.3e} N·m (RMS): most of it lies in {part}, less in {other}", j.joint));
+        }
+    }
     notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons));
     let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, before, after, &before_runs);
     let selection_log = selection
