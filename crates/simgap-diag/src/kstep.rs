@@ -33,7 +33,7 @@ pub const DEFAULT_HORIZONS: [f64; 3] = [0.1, 0.25, 0.5];
 pub const MAX_WINDOWS_PER_RUN: usize = 200;
 
 /// At most this many windows per fit run, where every candidate set is scored.
-pub const FIT_WINDOWS_PER_RUN: usize = 60;
+pub const FIT_WINDOWS_PER_RUN: usize = 48;
 
 /// Largest error counted per joint [rad]: half a turn.
 const ERROR_CAP: f64 = std::f64::consts::PI;
@@ -73,13 +73,10 @@ impl PredictionRun {
         let valid = smoother.valid();
         let period = median_spacing(&run.t);
         let period = run.experiment.as_ref().map(|e| e.sample_period).filter(|p| p.is_finite() && *p > 0.0).unwrap_or(period);
-        let h_max = horizons.iter().cloned().fold(0.0, f64::max);
         let mut starts = Vec::new();
         let mut ends = Vec::new();
         let mut fold = Vec::new();
         if !valid.is_empty() {
-            let last_t = run.t[valid.end - 1];
-            let usable = valid.clone().filter(|&k| run.t[k] + h_max.min(last_t - run.t[valid.start]) <= last_t).count();
             let stride_t = horizons.iter().cloned().fold(f64::INFINITY, f64::min).max(period);
             let span = run.t[valid.end - 1] - run.t[valid.start];
             let stride_t = stride_t.max(span / max_windows.max(1) as f64);
@@ -104,7 +101,8 @@ impl PredictionRun {
                 if e.iter().all(|&x| x == usize::MAX) {
                     break;
                 }
-                fold.push(fold_base + ((k - valid.start) * FOLDS_PER_RUN / usable.max(1)).min(FOLDS_PER_RUN - 1));
+                // the fold of the window's start, as the torque fit's contiguous folds cut the run
+                fold.push(fold_base + ((k - valid.start) * FOLDS_PER_RUN / valid.len()).min(FOLDS_PER_RUN - 1));
                 starts.push(k);
                 ends.push(e);
             }

@@ -106,6 +106,9 @@ pub struct Diagnosis {
 const PRUNE_TOLERANCE: f64 = 0.005;
 /// An effect joins the set when it improves prediction by at least this (relative).
 const ADD_GAIN: f64 = 0.02;
+/// The forward path from the nominal model is also tried when the torque-residual path
+/// predicts the fit runs at more than this fraction of the nominal model's error.
+const SECOND_PATH_ABOVE: f64 = 0.5;
 /// Two sets whose prediction scores differ by less than this (relative) are a tie.
 const TIE_TOLERANCE: f64 = 0.02;
 
@@ -510,14 +513,16 @@ fn fits_in(terms: &[Term], t: &Term) -> bool {
 
 /// The prune stage: two paths, the better kept. (a) The torque-residual selection pruned by
 /// backward elimination and completed with whole effects, by cross-validated prediction;
-/// (b) forward selection of whole effects by prediction from the nominal model, then pruned.
+/// (b) forward selection of whole effects by prediction from the nominal model, then pruned
+/// (only when (a) does not reach [`SECOND_PATH_ABOVE`]).
 /// A set that does not beat the nominal model's prediction by [`ADD_GAIN`] is emptied: the
 /// data then support no effect.
 fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], sel: &mut select::Selection, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<()> {
     let mut path_a = (sel.terms.clone(), Vec::new());
     let score_a = refine_by_prediction(scorer, groups, alone_score, &mut path_a.0, &mut path_a.1, progress, options)?;
+    // the second path only where the first does not already halve the nominal error
     let mut path_b = (Vec::new(), Vec::new());
-    let score_b = refine_by_prediction(scorer, groups, alone_score, &mut path_b.0, &mut path_b.1, progress, options)?;
+    let score_b = if score_a > SECOND_PATH_ABOVE { refine_by_prediction(scorer, groups, alone_score, &mut path_b.0, &mut path_b.1, progress, options)? } else { f64::INFINITY };
     let (best, score) = if score_b < score_a * (1.0 - PRUNE_TOLERANCE) { (path_b, score_b) } else { (path_a, score_a) };
     let (mut terms, mut log) = best;
     if score >= 1.0 - ADD_GAIN {
