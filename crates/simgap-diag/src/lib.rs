@@ -21,6 +21,7 @@ pub mod effects;
 pub mod error;
 pub mod fit;
 pub mod html;
+pub mod inertial;
 pub mod locate;
 pub mod report;
 pub mod resim;
