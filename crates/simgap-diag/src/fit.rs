@@ -30,6 +30,9 @@ pub struct Problem {
     pub tau_rms: Vec<f64>,
     /// Nominal residual, global column.
     pub y: Column,
+    /// The block Grams of the inertial correction's columns with themselves, by their scales (the
+    /// same columns recur in every fit of a selection).
+    inertial_gram: std::sync::Arc<std::sync::Mutex<Option<(Vec<f64>, Vec<DMatrix<f64>>)>>>,
 }
 
 impl Problem {
@@ -52,7 +55,7 @@ impl Problem {
         let tau_rms: Vec<f64> = (0..dof).map(|j| rms(&|s, j| tau[s * dof + j], j)).collect();
         // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();
-        Problem { dof, samples, block_of, blocks, weights, tau_rms, y }
+        Problem { dof, samples, block_of, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
     }
 
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
@@ -168,8 +171,42 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
     let mut c = vec![DVector::zeros(k); nb];
     let mut s = vec![0.0; nb];
     let mut buf = vec![0.0; nb];
+    // the inertial columns' own block, computed once per problem
+    let mut done = vec![false; k];
+    for (first, d) in designs.iter().scan(0, |c, d| {
+        let f = *c;
+        *c += d.cols.len();
+        Some((f, d))
+    }) {
+        let Some(prior) = &d.inertial else { continue };
+        let mut cache = p.inertial_gram.lock().expect("inertial Gram cache");
+        if cache.as_ref().is_none_or(|(scales, _)| *scales != prior.scales) {
+            let ki = d.cols.len();
+            let mut blocks = vec![DMatrix::zeros(ki, ki); nb];
+            for a in 0..ki {
+                for b in a..ki {
+                    p.dot_blocks(&d.cols[a], &d.cols[b], &mut buf);
+                    for (bl, v) in buf.iter().enumerate() {
+                        blocks[bl][(a, b)] = *v;
+                        blocks[bl][(b, a)] = *v;
+                    }
+                }
+            }
+            *cache = Some((prior.scales.clone(), blocks));
+        }
+        let blocks = &cache.as_ref().expect("filled").1;
+        for (bl, m) in blocks.iter().enumerate() {
+            g[bl].view_mut((first, first), m.shape()).copy_from(m);
+        }
+        for x in done.iter_mut().skip(first).take(d.cols.len()) {
+            *x = true;
+        }
+    }
     for a in 0..k {
         for b in a..k {
+            if done[a] && done[b] {
+                continue;
+            }
             p.dot_blocks(cols[a], cols[b], &mut buf);
             for (bl, v) in buf.iter().enumerate() {
                 g[bl][(a, b)] = *v;

@@ -36,10 +36,15 @@
 //!
 //! **Reach** (documented rule): the centre of mass of link i stays in the ball about its joint
 //! origin of radius ρᵢ = 1.25 · max(|p_{i+1}|, |cᵢ|, 0.1 L) for a link with a child joint at
-//! `p_{i+1}`, and ρ = max(1.5 |c|, |c| + r_g, 0.1 L · 1.5) for the last link (no child joint: its
-//! extent is judged from its URDF centre of mass `c` and radius of gyration `r_g = √(tr I_c / 2m)`),
-//! with L the length of the chain (joint-to-joint distances plus the last link's |c|). A payload's
-//! centre of mass obeys the last link's ball.
+//! `p_{i+1}`, and ρ = 1.5 · max(|c|, r_g, 0.1 L) for the last link (no child joint: its extent is
+//! judged from its URDF centre of mass `c` and radius of gyration `r_g = √(tr I_c / 2m)`), with L
+//! the length of the chain (joint-to-joint distances plus the last link's |c|). A payload's centre
+//! of mass obeys the last link's ball.
+//!
+//! **Plausibility bounds**: a corrected link's mass stays within a factor [`MASS_FACTOR`] of the
+//! URDF's, and the diagonal of the Cholesky factor of its second moment about the centre of mass
+//! (per unit mass) at least [`MIN_RADIUS`]. A correction at one of these bounds says the data pull
+//! further than a correction of this URDF can go.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Vector3};
 use simgap_core::{inertia_from_parameters, inertial_parameters, Model, SpatialInertia, PARAMS_PER_LINK};
@@ -61,6 +66,17 @@ pub struct InertialPrior {
     /// Number of directions of the stacked parameters the fit data excite (for the report).
     pub identifiable: usize,
 }
+
+/// A corrected link's mass stays within this factor of the URDF's (a URDF further off is a wrong
+/// model, not one to correct).
+pub const MASS_FACTOR: f64 = 3.0;
+
+/// Smallest principal radius of a corrected link's mass about its centre of mass [m] (strictly
+/// physical: a positive-definite pseudo-inertia, reached in finitely many steps).
+pub const MIN_RADIUS: f64 = 1e-3;
+
+/// Iterations of Levenberg–Marquardt at most.
+const MAX_ITERATIONS: usize = 40;
 
 /// Default weight of the prior: the correction along a direction the data excite less than
 /// 1e-3 of an average parameter stays near the URDF.
@@ -223,7 +239,7 @@ pub fn link_reach(model: &Model) -> Vec<f64> {
             } else {
                 let s = &joints[i].inertia;
                 let rg = if s.mass > 0.0 { (s.inertia_about_com().trace().max(0.0) / (2.0 * s.mass)).sqrt() } else { 0.0 };
-                (1.5 * com(i)).max(com(i) + rg).max(1.5 * floor)
+                1.5 * com(i).max(rg).max(floor)
             }
         })
         .collect()
@@ -258,7 +274,7 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
     let mu = prior.weight * mean_diag.max(1e-300);
     let avg_mass = prior.nominal.iter().step_by(PARAMS_PER_LINK).sum::<f64>() / nl.max(1) as f64;
     // start: the URDF, the linear parameters fitted with it
-    let mut phi: Vec<f64> = (0..nl)
+    let phi: Vec<f64> = (0..nl)
         .flat_map(|i| {
             let p: [f64; PARAMS_PER_LINK] = std::array::from_fn(|a| prior.nominal[PARAMS_PER_LINK * i + a]);
             let mut f = log_cholesky_of_parameters(&p, 1e-6 * avg_mass.max(1e-6));
@@ -284,7 +300,7 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
         let prior_term: f64 = (first..first + w).map(|i| th[i] * th[i]).sum();
         0.5 * th.dot(&(g * th)) - c.dot(th) + 0.5 * mu * prior_term
     };
-    let mut z: Vec<f64> = {
+    let z: Vec<f64> = {
         let th0 = theta_of(&phi, &vec![0.0; lin.len()]);
         let gl = DMatrix::from_fn(lin.len(), lin.len(), |a, b| g[(lin[a], lin[b])]);
         let rhs = DVector::from_fn(lin.len(), |a, _| c[lin[a]] - (first..first + w).map(|j| g[(lin[a], j)] * th0[j]).sum::<f64>());
@@ -292,42 +308,53 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
         crate::fit::solve_bounded(&gl, &rhs, &llo, &lhi).0.iter().copied().collect()
     };
     let nx = lin.len() + 10 * nl;
-    let mut th = theta_of(&phi, &z);
+    // bounds of x = (z, φ): the linear parameters' boxes; per link the mass within a factor
+    // MASS_FACTOR of the URDF's, every principal radius of the mass about the COM ≥ MIN_RADIUS
+    let mut xlo: Vec<f64> = lin.iter().map(|&i| lo[i]).collect();
+    let mut xhi: Vec<f64> = lin.iter().map(|&i| hi[i]).collect();
+    for l in 0..nl {
+        let m0 = prior.nominal[PARAMS_PER_LINK * l].max(1e-6 * avg_mass.max(1e-6));
+        xlo.extend([0.5 * (m0 / MASS_FACTOR).ln(), MIN_RADIUS.ln(), MIN_RADIUS.ln(), MIN_RADIUS.ln()]);
+        xhi.extend([0.5 * (m0 * MASS_FACTOR).ln(), f64::INFINITY, f64::INFINITY, f64::INFINITY]);
+        xlo.extend([f64::NEG_INFINITY; 6]);
+        xhi.extend([f64::INFINITY; 6]);
+    }
+    let mut x: Vec<f64> = z.iter().chain(&phi).copied().collect();
+    for (a, v) in x.iter_mut().enumerate() {
+        *v = v.clamp(xlo[a], xhi[a]);
+    }
+    let split = |x: &[f64]| -> (Vec<f64>, Vec<f64>) { (x[..lin.len()].to_vec(), x[lin.len()..].to_vec()) };
+    let (z0, phi0) = split(&x);
+    let mut th = theta_of(&phi0, &z0);
     let mut f = objective(&th);
     let mut lambda = 1e-3;
-    let mut quiet = 0;
-    for _ in 0..200 {
+    let (mut iters, mut evals, mut small) = (0, 0, 0);
+    let mut gp = g.clone();
+    for i in first..first + w {
+        gp[(i, i)] += mu;
+    }
+    for _ in 0..MAX_ITERATIONS {
+        iters += 1;
         // Jacobian of θ with respect to x = (z, φ)
         let mut jac = DMatrix::<f64>::zeros(k, nx);
         for (a, &i) in lin.iter().enumerate() {
             jac[(i, a)] = 1.0;
         }
         for l in 0..nl {
-            let jl = jacobian_log_cholesky(&phi[10 * l..10 * l + 10]);
+            let o = lin.len() + 10 * l;
+            let jl = jacobian_log_cholesky(&x[o..o + 10]);
             for r in 0..PARAMS_PER_LINK {
                 let idx = PARAMS_PER_LINK * l + r;
                 for q in 0..10 {
-                    jac[(first + idx, lin.len() + 10 * l + q)] = jl[(r, q)] / prior.scales[idx];
+                    jac[(first + idx, o + q)] = jl[(r, q)] / prior.scales[idx];
                 }
             }
-        }
-        let mut gp = g.clone();
-        for i in first..first + w {
-            gp[(i, i)] += mu;
         }
         let resid = &gp * &th - c;
         let grad = jac.transpose() * &resid;
         let hess = jac.transpose() * &gp * &jac;
-        // linear parameters held at a bound the gradient pushes against
-        let free: Vec<usize> = (0..nx)
-            .filter(|&a| {
-                if a >= lin.len() {
-                    return true;
-                }
-                let i = lin[a];
-                !((z[a] <= lo[i] && grad[a] > 0.0) || (z[a] >= hi[i] && grad[a] < 0.0))
-            })
-            .collect();
+        // parameters held at a bound the gradient pushes against
+        let free: Vec<usize> = (0..nx).filter(|&a| !((x[a] <= xlo[a] && grad[a] > 0.0) || (x[a] >= xhi[a] && grad[a] < 0.0))).collect();
         let hmax = free.iter().map(|&a| hess[(a, a)]).fold(0.0, f64::max).max(1e-300);
         let mut improved = false;
         for _ in 0..30 {
@@ -337,27 +364,22 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
                 lambda *= 10.0;
                 continue;
             };
-            let mut z2 = z.clone();
-            let mut phi2 = phi.clone();
+            let mut x2 = x.clone();
             for (r, &a) in free.iter().enumerate() {
-                if a < lin.len() {
-                    let i = lin[a];
-                    z2[a] = (z[a] + step[r]).clamp(lo[i], hi[i]);
-                } else {
-                    phi2[a - lin.len()] += step[r];
-                }
+                x2[a] = (x[a] + step[r]).clamp(xlo[a], xhi[a]);
             }
             for l in 0..nl {
-                project_reach(&mut phi2[10 * l..10 * l + 10], prior.reach[l]);
+                let o = lin.len() + 10 * l;
+                project_reach(&mut x2[o..o + 10], prior.reach[l]);
             }
+            let (z2, phi2) = split(&x2);
             let th2 = theta_of(&phi2, &z2);
             let f2 = objective(&th2);
+            evals += 1;
             if f2.is_finite() && f2 <= f {
-                let gain = f - f2;
-                z = z2;
-                phi = phi2;
+                small = if (f - f2) <= 1e-6 * f.abs() { small + 1 } else { 0 };
+                x = x2;
                 th = th2;
-                quiet = if gain <= 1e-13 * (f.abs() + 1e-300) { quiet + 1 } else { 0 };
                 f = f2;
                 lambda = (lambda / 3.0).max(1e-12);
                 improved = true;
@@ -365,9 +387,16 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
             }
             lambda *= 4.0;
         }
-        if !improved || quiet >= 3 || lambda > 1e12 {
+        if std::env::var_os("SIMGAP_DEBUG_INERTIAL_ITER").is_some() {
+            let gfree: f64 = free.iter().map(|&a| grad[a] * grad[a]).sum::<f64>().sqrt();
+            eprintln!("  it {iters}: f = {f:.10e} lambda {lambda:.1e} |g_free| {gfree:.3e} free {}/{nx} x = {:?}", free.len(), x.iter().map(|v| format!("{v:.3}")).collect::<Vec<_>>());
+        }
+        if !improved || small >= 2 || lambda > 1e12 {
             break;
         }
+    }
+    if std::env::var_os("SIMGAP_DEBUG_INERTIAL").is_some() {
+        eprintln!("inertial LM: {iters} iterations, {evals} evaluations, f = {f:.6e}, mu = {mu:.3e}");
     }
     let eig = g.clone().symmetric_eigen();
     let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
