@@ -33,6 +33,7 @@ pub mod effects;
 pub mod error;
 pub mod fit;
 pub mod html;
+pub mod inertial;
 pub mod kstep;
 pub mod locate;
 pub mod report;
