@@ -400,7 +400,8 @@ def main():
     args.out = os.path.abspath(args.out)
     os.makedirs(args.out, exist_ok=True)
     ver = subprocess.run([args.bin, "--version"], capture_output=True, text=True).stdout.strip()
-    print(f"# simgap case study, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {ver}")
+    built = time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(os.path.getmtime(args.bin)))
+    print(f"# simgap case study, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {ver} ({args.bin}, built {built})")
     only = args.only or ["c0", "a0", "simple"]
     if "c0" in only:
         double_c0(args)

@@ -163,7 +163,8 @@ impl Scorer<'_> {
     }
 }
 
-/// Parameters fitted without fold `f` (contiguous fifth of a fit run).
+/// Parameters fitted without fold `f` (contiguous fifth of a fit run), under the terms'
+/// physical constraints.
 fn fold_theta(gr: &Grams, f: usize) -> nalgebra::DVector<f64> {
     let mut g = nalgebra::DMatrix::zeros(gr.k, gr.k);
     let mut c = nalgebra::DVector::zeros(gr.k);
@@ -173,7 +174,8 @@ fn fold_theta(gr: &Grams, f: usize) -> nalgebra::DVector<f64> {
             c += &gr.c[b];
         }
     }
-    fit::solve(&g, &c).0
+    // the same physical constraints as the full fit
+    gr.solve(&g, &c).0
 }
 
 fn check_stop(options: &DiagnoseOptions) -> Result<()> {
