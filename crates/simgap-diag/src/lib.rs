@@ -134,12 +134,28 @@ struct Scorer<'a> {
     ctx: &'a Context<'a>,
     prep: &'a Prepared,
     nominal: Vec<f64>,
+    /// Cross-validated errors of the sets scored so far (the selection revisits sets).
+    memo: std::sync::Mutex<std::collections::HashMap<String, Vec<f64>>>,
 }
 
 impl Scorer<'_> {
     /// Cross-validated k-step RMS per horizon on the fit runs: each fold predicted by the terms
     /// fitted without it.
     fn cv(&self, terms: &[Term]) -> Vec<f64> {
+        let mut key: Vec<String> = terms.iter().map(|t| format!("{t:?}")).collect();
+        key.sort();
+        let key = key.join("|");
+        if let Some(v) = self.memo.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return v;
+        }
+        let v = self.cv_uncached(terms);
+        if let Ok(mut m) = self.memo.lock() {
+            m.insert(key, v.clone());
+        }
+        v
+    }
+
+    fn cv_uncached(&self, terms: &[Term]) -> Vec<f64> {
         let folds = self.prep.fit_runs.len() * FOLDS_PER_RUN;
         if terms.is_empty() {
             let e = kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new());
@@ -229,7 +245,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     }).filter(|(_, t)| !t.is_empty()).collect();
 
     // prune by prediction: cross-validated k-step error on the fit runs
-    let mut scorer = Scorer { model, formulation, ctx: &ctx, prep: &prep, nominal: Vec::new() };
+    let mut scorer = Scorer { model, formulation, ctx: &ctx, prep: &prep, nominal: Vec::new(), memo: Default::default() };
     scorer.nominal = scorer.cv(&[]);
     let total_steps = groups.len() * 2 + selection.terms.len() + 4;
     let mut step = 0usize;
