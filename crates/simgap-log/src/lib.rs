@@ -51,7 +51,7 @@ use simgap_sim::{reorder_joints, Experiment, Run};
 
 pub use crate::error::{Error, Result};
 pub use crate::mcap::write::{write_mcap, Compression};
-pub use crate::mcap::{McapSink, SinkOptions};
+pub use crate::mcap::{McapSink, McapWriter, RunTopics, SinkOptions};
 pub use crate::topics::{Role, TopicMap, TopicSpec};
 
 use crate::error::{check_run, read_error, write_error};

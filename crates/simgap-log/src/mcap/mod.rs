@@ -22,7 +22,7 @@ pub mod write;
 
 pub use cdr::{CdrError, JointState};
 pub use schema::{Schema, Value};
-pub use write::{McapSink, SinkOptions};
+pub use write::{McapSink, McapWriter, RunTopics, SinkOptions};
 
 pub use crate::topics::{JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC};
 

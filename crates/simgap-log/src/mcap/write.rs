@@ -429,3 +429,141 @@ pub fn write_mcap_with_options(run: &Run, path: &Path, options: SinkOptions) -> 
     }
     sink.close()
 }
+
+/// Topics one run is written on by [`McapWriter::write_run`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunTopics {
+    /// Measured (or simulated) state and commanded effort.
+    pub states: String,
+    /// Reference and feed-forward, when the run has a reference (`None`: not written).
+    pub reference: Option<String>,
+    /// Torque the drives report, when the run has it (`None`: not written).
+    pub measured_effort: Option<String>,
+}
+
+impl Default for RunTopics {
+    fn default() -> Self {
+        RunTopics {
+            states: JOINT_STATES_TOPIC.into(),
+            reference: Some(JOINT_REFERENCE_TOPIC.into()),
+            measured_effort: Some(JOINT_EFFORT_MEASURED_TOPIC.into()),
+        }
+    }
+}
+
+/// A ROS 2 MCAP file holding several runs on topics of the caller's choosing, and metadata
+/// records: e.g. measured, nominal and corrected runs side by side for Foxglove. Every channel is
+/// a CDR `sensor_msgs/msg/JointState`, like everything simgap writes.
+pub struct McapWriter {
+    path: PathBuf,
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    schema: u16,
+    buf: Vec<u8>,
+}
+
+impl std::fmt::Debug for McapWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapWriter").field("path", &self.path).finish()
+    }
+}
+
+impl McapWriter {
+    /// Creates (truncates) the file (lz4 chunks).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be created.
+    pub fn create(path: &Path) -> Result<McapWriter> {
+        let err = |e: &dyn std::fmt::Display| write_error(path, e);
+        let file = File::create(path).map_err(|e| err(&e))?;
+        let mut w = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("simgap-log ", env!("CARGO_PKG_VERSION")))
+            .compression(Some(mcap::Compression::Lz4))
+            .compression_threads(0)
+            .create(BufWriter::new(file))
+            .map_err(|e| err(&e))?;
+        let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(|e| err(&e))?;
+        Ok(McapWriter { path: path.to_path_buf(), writer: Some(w), schema, buf: Vec::new() })
+    }
+
+    fn writer(&mut self) -> Result<&mut mcap::Writer<BufWriter<File>>> {
+        let path = &self.path;
+        self.writer.as_mut().ok_or_else(|| write_error(path, "write after finish"))
+    }
+
+    /// Writes a metadata record.
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be written.
+    pub fn metadata(&mut self, name: &str, map: BTreeMap<String, String>) -> Result<()> {
+        let path = self.path.clone();
+        self.writer()?.write_metadata(&Metadata { name: name.into(), metadata: map }).map_err(|e| write_error(&path, e))
+    }
+
+    /// Writes a run on `topics`, stamped `start_ns + t` to the nanosecond (`start_ns`: the run's
+    /// own, else the one given, else 0).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be written.
+    pub fn write_run(&mut self, run: &Run, topics: &RunTopics, start_ns: Option<i64>) -> Result<()> {
+        let path = self.path.clone();
+        let err = |e: mcap::McapError| write_error(&path, e);
+        let start = run.start_ns.or(start_ns).unwrap_or(0);
+        let dof = run.dof();
+        let row = |m: &[f64], k: usize| -> std::ops::Range<usize> {
+            if m.len() >= (k + 1) * dof {
+                k * dof..(k + 1) * dof
+            } else {
+                0..0
+            }
+        };
+        let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), OFFERED_QOS_PROFILES.to_string())].into();
+        let schema = self.schema;
+        let mut streams: Vec<(u8, &str)> = vec![(STATES, topics.states.as_str())];
+        if let (Some(t), false) = (&topics.reference, run.q_ref.is_empty()) {
+            streams.push((REFERENCE, t.as_str()));
+        }
+        if let (Some(t), false) = (&topics.measured_effort, run.tau_measured.is_empty()) {
+            streams.push((MEASURED, t.as_str()));
+        }
+        for (kind, topic) in streams {
+            let mut buf = std::mem::take(&mut self.buf);
+            let w = self.writer()?;
+            let channel = w.add_channel(schema, topic, CDR_ENCODING, &qos).map_err(err)?;
+            for k in 0..run.len() {
+                let ns = start.saturating_add((run.t[k] * 1e9).round() as i64);
+                buf.clear();
+                match kind {
+                    STATES => encode_joint_state_into(&mut buf, ns, &run.joints, &run.q[row(&run.q, k)], &run.qd[row(&run.qd, k)], &run.tau[row(&run.tau, k)]),
+                    REFERENCE => encode_joint_state_into(
+                        &mut buf,
+                        ns,
+                        &run.joints,
+                        &run.q_ref[row(&run.q_ref, k)],
+                        &run.qd_ref[row(&run.qd_ref, k)],
+                        &run.tau_ff[row(&run.tau_ff, k)],
+                    ),
+                    _ => encode_joint_state_into(&mut buf, ns, &run.joints, &[], &[], &run.tau_measured[row(&run.tau_measured, k)]),
+                }
+                let time = ns.max(0) as u64;
+                let header = MessageHeader { channel_id: channel, sequence: k as u32, log_time: time, publish_time: time };
+                w.write_to_known_channel(&header, &buf).map_err(err)?;
+            }
+            self.buf = buf;
+        }
+        Ok(())
+    }
+
+    /// Writes the summary and footer, flushes and syncs the file.
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be finished.
+    pub fn finish(mut self) -> Result<()> {
+        let path = self.path.clone();
+        let Some(mut w) = self.writer.take() else { return Ok(()) };
+        w.finish().map_err(|e| write_error(&path, e))?;
+        let mut inner = w.into_inner();
+        inner.flush().map_err(|e| write_error(&path, e))?;
+        inner.get_ref().sync_all().map_err(|e| write_error(&path, e))
+    }
+}
