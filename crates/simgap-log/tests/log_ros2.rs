@@ -265,6 +265,7 @@ fn every_log_carries_its_own_experiment_and_the_fallback_fills_the_rest() {
     teleop_bag(&dir, 6);
     assert_eq!(read_log(&dir, &options).unwrap().experiment, Some(fallback.clone()));
     // an MCAP file: metadata first, then its sidecar, then the fallback
+    let options = LogOptions { experiment: Some(fallback.clone()), ..LogOptions::default() };
     let mut run = Run::new(names(&["a", "b"]));
     run.t = vec![0.0, 0.002];
     run.q = vec![0.0; 4];
