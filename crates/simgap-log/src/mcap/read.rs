@@ -141,7 +141,9 @@ impl Extractor {
         };
         let stamp = self.stamp.as_ref().and_then(|p| match v.at(p) {
             Some(Value::Message(f)) => match (f.first(), f.get(1)) {
-                (Some(Value::Int(sec)), Some(Value::UInt(nsec))) => Some(sec * 1_000_000_000 + *nsec as i64),
+                (Some(Value::Int(sec)), Some(Value::UInt(nsec))) => {
+                    Some(sec.saturating_mul(1_000_000_000).saturating_add(i64::try_from(*nsec).unwrap_or(i64::MAX)))
+                }
                 _ => None,
             },
             _ => None,
