@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import subprocess
@@ -57,9 +58,13 @@ def bag_folder(mcap_file: Path, folder: Path) -> Path:
         for cid, channel in summary.channels.items():
             schema = summary.schemas[channel.schema_id]
             topics.append(
-                "  - message_count: {n}\n    topic_metadata:\n      name: {topic}\n      offered_qos_profiles: []\n"
+                "  - message_count: {n}\n    topic_metadata:\n      name: {topic}\n      offered_qos_profiles: {qos}\n"
                 "      serialization_format: {fmt}\n      type: {ty}\n      type_description_hash: ''".format(
-                    n=stats.channel_message_counts.get(cid, 0), topic=channel.topic, fmt=channel.message_encoding, ty=schema.name
+                    n=stats.channel_message_counts.get(cid, 0),
+                    topic=channel.topic,
+                    qos=json.dumps(channel.metadata.get("offered_qos_profiles", "")),  # the file's QoS, as rosbag2 v8 writes it
+                    fmt=channel.message_encoding,
+                    ty=schema.name,
                 )
             )
     yaml = (
@@ -90,7 +95,7 @@ def open_with_ros2_tools(path: Path, tmp_path: Path) -> dict[str, int]:
         assert m.schema.encoding == "ros2msg" and m.channel.message_encoding == "cdr"
         if m.schema.name == "sensor_msgs/msg/JointState":
             stamp = m.ros_msg.header.stamp.sec * 1_000_000_000 + m.ros_msg.header.stamp.nanosec
-            assert stamp == m.log_time
+            assert stamp == m.log_time_ns
     assert counts, f"{path}: no messages"
     # rosbags Reader on the file itself
     with rosbags_rosbag2.Reader(path) as reader:
@@ -125,9 +130,9 @@ def test_simgap_simulate_log_opens_in_rosbags_and_mcap_ros2(tmp_path: Path) -> N
 
 
 def test_simgap_paper_logs_open_in_rosbags_and_mcap_ros2(tmp_path: Path) -> None:
-    run_simgap("paper", "--duration", "0.5", "--out-dir", str(tmp_path))
+    run_simgap("paper", "--out-dir", str(tmp_path))
     for name in ["paper_euler_lagrange.mcap", "paper_simplified.mcap"]:
-        assert open_with_ros2_tools(tmp_path / name, tmp_path)["/joint_states"] == 201
+        assert open_with_ros2_tools(tmp_path / name, tmp_path)["/joint_states"] == 1201
 
 
 def test_simgap_demo_logs_and_corrected_mcap_open_in_rosbags_and_mcap_ros2(tmp_path: Path) -> None:
@@ -209,12 +214,12 @@ def test_simgap_reads_a_bag_written_by_rosbags(tmp_path: Path) -> None:
 
 
 def test_a_killed_recorder_file_reads_with_a_warning(tmp_path: Path) -> None:
-    folder = tmp_path / "killed"
-    write_rosbags_bag(folder)
-    mcap_file = next(folder.glob("*.mcap"))
-    data = mcap_file.read_bytes()
+    whole = tmp_path / "long.mcap"
+    run_simgap("simulate", "--duration", "30", "--out", str(whole))
+    data = whole.read_bytes()
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(data[: len(data) // 2])
+    cut.write_bytes(data[: len(data) // 2])  # as a recorder killed mid-write leaves it
     with pytest.warns(UserWarning, match="no summary"):
-        run = simgap.read_log(cut, topics={"states": "/robot/arm_left_follow/joint_states"})
-    assert 0 < len(run) <= N
+        run = simgap.read_log(cut)
+    assert 1000 < len(run) < 12001
+    np.testing.assert_array_equal(run.q, simgap.read_log(whole).q[: len(run)])

@@ -36,19 +36,20 @@ const BATCH_SAMPLES: usize = 64;
 /// Chunk compression of written files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Compression {
-    /// No compression.
+    /// No compression (the fastest to write, about 4x larger).
     None,
-    /// LZ4 frames (fast; the default).
-    #[default]
+    /// LZ4 frames.
     Lz4,
-    /// Zstandard (smaller, slower).
+    /// Zstandard (the default: measured smaller and faster to write than lz4 through the mcap
+    /// writer's streaming compressors).
+    #[default]
     Zstd,
 }
 
 /// How [`McapSink`] writes.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SinkOptions {
-    /// Chunk compression (default lz4).
+    /// Chunk compression (default zstd).
     pub compression: Compression,
     /// Uncompressed bytes per chunk (default 256 KiB: about two seconds of a 400 Hz, 7-joint
     /// run, the most a killed writer loses).
@@ -57,7 +58,7 @@ pub struct SinkOptions {
 
 impl Default for SinkOptions {
     fn default() -> Self {
-        SinkOptions { compression: Compression::Lz4, chunk_size: 256 * 1024 }
+        SinkOptions { compression: Compression::Zstd, chunk_size: 256 * 1024 }
     }
 }
 
@@ -388,7 +389,7 @@ impl Drop for McapSink {
     }
 }
 
-/// Writes a whole run as an MCAP file (lz4 chunks; no run-end status). Stamps are
+/// Writes a whole run as an MCAP file (zstd chunks; no run-end status). Stamps are
 /// `run.start_ns + t` when the run has a start, else `t`, to the nanosecond, so a log read and
 /// written again keeps its stamps exactly.
 ///
