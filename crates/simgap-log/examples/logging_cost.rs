@@ -2,7 +2,7 @@
 //! for 30 s (12,001 samples), unlogged and logged, alternated so both see the same machine load;
 //! the best of each is reported with their ratio.
 //!
-//! `cargo run --release -p simgap-log --example logging_cost [ROUNDS] [lz4|zstd|none]`
+//! `cargo run --release -p simgap-log --example logging_cost [ROUNDS] [zstd|lz4|none]` (default zstd)
 
 use std::time::{Duration, Instant};
 
@@ -31,8 +31,8 @@ fn main() {
     let rounds: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(15);
     let compression = match std::env::args().nth(2).as_deref() {
         Some("none") => Compression::None,
-        Some("zstd") => Compression::Zstd,
-        _ => Compression::Lz4,
+        Some("lz4") => Compression::Lz4,
+        _ => SinkOptions::default().compression,
     };
     let options = SinkOptions { compression, ..SinkOptions::default() };
     let model = Model::paper_arm();
