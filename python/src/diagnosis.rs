@@ -60,7 +60,7 @@ impl Source {
     fn load(&self) -> simgap_diag::Result<Run> {
         match self {
             Source::Run(run) => Ok(Run::clone(run)),
-            Source::Path(path) => Ok(simgap_sim::read_log(path)?),
+            Source::Path(path) => Ok(simgap_log::read_log(path, &simgap_log::LogOptions::default()).map_err(simgap_sim::Error::from)?),
         }
     }
 

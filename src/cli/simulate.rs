@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context};
 use simgap::core::Model;
-use simgap::sim::mcap_log::McapSink;
+use simgap::log::McapSink;
 use simgap::sim::{
     l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink,
     Step, VelocityEstimate,
