@@ -8,7 +8,8 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use simgap::core::Formulation;
-use simgap::sim::{read_log, Effect};
+use simgap::log::{read_log_with_warnings, LogOptions, TopicMap};
+use simgap::sim::Effect;
 
 /// Arguments of `simgap predict`.
 #[derive(clap::Args)]
@@ -34,6 +35,9 @@ pub(crate) struct Args {
     /// Experiment file for logs without `simgap.experiment` metadata or sidecar.
     #[arg(long)]
     experiment: Option<PathBuf>,
+    /// Topic map of MCAP logs and bags, e.g. 'states=/arm/joint_states,reference=/arm/ref'.
+    #[arg(long = "topic", value_parser = super::diagnose::parse_topic_map)]
+    topics: Option<TopicMap>,
     /// Write the figures as JSON here (the layout of a diagnosis report's `gap.kstep`).
     #[arg(long)]
     json: Option<PathBuf>,
@@ -46,13 +50,15 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     }
     let n = model.dof();
     let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse(s, n).with_context(|| format!("--effect '{s}'"))).collect::<anyhow::Result<_>>()?;
-    let experiment = args.experiment.as_deref().map(simgap::sim::csv_log::read_experiment_file).transpose()?;
+    let experiment = args.experiment.as_deref().map(simgap::log::experiment::read_experiment_file).transpose()?;
+    let options = LogOptions { topics: args.topics.clone().unwrap_or_default(), experiment, ..LogOptions::default() };
     let mut runs = Vec::new();
     for p in &args.logs {
-        let mut run = read_log(p)?;
-        if run.experiment.is_none() {
-            run.experiment = experiment.clone();
+        let read = read_log_with_warnings(p, &options)?;
+        for w in &read.warnings {
+            eprintln!("warning: {}: {w}", p.display());
         }
+        let run = read.run;
         if run.experiment.is_none() {
             bail!("{}: no experiment (controller, joints, kp, kv, sample_period); give it with --experiment EXP.json", p.display());
         }
