@@ -41,7 +41,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--retries", type=int, default=2, help="re-runs of a task that fails for a reason other than its data (default 2)")
     p.add_argument("--z-drift", type=float, default=4.0, help="drift: slope / standard error threshold (default 4)")
     p.add_argument("--min-rate", type=float, default=0.02, help="drift: minimum relative rate per day (default 0.02)")
-    p.add_argument("--z-outlier", type=float, default=5.0, help="outlier: robust z threshold (default 5)")
+    p.add_argument("--z-outlier", type=float, default=4.0, help="outlier: robust z threshold (default 4)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 

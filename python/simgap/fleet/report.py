@@ -45,7 +45,7 @@ def flagged_robots(drift: pd.DataFrame, outliers: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["robot", "finding", "effect", "joint", "parameter", "since", "detail"]).sort_values(["robot", "finding", "effect", "joint", "parameter"]).reset_index(drop=True)
 
 
-def _plot(series: pd.DataFrame, band: pd.DataFrame, highlight: dict[str, str], title: str, unit: str, z_outlier: float) -> str:
+def _plot(series: pd.DataFrame, band: pd.DataFrame, absent: pd.DataFrame, days: pd.DataFrame, highlight: dict[str, str], title: str, unit: str, z_outlier: float) -> str:
     """One parameter over days as inline SVG text."""
     import matplotlib
 
@@ -56,7 +56,7 @@ def _plot(series: pd.DataFrame, band: pd.DataFrame, highlight: dict[str, str], t
     try:
         if len(band):
             band = band.sort_values("t")
-            ax.fill_between(band["t"], band["median"] - z_outlier * band["scale"], band["median"] + z_outlier * band["scale"], color="#2a7", alpha=0.15, lw=0, label=f"fleet band (median ± {z_outlier:g} robust scales)")
+            ax.fill_between(band["t"], band["median"] - z_outlier * band["spread"], band["median"] + z_outlier * band["spread"], color="#2a7", alpha=0.15, lw=0, label=f"fleet band (median ± {z_outlier:g} robust spreads)")
             ax.plot(band["t"], band["median"], color="#2a7", lw=1, ls="--", label="fleet median")
         colours = iter(COLOURS)
         for robot, g in series.groupby("robot", sort=True):
@@ -67,6 +67,9 @@ def _plot(series: pd.DataFrame, band: pd.DataFrame, highlight: dict[str, str], t
             else:
                 ax.errorbar(g["t"], g["value"], yerr=err, color="#999", marker=".", ms=3, lw=0.7, capsize=1, alpha=0.8, zorder=2)
         ax.plot([], [], color="#999", marker=".", lw=0.7, label="other robots")
+        if len(absent):
+            ax.scatter(absent["t"], absent["value"], facecolors="none", edgecolors="#999", s=14, label="effect not selected (counted as neutral)", zorder=1)
+        ax.set_xticks(days["t"], days["day"], fontsize=7, rotation=30 if len(days) > 6 else 0)
         ax.set_xlabel("day")
         ax.set_ylabel(unit or "value")
         ax.set_title(title, fontsize=10)
@@ -96,7 +99,7 @@ def _table_html(df: pd.DataFrame, bad: pd.Series | None = None) -> str:
     return "\n".join(out)
 
 
-def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: float = 4.0, min_rate_per_day: float = 0.02, z_outlier: float = 5.0, rel_floor: float = 0.05, title: str = "fleet") -> None:
+def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: float = 4.0, min_rate_per_day: float = 0.02, z_outlier: float = 4.0, rel_floor: float = 0.05, title: str = "fleet") -> None:
     """Writes the fleet report of ``result`` to ``path`` (thresholds as in
     :mod:`simgap.fleet.trends`)."""
     table = result.table
@@ -122,25 +125,28 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: fl
         f"<h2>Method</h2><p>Each robot-day is one diagnosis (fit logs / held-out logs). <b>Drift</b>: per robot and parameter, a weighted least-squares line over the days "
         f"on which the effect was selected (weights 1/σ², σ = 95 % half-width / 1.96, standard error inflated by √χ²ᵣ when the scatter exceeds σ); flagged when "
         f"|slope| ≥ {z_drift:g} standard errors and ≥ {100 * min_rate_per_day:g} % of the mean per day. <b>Outlier</b>: per day and parameter, robust z = (x − median) / "
-        f"√(max(1.4826·MAD, {100 * rel_floor:g} % of |median|)² + σ²) across the robots diagnosed that day (a robot without the effect counts at its neutral value, 0 for "
-        f"most); flagged when |z| ≥ {z_outlier:g}, unless that robot's parameter is flagged as drift.</p>"
+        f"√(max(1.4826·MAD, {100 * rel_floor:g} % of |median|)² + σ²) across the robots diagnosed that day (where fewer than half of them have the effect, the others "
+        f"count at its neutral value, 0 for most); flagged when |z| ≥ {z_outlier:g}, unless that robot's parameter is flagged as drift.</p>"
     )
     series = trends.series_table(table)
-    if len(ol):
-        ol = ol.assign(t=trends.day_numbers(ol["day"]))
-        t_of_day = dict(zip(ol["day"], ol["t"]))
-        series = series.assign(t=series["day"].map(t_of_day).fillna(series["t"]))
+    days = pd.DataFrame({"day": sorted(set(tasks["day"]))})
+    days["t"] = trends.day_numbers(days["day"])
+    t_of_day = dict(zip(days["day"], days["t"]))
+    series = series.assign(t=series["day"].map(t_of_day))
+    ol = ol.assign(t=ol["day"].map(t_of_day))
     h.append("<h2>Parameters over time</h2>")
     for (effect, joint, parameter), g in series.groupby(trends.KEY, sort=True):
         key = (effect, joint, parameter)
-        band = ol[(ol["effect"] == effect) & (ol["joint"] == joint) & (ol["parameter"] == parameter)][["day", "t", "median", "scale"]].drop_duplicates("day") if len(ol) else pd.DataFrame(columns=["t", "median", "scale"])
+        scored = ol[(ol["effect"] == effect) & (ol["joint"] == joint) & (ol["parameter"] == parameter)]
+        band = scored[["day", "t", "median", "spread"]].drop_duplicates("day")
+        absent = scored[~scored["present"].astype(bool)]
         mark = {}
         for r in flags.itertuples(index=False):
             if (r.effect, r.joint, r.parameter) == key:
                 mark[r.robot] = f"{r.finding} since {r.since}" if r.robot not in mark else mark[r.robot] + f", {r.finding}"
         unit = str(g["unit"].dropna().iloc[0]) if g["unit"].notna().any() else ""
         name = f"{effect} · {joint} · {parameter}" if joint else f"{effect} · {parameter}"
-        h.append(f"<figure>{_plot(g, band, mark, name, unit, z_outlier)}<figcaption>{html.escape(name)} [{html.escape(unit)}], one point per robot-day with its 95 % bar; day 0 = {html.escape(str(series['day'].min()))}.</figcaption></figure>")
+        h.append(f"<figure>{_plot(g, band, absent, days, mark, name, unit, z_outlier)}<figcaption>{html.escape(name)} [{html.escape(unit)}], one point per robot-day with its 95 % bar.</figcaption></figure>")
     h.append("<h2>Robot-days</h2>")
     h.append(_table_html(tasks[["robot", "day", "status", "effects", "l2_before", "l2_after", "kstep_before", "kstep_after", "seconds", "error"]], bad=tasks["status"] != "ok"))
     h.append("<h2>Trend tests</h2>" + _table_html(dr, bad=dr["drifting"]))

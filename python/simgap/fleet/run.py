@@ -37,7 +37,12 @@ TABLE_COLUMNS = [
     "status", "error",
 ]  # fmt: skip
 
-# Units of BRIEF §3.2's parameters, for reports that do not carry ``units`` yet.
+TASK_COLUMNS = [
+    "robot", "day", "status", "error", "effects", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before",
+    "kstep_after", "seconds", "peak_rss_mb", "worker",
+]  # fmt: skip
+
+# Units of the effects' parameters (the report's contract), for reports that carry no ``units``.
 _UNITS = {
     "b": "N·m·s/rad", "fc": "N·m", "fs": "N·m", "vs": "rad/s", "ia": "kg·m²", "mass": "kg",
     "com": "m", "delta_mass": "kg", "delta_com": "m", "delta_inertia": "kg·m²", "k": "",
@@ -219,12 +224,18 @@ class FleetResult:
     peak memory, worker, selected effects, gap figures) and ``reports`` (the JSON report of
     each successful robot-day, keyed by ``(robot, day)``)."""
 
-    def __init__(self, results: list[dict[str, Any]], wall_seconds: float = math.nan, workers: int = 0) -> None:
-        results = sorted(results, key=lambda r: (r["robot"], r["day"]))
-        self.results = results
+    def __init__(self, table: pd.DataFrame, tasks: pd.DataFrame, reports: dict[tuple[str, str], dict[str, Any]] | None = None, wall_seconds: float = math.nan, workers: int = 0) -> None:
+        self.table = table
+        self.tasks = tasks
+        self.reports = reports or {}
         self.wall_seconds = wall_seconds
         self.workers = workers
-        self.reports: dict[tuple[str, str], dict[str, Any]] = {(r["robot"], r["day"]): r["report"] for r in results if r.get("report")}
+
+    @classmethod
+    def from_results(cls, results: list[dict[str, Any]], wall_seconds: float = math.nan, workers: int = 0) -> FleetResult:
+        """Builds the tables from the task result dicts (:func:`diagnose_task`)."""
+        results = sorted(results, key=lambda r: (r["robot"], r["day"]))
+        reports = {(r["robot"], r["day"]): r["report"] for r in results if r.get("report")}
         rows: list[dict[str, Any]] = []
         tasks = []
         for r in results:
@@ -241,8 +252,21 @@ class FleetResult:
                     "seconds": _num(r.get("seconds")), "peak_rss_mb": _num(r.get("peak_rss_mb")), "worker": r.get("worker", ""),
                 }  # fmt: skip
             )
-        self.table = _table(rows)
-        self.tasks = pd.DataFrame(tasks, columns=["robot", "day", "status", "error", "effects", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before", "kstep_after", "seconds", "peak_rss_mb", "worker"])
+        return cls(_table(rows), pd.DataFrame(tasks, columns=TASK_COLUMNS), reports, wall_seconds, workers)
+
+    @classmethod
+    def read(cls, folder: str | os.PathLike[str]) -> FleetResult:
+        """Reads what ``python -m simgap.fleet … --out FOLDER`` wrote (``fleet.parquet`` or
+        ``fleet.csv``, ``tasks.csv``, ``reports/``), e.g. to re-run the analysis with other
+        thresholds."""
+        folder = Path(folder)
+        parquet = folder / "fleet.parquet"
+        table = pd.read_parquet(parquet) if parquet.exists() else pd.read_csv(folder / "fleet.csv", dtype={"day": str})
+        tasks = pd.read_csv(folder / "tasks.csv", dtype={"day": str, "error": str, "effects": str}, keep_default_na=False, na_values={c: [""] for c in TASK_COLUMNS if c not in ("robot", "day", "status", "error", "effects", "worker")})
+        reports = {}
+        for path in sorted((folder / "reports").glob("*/*.json")):
+            reports[(path.parent.name, path.stem)] = json.loads(path.read_text())
+        return cls(table, tasks, reports)
 
     @property
     def failed(self) -> pd.DataFrame:
@@ -321,6 +345,7 @@ def iter_fleet(
     formulation: str = "euler_lagrange",
     retries: int = 2,
     read_options: dict[str, Any] | None = None,
+    timeout: float | None = None,
 ) -> Iterator[dict[str, Any]]:
     """Submits one task per robot-day of ``index`` to the Dask ``client`` and yields each
     task's result dict (see :func:`diagnose_task`) as it finishes, in completion order.
@@ -328,7 +353,7 @@ def iter_fleet(
     Robot-days that cannot run (a single log) are yielded first, as errors, without being
     submitted; a task that fails after its retries (or whose workers keep dying) is yielded as
     an error with the exception's text. Closing the generator (or Ctrl-C) cancels what has
-    not run.
+    not run. ``timeout`` [s]: the longest wait for the next result (``TimeoutError`` past it).
     """
     from distributed import as_completed
 
@@ -349,7 +374,7 @@ def iter_fleet(
         task_of[future.key] = task
     finished: set[str] = set()
     try:
-        for future in as_completed(futures):
+        for future in as_completed(futures, timeout=timeout):
             finished.add(future.key)
             task = task_of[future.key]
             try:
@@ -375,6 +400,7 @@ def diagnose_fleet(
     progress: bool | Callable[[dict[str, Any]], None] = False,
     read_options: dict[str, Any] | None = None,
     n_workers: int | None = None,
+    timeout: float | None = None,
 ) -> FleetResult:
     """Diagnoses every robot on every day of ``index`` on a Dask cluster.
 
@@ -385,7 +411,8 @@ def diagnose_fleet(
     worker processes is started and closed afterwards. ``retries``: re-runs of a task that
     raised something other than a ``SimgapError``. ``progress``: True for a progress bar
     (tqdm when installed), or a callable called with each result dict. ``read_options``:
-    extra keyword arguments of :func:`simgap.read_log` on the workers.
+    extra keyword arguments of :func:`simgap.read_log` on the workers. ``timeout`` [s]: the
+    longest wait for the next result (``TimeoutError`` past it; None waits as long as it takes).
 
     Returns a :class:`FleetResult`; failed robot-days are in it with their errors.
     """
@@ -399,7 +426,7 @@ def diagnose_fleet(
         workers = len(client.scheduler_info().get("workers", {}))
         start = time.perf_counter()
         results: list[dict[str, Any]] = []
-        stream = iter_fleet(index, urdf, client, tip=tip, formulation=formulation, retries=retries, read_options=read_options)
+        stream = iter_fleet(index, urdf, client, tip=tip, formulation=formulation, retries=retries, read_options=read_options, timeout=timeout)
         tasks_total = len(tasks_from_index(_index(index)))
         tick, close = _progress(tasks_total, progress)
         try:
@@ -409,7 +436,7 @@ def diagnose_fleet(
         finally:
             stream.close()
             close()
-        return FleetResult(results, time.perf_counter() - start, workers)
+        return FleetResult.from_results(results, time.perf_counter() - start, workers)
     finally:
         if own_cluster is not None:
             client.close()

@@ -14,16 +14,19 @@ half-widths are often optimistic). A series **drifts** when ``|slope| / se ≥ z
 (default 4) **and** the relative rate ``|slope| / |weighted mean|`` is at least
 ``min_rate_per_day`` (default 2 % a day): significant and large enough to act on.
 
-**Outliers** (:func:`outliers`), per day and series, across the robots diagnosed that day: a
-robot without the effect counts as having it at its neutral value (0 for frictions, payload
-mass, offsets…; 1 for a torque gain), since the diagnosis found it insignificant. The robust
-z of robot ``i`` is ``(x_i − median) / s_i`` with
-``s_i = √(max(1.4826·MAD, rel_floor·|median|)² + σ_i²)``: the fleet's spread (the median
-absolute deviation, floored at ``rel_floor`` = 5 % of the median because units of one model
-legitimately differ by a few per cent), combined with the robot's own uncertainty. A robot is
-an **outlier** that day when ``|z| ≥ z_outlier`` (default 5) and the series is not one that
-:func:`drift` flags for that robot (a drifting parameter leaves the fleet band by drifting;
-it is reported once, as drift). Days need at least ``min_robots`` (default 4) robots.
+**Outliers** (:func:`outliers`), per day and series, across the robots diagnosed that day.
+Where the effect was selected for fewer than half of those robots, the others count at its
+neutral value (0 for frictions, payload mass, offsets…; 1 for a torque gain): the fleet's
+normal is not to have it, and a robot that has it stands out. Where most robots have it, a
+robot without it gets no score that day (one selection that did not happen says little about
+the value). The robust z of robot ``i`` is ``(x_i − median) / s_i`` with
+``s_i = √(spread² + σ_i²)`` and ``spread = max(1.4826·MAD, rel_floor·|median|)``: the fleet's
+spread (the median absolute deviation, floored at ``rel_floor`` = 5 % of the median because
+units of one model legitimately differ by a few per cent), combined with the robot's own
+uncertainty. A robot is an **outlier** that day when ``|z| ≥ z_outlier`` (default 4: with the
+floor, at least 20 % away from the median) and the series is not one that :func:`drift` flags
+for that robot (a drifting parameter leaves the fleet band by drifting; it is reported once,
+as drift). Days need at least ``min_robots`` (default 4) robots with a value.
 """
 
 from __future__ import annotations
@@ -119,15 +122,15 @@ def _neutral(effect: str, parameter: str) -> float | None:
 def outliers(
     table: pd.DataFrame,
     *,
-    z_outlier: float = 5.0,
+    z_outlier: float = 4.0,
     rel_floor: float = 0.05,
     min_robots: int = 4,
     drift_table: pd.DataFrame | None = None,
     **drift_kwargs: float,
 ) -> pd.DataFrame:
     """The fleet's robust z of every robot, day and series (see the module's text), one row
-    each: ``day, robot, effect, joint, parameter, value, present, median, scale, z, drifting,
-    outlier``. ``present`` is False where the robot's diagnosis did not select the effect
+    each: ``day, robot, effect, joint, parameter, value, present, median, spread, scale, z,
+    drifting, outlier`` (``scale`` = ``s_i``). ``present`` is False where the robot's diagnosis did not select the effect
     (value = the neutral value). ``drift_table`` (default: :func:`drift` of the same table
     with ``drift_kwargs``) marks the series reported as drift instead."""
     s = series_table(table)
@@ -142,13 +145,14 @@ def outliers(
             have = g[g["day"] == day].set_index("robot")
             names = list(robots["robot"])
             values, sigmas, present = [], [], []
+            fill = neutral is not None and 2 * sum(r in have.index for r in names) < len(names)
             for robot in names:
                 if robot in have.index:
                     values.append(float(have.at[robot, "value"]))
                     sigmas.append(float(have.at[robot, "sigma"]))
                     present.append(True)
-                elif neutral is not None:
-                    values.append(neutral)
+                elif fill:
+                    values.append(float(neutral))  # type: ignore[arg-type]
                     sigmas.append(0.0)
                     present.append(False)
                 else:
@@ -169,6 +173,6 @@ def outliers(
                 scale = math.sqrt(spread**2 + sig**2)
                 z = (v - median) / scale if scale > 0 else (0.0 if v == median else math.copysign(math.inf, v - median))
                 d = (robot, effect, joint, parameter) in drifting
-                rows.append({"day": day, "robot": robot, "effect": effect, "joint": joint, "parameter": parameter, "value": v, "present": p, "median": median, "scale": scale, "z": z, "drifting": d, "outlier": bool(abs(z) >= z_outlier and not d)})
-    cols = ["day", "robot", *KEY, "value", "present", "median", "scale", "z", "drifting", "outlier"]
+                rows.append({"day": day, "robot": robot, "effect": effect, "joint": joint, "parameter": parameter, "value": v, "present": p, "median": median, "spread": spread, "scale": scale, "z": z, "drifting": d, "outlier": bool(abs(z) >= z_outlier and not d)})
+    cols = ["day", "robot", *KEY, "value", "present", "median", "spread", "scale", "z", "drifting", "outlier"]
     return pd.DataFrame(rows, columns=cols)
