@@ -207,7 +207,7 @@ def report_rows(robot: str, day: str, report: dict[str, Any] | None, status: str
                 rows.append({**common, "effect": effect.get("effect", ""), "joint": joint, "parameter": name + suffix, "value": v, "uncertainty": u, "unit": str(units.get(name, _UNITS.get(name, "")))})
     if not rows:
         rows.append({**common, "effect": None, "joint": None, "parameter": None, "value": math.nan, "uncertainty": math.nan, "unit": None})
-    return rows
+    return [{c: row[c] for c in TABLE_COLUMNS} for row in rows]
 
 
 def _table(rows: list[dict[str, Any]]) -> pd.DataFrame:
@@ -416,6 +416,7 @@ def diagnose_fleet(
 
     Returns a :class:`FleetResult`; failed robot-days are in it with their errors.
     """
+    index = _index(index)
     own_cluster = None
     if client is None:
         from distributed import Client, LocalCluster
