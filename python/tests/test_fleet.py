@@ -188,3 +188,11 @@ def test_a_drifting_parameter_is_reported_as_drift_not_also_as_outlier() -> None
     assert not ol["outlier"].any()
     flags = fleet.flagged_robots(dr, ol)
     assert list(zip(flags["robot"], flags["finding"], flags["since"])) == [("rising", "drift", "2026-01-01")]
+
+
+def test_too_few_robots_give_no_outlier_score_and_empty_tables_keep_their_columns() -> None:
+    table = fleet_table({"r1": [1.0, 1.0], "r2": [1.0, 2.0]})
+    dr, ol = fleet.drift(table), fleet.outliers(table)
+    assert ol.empty and list(ol.columns)[:2] == ["day", "robot"] and not dr["drifting"].any()
+    flags = fleet.flagged_robots(dr, ol)
+    assert flags.empty and "robot" in flags.columns

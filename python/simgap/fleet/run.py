@@ -407,8 +407,8 @@ def diagnose_fleet(
     ``index``: a fleet index (:func:`index_from_table`) or a folder ``ROBOT/DAY/…``
     (:func:`index_from_folder`). ``urdf``: the robot model, a path every worker can read
     (``tip`` as in :meth:`simgap.Model.from_urdf`). ``client``: a ``distributed.Client``; when
-    None, a ``LocalCluster`` of ``n_workers`` (default: the machine's cores) single-threaded
-    worker processes is started and closed afterwards. ``retries``: re-runs of a task that
+    None, a ``LocalCluster`` of ``n_workers`` (default: the machine's cores) worker processes of
+    one thread each (``RAYON_NUM_THREADS=1`` unless set) is started and closed afterwards. ``retries``: re-runs of a task that
     raised something other than a ``SimgapError``. ``progress``: True for a progress bar
     (tqdm when installed), or a callable called with each result dict. ``read_options``:
     extra keyword arguments of :func:`simgap.read_log` on the workers. ``timeout`` [s]: the
@@ -419,9 +419,12 @@ def diagnose_fleet(
     index = _index(index)
     own_cluster = None
     if client is None:
+        import dask
         from distributed import Client, LocalCluster
 
-        own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
+        # one core per worker: one thread, and the diagnosis's own thread pool held to one
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.RAYON_NUM_THREADS": os.environ.get("RAYON_NUM_THREADS", "1")}):
+            own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(own_cluster)
     try:
         workers = len(client.scheduler_info().get("workers", {}))

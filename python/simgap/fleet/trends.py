@@ -109,7 +109,7 @@ def drift(table: pd.DataFrame, *, z_drift: float = 4.0, min_rate_per_day: float 
         flagged = bool(math.isfinite(z) and abs(z) >= z_drift and math.isfinite(rate) and abs(rate) >= min_rate_per_day)
         rows.append({**row, "slope_per_day": slope, "slope_se": se, "z": z, "mean": mean, "rate_per_day": rate, "chi2_red": chi2, "drifting": flagged})
     cols = ["robot", *KEY, "days", "first_day", "last_day", "slope_per_day", "slope_se", "z", "mean", "rate_per_day", "chi2_red", "drifting"]
-    return pd.DataFrame(rows, columns=cols)
+    return pd.DataFrame(rows, columns=cols).astype({"drifting": bool})
 
 
 def _neutral(effect: str, parameter: str) -> float | None:
@@ -175,4 +175,4 @@ def outliers(
                 d = (robot, effect, joint, parameter) in drifting
                 rows.append({"day": day, "robot": robot, "effect": effect, "joint": joint, "parameter": parameter, "value": v, "present": p, "median": median, "spread": spread, "scale": scale, "z": z, "drifting": d, "outlier": bool(abs(z) >= z_outlier and not d)})
     cols = ["day", "robot", *KEY, "value", "present", "median", "spread", "scale", "z", "drifting", "outlier"]
-    return pd.DataFrame(rows, columns=cols)
+    return pd.DataFrame(rows, columns=cols).astype({"present": bool, "drifting": bool, "outlier": bool})
