@@ -39,7 +39,7 @@ TABLE_COLUMNS = [
 
 TASK_COLUMNS = [
     "robot", "day", "status", "error", "effects", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before",
-    "kstep_after", "seconds", "peak_rss_mb", "worker",
+    "kstep_after", "seconds", "cpu_seconds", "rss_start_mb", "peak_rss_mb", "worker",
 ]  # fmt: skip
 
 # Units of the effects' parameters (the report's contract), for reports that carry no ``units``.
@@ -101,12 +101,13 @@ def _reset_peak_rss() -> bool:
         return False
 
 
-def _peak_rss_mb() -> float:
-    """Peak resident memory of this process since the last reset [MiB] (NaN where unknown)."""
+def _rss_mb(field: str = "VmHWM") -> float:
+    """This process's peak (``VmHWM``, since the last reset) or current (``VmRSS``) resident
+    memory [MiB]; NaN where unknown."""
     try:
         with open("/proc/self/status") as f:
             for line in f:
-                if line.startswith("VmHWM:"):
+                if line.startswith(field + ":"):
                     return int(line.split()[1]) / 1024
     except OSError:
         pass
@@ -120,12 +121,15 @@ def diagnose_task(task: dict[str, Any], urdf: str, tip: str | None = None, formu
 
     Returns a dict of plain data: ``robot``, ``day``, ``status`` (``"ok"`` / ``"error"``),
     ``error`` (``"LogError: …"`` or ``""``), ``report`` (the JSON report as a dict, or None),
-    ``seconds`` (wall time), ``peak_rss_mb`` (the worker's peak resident memory during the
-    task, meaningful with one thread per worker), ``worker`` (host:pid). A ``SimgapError`` is
+    ``seconds`` (wall time), ``cpu_seconds`` (the worker process's CPU time), ``rss_start_mb`` and ``peak_rss_mb`` (the worker's resident
+    memory when the task started and its peak during the task: the difference is the task's
+    own memory, meaningful with one thread per worker), ``worker`` (host:pid). A ``SimgapError`` is
     recorded, not raised; anything else raises (and Dask retries it).
     """
     start = time.perf_counter()
     exact_peak = _reset_peak_rss()
+    rss_start = _rss_mb("VmRSS")
+    cpu_start = time.process_time()
     out: dict[str, Any] = {"robot": task["robot"], "day": task["day"], "status": "ok", "error": "", "report": None, "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         model = _model(str(urdf), tip, os.path.getmtime(urdf))
@@ -137,7 +141,9 @@ def diagnose_task(task: dict[str, Any], urdf: str, tip: str | None = None, formu
         out["status"] = "error"
         out["error"] = f"{type(err).__name__}: {err}"
     out["seconds"] = time.perf_counter() - start
-    out["peak_rss_mb"] = _peak_rss_mb() if exact_peak else math.nan
+    out["cpu_seconds"] = time.process_time() - cpu_start
+    out["rss_start_mb"] = rss_start
+    out["peak_rss_mb"] = _rss_mb("VmHWM") if exact_peak else math.nan
     return out
 
 
@@ -249,7 +255,8 @@ class FleetResult:
                     "effects": ", ".join(e.get("effect", "") for e in report.get("selected_effects") or []),
                     "l2_before": _num(gap.get("holdout_l2_before")), "l2_after": _num(gap.get("holdout_l2_after")),
                     "kstep_horizon_s": horizon, "kstep_before": k_before, "kstep_after": k_after,
-                    "seconds": _num(r.get("seconds")), "peak_rss_mb": _num(r.get("peak_rss_mb")), "worker": r.get("worker", ""),
+                    "seconds": _num(r.get("seconds")), "cpu_seconds": _num(r.get("cpu_seconds")), "rss_start_mb": _num(r.get("rss_start_mb")), "peak_rss_mb": _num(r.get("peak_rss_mb")),
+                    "worker": r.get("worker", ""),
                 }  # fmt: skip
             )
         return cls(_table(rows), pd.DataFrame(tasks, columns=TASK_COLUMNS), reports, wall_seconds, workers)
@@ -424,7 +431,7 @@ def diagnose_fleet(
 
         # one core per worker: one thread, and the diagnosis's own thread pool held to one
         with dask.config.set({"distributed.nanny.pre-spawn-environ.RAYON_NUM_THREADS": os.environ.get("RAYON_NUM_THREADS", "1")}):
-            own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
+            own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0")
         client = Client(own_cluster)
     try:
         workers = len(client.scheduler_info().get("workers", {}))

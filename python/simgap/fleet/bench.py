@@ -1,0 +1,56 @@
+"""Fleet throughput on this machine: ``python -m simgap.fleet.bench [--workers 1 2]``.
+
+Writes a synthetic fleet of the paper's arm (:mod:`simgap.fleet.synthetic`: 3 logs of 2.5 s
+per robot-day), then diagnoses it on a LocalCluster of each given number of single-threaded
+workers and prints, per cluster size: robot-days, wall time (from the first submission to the
+last result; cluster start-up excluded), diagnoses per minute and per core-minute (wall ×
+workers), the median task's wall and CPU seconds, and memory per task (the worker's resident
+memory at the task's start, and the peak increase during the task).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m simgap.fleet.bench", description=__doc__.splitlines()[0])
+    p.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    p.add_argument("--robots", type=int, default=6)
+    p.add_argument("--days", type=int, default=5)
+    args = p.parse_args(argv)
+
+    import simgap
+    from simgap import fleet
+    from simgap.fleet.synthetic import make_synthetic_fleet
+
+    with tempfile.TemporaryDirectory() as tmp:
+        synthetic = make_synthetic_fleet(Path(tmp), robots=args.robots, days=args.days)
+        index = fleet.index_from_folder(tmp)
+        print(f"synthetic fleet: {args.robots} robots x {args.days} days, 3 logs of 2.5 s per robot-day (paper arm); simgap {simgap.__version__}, {platform.machine()}, {os.cpu_count()} logical cores")
+        print()
+        print("| workers | robot-days | wall [s] | diagnoses/min | diagnoses per core-minute (wall × workers) | task wall, median [s] | task CPU, median [s] | diagnoses per CPU-minute | worker RSS at task start [MiB] | peak increase per task, median / max [MiB] | load average before |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        for workers in args.workers:
+            load = " ".join(f"{x:.1f}" for x in os.getloadavg())
+            result = fleet.diagnose_fleet(index, synthetic.urdf, n_workers=workers)
+            t = result.tasks[result.tasks["status"] == "ok"]
+            n = len(t)
+            wall = result.wall_seconds
+            increase = (t["peak_rss_mb"] - t["rss_start_mb"]).to_numpy()
+            print(
+                f"| {workers} | {n} | {wall:.1f} | {60 * n / wall:.1f} | {60 * n / (wall * workers):.1f} | {np.median(t['seconds']):.2f} | {np.median(t['cpu_seconds']):.2f} | {60 * n / t['cpu_seconds'].sum():.0f} "
+                f"| {np.median(t['rss_start_mb']):.0f} | {np.median(increase):.0f} / {np.max(increase):.0f} | {load} |",
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
