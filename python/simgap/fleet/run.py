@@ -328,6 +328,8 @@ def _progress(total: int, enabled: bool | Callable[[dict[str, Any]], None]) -> t
 
         done = [0]
         start = time.monotonic()
+        sys.stderr.write(f"fleet: 0/{total} robot-days")
+        sys.stderr.flush()
 
         def tick_plain(r: dict[str, Any]) -> None:
             done[0] += 1
