@@ -196,3 +196,15 @@ def test_too_few_robots_give_no_outlier_score_and_empty_tables_keep_their_column
     assert ol.empty and list(ol.columns)[:2] == ["day", "robot"] and not dr["drifting"].any()
     flags = fleet.flagged_robots(dr, ol)
     assert flags.empty and "robot" in flags.columns
+
+
+def test_progress_without_tqdm_is_a_ticking_line(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from simgap.fleet.run import _progress
+
+    monkeypatch.setitem(__import__("sys").modules, "tqdm.auto", None)  # as if not installed
+    tick, close = _progress(2, True)
+    tick({"robot": "r1", "day": "d1", "status": "ok"})
+    tick({"robot": "r2", "day": "d1", "status": "error"})
+    close()
+    err = capsys.readouterr().err
+    assert "fleet: 0/2" in err and "2/2 robot-days" in err and "r2 d1 error" in err

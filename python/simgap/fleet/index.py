@@ -16,6 +16,7 @@ is reported as failed.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,7 +55,7 @@ def _logs_below(folder: Path) -> list[Path]:
     return found
 
 
-def index_from_folder(root: str | Path) -> pd.DataFrame:
+def index_from_folder(root: str | os.PathLike[str]) -> pd.DataFrame:
     """The index of a folder laid out as ``ROOT/ROBOT/DAY/…``: every log file (``.mcap``,
     ``.csv``, ``.csv.gz``) or bag folder (``metadata.yaml`` + ``.mcap``) found below a day
     folder, at any depth. Per-log experiments (``NAME.experiment.json`` beside the log, or the

@@ -140,7 +140,7 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: fl
         scored = ol[(ol["effect"] == effect) & (ol["joint"] == joint) & (ol["parameter"] == parameter)]
         band = scored[["day", "t", "median", "spread"]].drop_duplicates("day")
         absent = scored[~scored["present"].astype(bool)]
-        mark = {}
+        mark: dict[str, str] = {}
         for r in flags.itertuples(index=False):
             if (r.effect, r.joint, r.parameter) == key:
                 mark[r.robot] = f"{r.finding} since {r.since}" if r.robot not in mark else mark[r.robot] + f", {r.finding}"

@@ -15,7 +15,7 @@ import os
 import socket
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -336,7 +336,11 @@ def _progress(total: int, enabled: bool | Callable[[dict[str, Any]], None]) -> t
             sys.stderr.write(f"\rfleet: {done[0]}/{total} robot-days, {time.monotonic() - start:.0f} s, last {r['robot']} {r['day']} {r['status']}   ")
             sys.stderr.flush()
 
-        return tick_plain, lambda: (sys.stderr.write("\n"), sys.stderr.flush())  # type: ignore[func-returns-value]
+        def close_plain() -> None:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+        return tick_plain, close_plain
 
 
 def _index(index: pd.DataFrame | str | os.PathLike[str]) -> pd.DataFrame:
@@ -355,7 +359,7 @@ def iter_fleet(
     retries: int = 2,
     read_options: dict[str, Any] | None = None,
     timeout: float | None = None,
-) -> Iterator[dict[str, Any]]:
+) -> Generator[dict[str, Any], None, None]:
     """Submits one task per robot-day of ``index`` to the Dask ``client`` and yields each
     task's result dict (see :func:`diagnose_task`) as it finishes, in completion order.
 
