@@ -62,6 +62,7 @@ class Cluster:
                 break
             except (OSError, ValueError, KeyError):
                 if time.monotonic() > deadline or self.procs[0].poll() is not None:
+                    self.close()
                     raise RuntimeError(f"the scheduler did not start: {(folder / 'scheduler.log').read_text()}") from None
                 time.sleep(0.2)
         assert self.address.startswith("tcp://127.0.0.1:")
@@ -89,7 +90,7 @@ def synthetic(tmp_path_factory: pytest.TempPathFactory) -> SyntheticFleet:
 
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Cluster, Any]]:
-    c = Cluster(tmp_path_factory.mktemp("dask"))
+    c = Cluster(tmp_path_factory.mktemp("dask"))  # stops its scheduler itself if it fails to start
     client = None
     try:
         c.start_worker("w1")
