@@ -65,7 +65,6 @@ class Cluster:
                     self.close()
                     raise RuntimeError(f"the scheduler did not start: {(folder / 'scheduler.log').read_text()}") from None
                 time.sleep(0.2)
-        assert self.address.startswith("tcp://127.0.0.1:")
 
     def start_worker(self, name: str) -> None:
         args = ["-m", "distributed.cli.dask_worker", "--scheduler-file", str(self.scheduler_file), "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny", "--no-dashboard", "--dashboard-address", "127.0.0.1:0", "--name", name, "--death-timeout", "60"]
@@ -93,6 +92,7 @@ def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Cluster,
     c = Cluster(tmp_path_factory.mktemp("dask"))  # stops its scheduler itself if it fails to start
     client = None
     try:
+        assert c.address.startswith("tcp://127.0.0.1:"), c.address
         c.start_worker("w1")
         c.start_worker("w2")
         client = distributed.Client(c.address, timeout=f"{START_TIMEOUT_S}s")
