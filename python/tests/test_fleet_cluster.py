@@ -173,7 +173,7 @@ def test_exactly_the_rising_robot_drifts_and_the_payload_robot_stands_out_from_d
     # the HTML report: one plot per parameter, flagged robots named
     result.to_html(tmp_path / "fleet.html")
     text = (tmp_path / "fleet.html").read_text()
-    assert text.startswith("<!DOCTYPE html>") and text.count("<svg") == dr.groupby(["effect", "joint", "parameter"]).ngroups
+    assert text.startswith("<!DOCTYPE html>") and text.count("<svg") == ol.groupby(["effect", "joint", "parameter"]).ngroups == 5  # frictions ×4, payload mass
     assert f"{synthetic.rising}</b> (drift)" in text and f"{synthetic.payload}</b> (outlier)" in text
 
 

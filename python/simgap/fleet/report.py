@@ -134,9 +134,14 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: fl
     t_of_day = dict(zip(days["day"], days["t"]))
     series = series.assign(t=series["day"].map(t_of_day))
     ol = ol.assign(t=ol["day"].map(t_of_day))
-    h.append("<h2>Parameters over time</h2>")
+    h.append("<h2>Parameters over time</h2><p class=\"meta\">One plot per parameter compared across the fleet; every value is in the table (Parquet).</p>")
+    # one plot per parameter compared across the fleet (or drifting): not the coordinates of
+    # an effect only one robot has, which stay in the table
+    plotted = {tuple(k) for k in ol[trends.KEY].drop_duplicates().itertuples(index=False)} | {tuple(k) for k in dr.loc[dr["drifting"], trends.KEY].itertuples(index=False)}
     for (effect, joint, parameter), g in series.groupby(trends.KEY, sort=True):
         key = (effect, joint, parameter)
+        if key not in plotted:
+            continue
         scored = ol[(ol["effect"] == effect) & (ol["joint"] == joint) & (ol["parameter"] == parameter)]
         band = scored[["day", "t", "median", "spread"]].drop_duplicates("day")
         absent = scored[~scored["present"].astype(bool)]
@@ -148,7 +153,10 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: fl
         name = f"{effect} · {joint} · {parameter}" if joint else f"{effect} · {parameter}"
         h.append(f"<figure>{_plot(g, band, absent, days, mark, name, unit, z_outlier)}<figcaption>{html.escape(name)} [{html.escape(unit)}], one point per robot-day with its 95 % bar.</figcaption></figure>")
     h.append("<h2>Robot-days</h2>")
-    h.append(_table_html(tasks[["robot", "day", "status", "effects", "l2_before", "l2_after", "kstep_before", "kstep_after", "seconds", "error"]], bad=tasks["status"] != "ok"))
+    days_table = tasks[["robot", "day", "status", "effects", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before", "kstep_after", "seconds", "error"]].rename(
+        columns={"l2_before": "held-out L² before [rad]", "l2_after": "L² after [rad]", "kstep_horizon_s": "k-step horizon [s]", "kstep_before": "k-step error before [rad]", "kstep_after": "k-step after [rad]", "seconds": "task [s]"}
+    )
+    h.append(_table_html(days_table, bad=tasks["status"] != "ok"))
     h.append("<h2>Trend tests</h2>" + _table_html(dr, bad=dr["drifting"]))
     h.append("</body></html>\n")
     with open(path, "w", encoding="utf-8") as f:

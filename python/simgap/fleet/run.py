@@ -391,10 +391,11 @@ def iter_fleet(
             finished.add(future.key)
             task = task_of[future.key]
             try:
-                yield future.result()
+                result = future.result()
             except Exception as err:  # noqa: BLE001 - any task failure is recorded, never fatal
-                yield {"robot": task.robot, "day": task.day, "status": "error", "error": f"{type(err).__name__}: {err}", "report": None, "seconds": math.nan, "peak_rss_mb": math.nan, "worker": ""}
+                result = {"robot": task.robot, "day": task.day, "status": "error", "error": f"{type(err).__name__}: {err}", "report": None, "seconds": math.nan, "peak_rss_mb": math.nan, "worker": ""}
             future.release()
+            yield result
     finally:
         # closed early (Ctrl-C, an exception in the consumer): what has not run is cancelled
         unfinished = [f for f in futures if f.key not in finished]
