@@ -28,6 +28,6 @@ def test_example_prints_the_findings_of_the_doc(tmp_path: Path) -> None:
     got = findings(proc.stdout)
     assert got == [("arm-01", "drift", "coulomb_friction", "elbow", "fc", "2026-03-02"), ("arm-02", "outlier", "payload", None, "mass", "2026-03-04")], proc.stdout
     block = DOC.read_text().split("python -m simgap.fleet.example", 1)[1]
-    assert findings(block.split("robot-days on", 1)[0]) == got, "docs/fleet.md shows what the example prints"
+    assert findings(block.split("30 robot-days on 2 workers in", 1)[0]) == got, "docs/fleet.md shows what the example prints"
     assert "elbow Coulomb friction fc" in proc.stdout and "30 robot-days on 2 workers" in proc.stdout
     assert (tmp_path / "fleet.html").read_text().startswith("<!DOCTYPE html>")
