@@ -12,7 +12,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import signal
 import socket
+import threading
 import time
 import uuid
 from collections.abc import Callable, Generator, Iterator
@@ -436,9 +438,17 @@ def diagnose_fleet(
         import dask
         from distributed import Client, LocalCluster
 
-        # one core per worker: one thread, and the diagnosis's own thread pool held to one
-        with dask.config.set({"distributed.nanny.pre-spawn-environ.RAYON_NUM_THREADS": os.environ.get("RAYON_NUM_THREADS", "1")}):
-            own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0")
+        # one core per worker: one thread, and the diagnosis's own thread pool held to one;
+        # worker processes started with Ctrl-C ignored (inherited), so that Ctrl-C in a
+        # terminal reaches this process only, which stops the cluster in order
+        main_thread = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+        try:
+            with dask.config.set({"distributed.nanny.pre-spawn-environ.RAYON_NUM_THREADS": os.environ.get("RAYON_NUM_THREADS", "1")}):
+                own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0")
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGINT, previous)
         client = Client(own_cluster)
     try:
         workers = len(client.scheduler_info().get("workers", {}))
