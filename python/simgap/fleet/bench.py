@@ -5,7 +5,8 @@ per robot-day), then diagnoses it on a LocalCluster of each given number of sing
 workers and prints, per cluster size: robot-days, wall time (from the first submission to the
 last result; cluster start-up excluded), diagnoses per minute and per core-minute (wall ×
 workers), the median task's wall and CPU seconds, and memory per task (the worker's resident
-memory at the task's start, and the peak increase during the task).
+memory at the task's start, and the peak increase during the task); then the time Dask itself
+adds to each task (no-op tasks through the same path).
 """
 
 from __future__ import annotations
@@ -19,11 +20,33 @@ from pathlib import Path
 import numpy as np
 
 
+def _noop(i: int) -> int:
+    return i
+
+
+def scheduler_overhead(n_workers: int, tasks: int) -> float:
+    """Wall seconds per task of ``tasks`` no-op tasks submitted and collected with
+    ``as_completed`` on a LocalCluster: what the scheduler, the network and the client add to
+    every task, the lower bound of a task's cost on Dask."""
+    import time
+
+    from distributed import Client, LocalCluster, as_completed
+
+    with LocalCluster(n_workers=n_workers, threads_per_worker=1, host="127.0.0.1", dashboard_address="127.0.0.1:0") as cluster, Client(cluster) as client:
+        client.gather(client.map(_noop, range(10)))  # warm up
+        start = time.perf_counter()
+        futures = client.map(_noop, range(tasks), pure=False)
+        for future in as_completed(futures):
+            future.result()
+        return (time.perf_counter() - start) / tasks
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m simgap.fleet.bench", description=__doc__.splitlines()[0])
     p.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     p.add_argument("--robots", type=int, default=6)
     p.add_argument("--days", type=int, default=5)
+    p.add_argument("--overhead-tasks", type=int, default=1000, help="no-op tasks for the per-task overhead (0: skip)")
     args = p.parse_args(argv)
 
     import simgap
@@ -49,6 +72,9 @@ def main(argv: list[str] | None = None) -> int:
                 f"| {np.median(t['rss_start_mb']):.0f} | {np.median(increase):.0f} / {np.max(increase):.0f} | {load} |",
                 flush=True,
             )
+    if args.overhead_tasks:
+        per_task = scheduler_overhead(max(args.workers), args.overhead_tasks)
+        print(f"\nDask overhead: {args.overhead_tasks} no-op tasks on {max(args.workers)} workers, submitted and collected with as_completed: {1e3 * per_task:.2f} ms per task")
     return 0
 
 
