@@ -208,3 +208,17 @@ def test_progress_without_tqdm_is_a_ticking_line(monkeypatch: pytest.MonkeyPatch
     close()
     err = capsys.readouterr().err
     assert "fleet: 0/2" in err and "2/2 robot-days" in err and "r2 d1 error" in err
+
+
+def test_fleet_result_tables_from_task_results() -> None:
+    report = REPORT | {"gap": REPORT["gap"] | {"headline": "k_step"}}
+    results = [
+        {"robot": "r2", "day": "d1", "status": "ok", "error": "", "report": report, "seconds": 1.5, "cpu_seconds": 0.7, "rss_start_mb": 180.0, "peak_rss_mb": 190.0, "worker": "h:1"},
+        {"robot": "r1", "day": "d1", "status": "error", "error": "LogError: bad", "report": None, "seconds": 0.1, "worker": "h:2"},
+    ]
+    result = fleet.FleetResult.from_results(results)
+    assert list(result.tasks["robot"]) == ["r1", "r2"] and list(result.failed["error"]) == ["LogError: bad"]
+    ok = result.tasks.iloc[1]
+    assert ok["headline"] == "k_step" and ok["kstep_after"] == 0.004 and ok["effects"] == "coulomb_friction, payload, inertial_error"
+    assert len(result.table) == 1 + 10 and list(result.reports) == [("r2", "d1")]
+    assert "1/2 robot-days diagnosed" in repr(result)

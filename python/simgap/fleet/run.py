@@ -40,7 +40,7 @@ TABLE_COLUMNS = [
 ]  # fmt: skip
 
 TASK_COLUMNS = [
-    "robot", "day", "status", "error", "effects", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before",
+    "robot", "day", "status", "error", "effects", "headline", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before",
     "kstep_after", "seconds", "cpu_seconds", "rss_start_mb", "peak_rss_mb", "worker",
 ]  # fmt: skip
 
@@ -256,6 +256,7 @@ class FleetResult:
                 {
                     "robot": r["robot"], "day": r["day"], "status": r["status"], "error": r.get("error", ""),
                     "effects": ", ".join(e.get("effect", "") for e in report.get("selected_effects") or []),
+                    "headline": str(gap.get("headline") or ""),
                     "l2_before": _num(gap.get("holdout_l2_before")), "l2_after": _num(gap.get("holdout_l2_after")),
                     "kstep_horizon_s": horizon, "kstep_before": k_before, "kstep_after": k_after,
                     "seconds": _num(r.get("seconds")), "cpu_seconds": _num(r.get("cpu_seconds")), "rss_start_mb": _num(r.get("rss_start_mb")), "peak_rss_mb": _num(r.get("peak_rss_mb")),
@@ -272,7 +273,8 @@ class FleetResult:
         folder = Path(folder)
         parquet = folder / "fleet.parquet"
         table = pd.read_parquet(parquet) if parquet.exists() else pd.read_csv(folder / "fleet.csv", dtype={"day": str})
-        tasks = pd.read_csv(folder / "tasks.csv", dtype={"day": str, "error": str, "effects": str}, keep_default_na=False, na_values={c: [""] for c in TASK_COLUMNS if c not in ("robot", "day", "status", "error", "effects", "worker")})
+        text = ("robot", "day", "status", "error", "effects", "headline", "worker")
+        tasks = pd.read_csv(folder / "tasks.csv", dtype={c: str for c in text}, keep_default_na=False, na_values={c: [""] for c in TASK_COLUMNS if c not in text})
         reports = {}
         for path in sorted((folder / "reports").glob("*/*.json")):
             reports[(path.parent.name, path.stem)] = json.loads(path.read_text())
