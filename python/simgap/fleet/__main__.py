@@ -14,7 +14,8 @@ flagged robots and writes into ``OUT/``:
 
 Outputs are written to a temporary folder and moved into ``OUT/`` at the end, so an
 interrupted run (Ctrl-C: exit status 130) leaves them complete or absent. Exit status 0 when
-at least one robot-day was diagnosed, 1 when none was, 2 for bad arguments.
+at least one robot-day was diagnosed, 1 when none was, 2 for bad arguments or an unreachable
+scheduler.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("folder", type=Path, help="fleet folder laid out as ROBOT/DAY/<logs> (.mcap, .csv, .csv.gz, bag folders)")
     p.add_argument("--urdf", type=Path, required=True, help="the robots' URDF (a path every worker can read)")
     p.add_argument("--tip", default=None, help="tip link of the chain (default: the end of the unique chain)")
-    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (default: a LocalCluster on this machine)")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://scheduler-host:8786 (default: a LocalCluster on this machine)")
     p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the number of cores)")
     p.add_argument("--out", type=Path, default=Path("fleet-out"), help="output folder (default: fleet-out)")
     p.add_argument("--formulation", default="euler_lagrange", choices=["euler_lagrange", "euler-lagrange", "simplified"])
@@ -107,7 +108,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.scheduler:
             from distributed import Client
 
-            client = Client(args.scheduler, timeout="30s")
+            try:
+                client = Client(args.scheduler, timeout="30s")
+            except (OSError, TimeoutError, ValueError) as err:
+                print(f"simgap.fleet: cannot reach the scheduler {args.scheduler}: {err}", file=sys.stderr)
+                return 2
         result = diagnose_fleet(index, args.urdf, client, tip=args.tip, formulation=args.formulation, retries=args.retries, progress=not args.no_progress, n_workers=args.workers)
         print(summary_text(result, z_drift=args.z_drift, min_rate_per_day=args.min_rate, z_outlier=args.z_outlier))
         _write(result, tmp, args)
