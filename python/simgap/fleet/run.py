@@ -427,9 +427,10 @@ def diagnose_fleet(
     ``index``: a fleet index (:func:`index_from_table`) or a folder ``ROBOT/DAY/…``
     (:func:`index_from_folder`). ``urdf``: the robot model, a path every worker can read
     (``tip`` as in :meth:`simgap.Model.from_urdf`). ``client``: a ``distributed.Client``; when
-    None, a ``LocalCluster`` of ``n_workers`` (default: the machine's cores) worker processes of
-    one thread each (``RAYON_NUM_THREADS=1`` unless set) is started and closed afterwards. ``retries``: re-runs of a task that
-    raised something other than a ``SimgapError``. ``progress``: True for a progress bar
+    None, a ``LocalCluster`` on 127.0.0.1 of ``n_workers`` (default: the machine's cores)
+    worker processes of one thread each (``RAYON_NUM_THREADS=1`` unless set) is started and
+    closed afterwards. ``retries``: re-runs of a task that raised something other than a
+    ``SimgapError``. ``progress``: True for a progress bar
     (tqdm when installed), or a callable called with each result dict. ``read_options``:
     extra keyword arguments of :func:`simgap.read_log` on the workers. ``timeout`` [s]: the
     longest wait for the next result (``TimeoutError`` past it; None waits as long as it takes).
@@ -459,7 +460,7 @@ def diagnose_fleet(
         start = time.perf_counter()
         results: list[dict[str, Any]] = []
         stream = iter_fleet(index, urdf, client, tip=tip, formulation=formulation, retries=retries, read_options=read_options, timeout=timeout)
-        tasks_total = len(tasks_from_index(_index(index)))
+        tasks_total = len(tasks_from_index(index))
         tick, close = _progress(tasks_total, progress)
         try:
             for result in stream:
