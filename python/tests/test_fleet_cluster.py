@@ -225,6 +225,10 @@ def test_command_line_ctrl_c_exits_130_and_writes_nothing(where: str, synthetic:
         assert proc.wait(60) == 130, log.read_text()
     finally:
         stop(proc)
+        try:  # whatever is left of the group this test started (its LocalCluster's workers)
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
     assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".out.partial")]
     text = log.read_text()
     assert "interrupted" in text and "Traceback" not in text, text
