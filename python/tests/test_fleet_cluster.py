@@ -120,7 +120,7 @@ def fleet_run(synthetic: SyntheticFleet, cluster: tuple[Cluster, Any], tmp_path_
     killed_at = math.nan
     for result in fleet.iter_fleet(index, synthetic.urdf, client, timeout=RESULT_TIMEOUT_S):
         results.append(result)
-        if len(results) == len(index) // 6:  # about half of the robot-days (3 logs each)
+        if len(results) == len(index) // 4:  # about half of the robot-days (2 logs each)
             killed_at = time.time()
             c.kill_worker("w2")
     return results, str(killed_pid), killed_at

@@ -1,7 +1,7 @@
 """Fleet throughput on this machine: ``python -m simgap.fleet.bench [--workers 1 2]``.
 
-Writes a synthetic fleet of the paper's arm (:mod:`simgap.fleet.synthetic`: 3 logs of 2.5 s
-per robot-day), then diagnoses it on a LocalCluster of each given number of single-threaded
+Writes a synthetic fleet of the paper's arm (:mod:`simgap.fleet.synthetic` with its step log:
+3 logs of 2.5 s per robot-day), then diagnoses it on a LocalCluster of each given number of single-threaded
 workers and prints, per cluster size: robot-days, wall time (from the first submission to the
 last result; cluster start-up excluded), diagnoses per minute and per core-minute (wall ×
 workers), the median task's wall and CPU seconds, and memory per task (the worker's resident
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     from simgap.fleet.synthetic import make_synthetic_fleet
 
     with tempfile.TemporaryDirectory() as tmp:
-        synthetic = make_synthetic_fleet(Path(tmp), robots=args.robots, days=args.days)
+        synthetic = make_synthetic_fleet(Path(tmp), robots=args.robots, days=args.days, with_step=True)
         index = fleet.index_from_folder(tmp)
         print(f"synthetic fleet: {args.robots} robots x {args.days} days, 3 logs of 2.5 s per robot-day (paper arm); simgap {simgap.__version__}, {platform.machine()}, {os.cpu_count()} logical cores")
         print()

@@ -1,6 +1,6 @@
 """A synthetic fleet diagnosed on a LocalCluster: ``python -m simgap.fleet.example``.
 
-Six paper arms recorded on five days (three logs a day): ``arm-01``'s elbow Coulomb friction
+Six paper arms recorded on five days (two logs a day, one fitted, one held out): ``arm-01``'s elbow Coulomb friction
 rises 10 % a day, ``arm-02`` carries a 1.5 kg payload from the third day, the others carry the
 published friction with a 3 % spread between units. Prints the elbow's Coulomb friction per
 robot and day, and the robots the fleet analysis flags.

@@ -93,10 +93,12 @@ def make_synthetic_fleet(
     duration: float = 2.5,
     seed: int = 0,
     first_day: _dt.date = _dt.date(2026, 3, 2),
+    with_step: bool = False,
 ) -> SyntheticFleet:
-    """Writes ``robots`` × ``days`` folders ``arm-NN/YYYY-MM-DD/`` of three MCAP logs each
-    (``a-step``, ``b-sine``: fit; ``c-sine``: held out, the last by name) and the URDF
-    ``paper_arm.urdf`` in ``root``.
+    """Writes ``robots`` × ``days`` folders ``arm-NN/YYYY-MM-DD/`` of MCAP logs (``b-sine``, an
+    excitation, fitted; ``c-sine``, another, held out as the last by name; with ``with_step``
+    also ``a-step``, the paper's kind of step, fitted) and the URDF ``paper_arm.urdf`` in
+    ``root``.
 
     ``arm-01`` is the rising robot (elbow Coulomb × (1 + ``rise_per_day`` · (day − 1))),
     ``arm-02`` carries ``payload_mass`` [kg] at the forearm's tip from day ``payload_from_day``
@@ -129,10 +131,11 @@ def make_synthetic_fleet(
             folder.mkdir(parents=True, exist_ok=True)
             step_target = [rng.uniform(0.5, 1.0), rng.uniform(1.0, 1.8)]
             runs = {
-                "a-step": simgap.simulate(model, step_target, controller="pd", kp=KP, kv=KV, effects=effects, duration=duration),
                 "b-sine": simgap.simulate(model, _sine_reference(joints, duration, rng, "b-sine"), controller="pd_gravity", kp=KP, kv=KV, effects=effects),
                 "c-sine": simgap.simulate(model, _sine_reference(joints, duration, rng, "c-sine"), controller="pd_gravity", kp=KP, kv=KV, effects=effects),
             }
+            if with_step:
+                runs["a-step"] = simgap.simulate(model, step_target, controller="pd", kp=KP, kv=KV, effects=effects, duration=duration)
             for name, run in runs.items():
                 simgap.write_log(run, folder / f"{name}.mcap")
     return fleet
