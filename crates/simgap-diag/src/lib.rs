@@ -104,7 +104,7 @@ pub struct Diagnosis {
 }
 
 /// Removing a term keeps it out when prediction worsens by less than this (relative).
-const PRUNE_TOLERANCE: f64 = 0.005;
+const PRUNE_TOLERANCE: f64 = 0.02;
 /// An effect joins the set when it improves prediction by at least this (relative).
 const ADD_GAIN: f64 = 0.02;
 /// The forward path from the nominal model is also tried when the torque-residual path
