@@ -51,7 +51,9 @@
 //! rigid-body systems", J. Comput. Nonlinear Dynam., 2021.
 
 pub mod algorithms;
+pub mod batch;
 pub mod error;
+pub(crate) mod lanes;
 pub mod model;
 pub mod robots;
 pub mod spatial;
@@ -59,6 +61,10 @@ pub mod urdf;
 pub mod workspace;
 
 pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matrix_derivative, mass_matrix_derivative_into, Formulation};
+pub use batch::{
+    batch_lanes, bias_torques_batch, coriolis_matrix_batch, coriolis_torques_batch, dynamics_terms_batch, gravity_torques_batch, inverse_dynamics_batch,
+    mass_matrix_batch, mass_matrix_derivative_batch,
+};
 pub use algorithms::crba::{mass_matrix, mass_matrix_into};
 pub use algorithms::energy::{kinetic_energy, potential_energy};
 pub use algorithms::forward_dynamics::{forward_dynamics, forward_dynamics_into, solve_spd_in_place, try_solve_spd_in_place};

@@ -219,6 +219,12 @@ impl Model {
         self.warnings.push(w);
     }
 
+    /// The precomputed pieces of joint `i`'s transform.
+    #[inline]
+    pub(crate) fn joint_cache(&self, i: usize) -> &JointCache {
+        &self.cache[i]
+    }
+
     /// Transform from the parent link frame to joint `i`'s frame at position `qi`.
     #[inline]
     pub fn joint_transform(&self, i: usize, qi: f64) -> Transform {

@@ -8,4 +8,5 @@ pub mod forward_dynamics;
 pub mod kinematics;
 pub mod regressor;
 pub mod rnea;
+pub(crate) mod soa;
 pub mod terms;
