@@ -149,7 +149,9 @@ fn drive<const W: usize>(model: &Model, job: &mut Job<'_>) {
         // gather: lane k holds state first + k (unused lanes repeat the last state)
         let gather = |src: &[f64], dst: &mut [Lanes<W>]| {
             for (i, d) in dst.iter_mut().enumerate() {
-                *d = Lanes(std::array::from_fn(|k| src[(first + k.min(used - 1)) * n + i]));
+                for (k, x) in d.0.iter_mut().enumerate() {
+                    *x = src[(first + k.min(used - 1)) * n + i];
+                }
             }
         };
         gather(job.q, &mut ws.q);

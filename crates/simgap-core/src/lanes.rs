@@ -228,17 +228,35 @@ pub(crate) struct M3<const W: usize>(pub(crate) [[Lanes<W>; 3]; 3]);
 impl<const W: usize> M3<W> {
     #[inline(always)]
     pub(crate) fn splat(m: &Matrix3<f64>) -> Self {
-        M3(std::array::from_fn(|r| std::array::from_fn(|c| Lanes::splat(m[(r, c)]))))
+        let mut out = [[Lanes::zero(); 3]; 3];
+        for (r, row) in out.iter_mut().enumerate() {
+            for (c, x) in row.iter_mut().enumerate() {
+                *x = Lanes::splat(m[(r, c)]);
+            }
+        }
+        M3(out)
     }
     /// `a + b cos + d sin` for constants `a`, `b`, `d`.
     #[inline(always)]
     pub(crate) fn rodrigues(a: &Matrix3<f64>, b: &Matrix3<f64>, d: &Matrix3<f64>, s: Lanes<W>, c: Lanes<W>) -> Self {
-        M3(std::array::from_fn(|r| std::array::from_fn(|k| c * b[(r, k)] + s * d[(r, k)] + a[(r, k)])))
+        let mut out = [[Lanes::zero(); 3]; 3];
+        for (r, row) in out.iter_mut().enumerate() {
+            for (k, x) in row.iter_mut().enumerate() {
+                *x = c * b[(r, k)] + s * d[(r, k)] + a[(r, k)];
+            }
+        }
+        M3(out)
     }
     #[inline(always)]
     pub(crate) fn mul(&self, o: &Self) -> Self {
         let (a, b) = (&self.0, &o.0);
-        M3(std::array::from_fn(|r| std::array::from_fn(|c| a[r][0] * b[0][c] + a[r][1] * b[1][c] + a[r][2] * b[2][c])))
+        let mut out = [[Lanes::zero(); 3]; 3];
+        for (r, row) in out.iter_mut().enumerate() {
+            for (c, x) in row.iter_mut().enumerate() {
+                *x = a[r][0] * b[0][c] + a[r][1] * b[1][c] + a[r][2] * b[2][c];
+            }
+        }
+        M3(out)
     }
     #[inline(always)]
     pub(crate) fn mul_v(&self, v: V3<W>) -> V3<W> {
@@ -273,7 +291,11 @@ impl<const W: usize> Add for Sym<W> {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
-        Sym(std::array::from_fn(|k| self.0[k] + o.0[k]))
+        let mut out = self.0;
+        for (x, y) in out.iter_mut().zip(o.0) {
+            *x += y;
+        }
+        Sym(out)
     }
 }
 
@@ -378,7 +400,12 @@ impl<const W: usize> Ine<W> {
     pub(crate) fn transformed(mass: f64, hb: &Vector3<f64>, ib: &Matrix3<f64>, r: &M3<W>, t: V3<W>) -> Self {
         let hr = r.mul_c(hb);
         // rotate: r ib rᵀ (upper triangle)
-        let a: [[Lanes<W>; 3]; 3] = std::array::from_fn(|row| std::array::from_fn(|col| r.0[row][0] * ib[(0, col)] + r.0[row][1] * ib[(1, col)] + r.0[row][2] * ib[(2, col)]));
+        let mut a = [[Lanes::<W>::zero(); 3]; 3];
+        for (row, out) in a.iter_mut().enumerate() {
+            for (col, x) in out.iter_mut().enumerate() {
+                *x = r.0[row][0] * ib[(0, col)] + r.0[row][1] * ib[(1, col)] + r.0[row][2] * ib[(2, col)];
+            }
+        }
         let rot = |p: usize, q: usize| a[p][0] * r.0[q][0] + a[p][1] * r.0[q][1] + a[p][2] * r.0[q][2];
         // shift the reference point by t: diag(2 hr·t + m t·t) − t hrᵀ − hr tᵀ − m t tᵀ
         let d = hr.dot(t) * 2.0 + t.dot(t) * mass;
