@@ -485,7 +485,7 @@ mod tests {
 
     #[test]
     fn lane_sin_cos_equals_the_scalar_sin_cos_bit_for_bit() {
-        let mut x = -2.0e3;
+        let mut x: f64 = -2.0e3;
         let mut checked = 0;
         while x < 2.0e3 {
             let xs = [x, x * 1e-3, x * 1e-7, 2.0e6 * x, std::f64::consts::FRAC_PI_2 * (x / 7.0).round(), std::f64::consts::FRAC_PI_4 * (1.0 + 1e-12 * x), -x, f64::NAN];

@@ -4,7 +4,7 @@
 //! algorithm, the second-order pass of [`coriolis`](crate::algorithms::coriolis), Newton–Euler,
 //! and the articulated-body algorithm of [`aba`](crate::algorithms::aba)), written once for any
 //! lane width: `W = 8` and `W = 4` serve the batch functions of [`crate::batch`], `W = 1` the
-//! fast paths of small and long chains. Every function here is `#[inline(always)]` so that it
+//! articulated-body algorithm of one state. Every function here is `#[inline(always)]` so that it
 //! is compiled with the target features of the batch entry point that calls it.
 
 use crate::algorithms::coriolis::Formulation;
@@ -76,8 +76,6 @@ impl<const W: usize> SoaWs<W> {
 /// How much of each link's inertia [`kinematics`] moves to the world frame.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub(crate) enum InertiaLevel {
-    /// Poses and subspaces only.
-    None,
     /// Mass and first moment (enough for g).
     FirstMoment,
     /// The whole spatial inertia.
@@ -107,7 +105,6 @@ pub(crate) fn kinematics<const W: usize>(model: &Model, ws: &mut SoaWs<W>, level
         ws.s[i] = if rotational { Mot { w: axis, v: t.cross(axis) } } else { Mot { w: V3::zero(), v: axis } };
         let body = &joint.inertia;
         match level {
-            InertiaLevel::None => {}
             InertiaLevel::FirstMoment => {
                 ws.inertia[i] = Ine { m: Lanes::splat(body.mass), h: r.mul_c(&body.first_moment) + t.scale_f(body.mass), i: Sym::zero() };
             }
@@ -403,45 +400,4 @@ fn recip<const W: usize>(x: Lanes<W>) -> Lanes<W> {
         *v = 1.0 / *v;
     }
     Lanes(r)
-}
-
-/// Solves `A x = b` in place by Cholesky for symmetric positive definite `A` (`n × n`
-/// row-major, overwritten by its factor); false when `A` is not positive definite.
-#[inline(always)]
-pub(crate) fn cholesky_solve(a: &mut [Lanes<1>], b: &mut [Lanes<1>], n: usize) -> bool {
-    // factorise A = L Lᵀ (lower triangle)
-    for j in 0..n {
-        let mut d = a[j * n + j].0[0];
-        for k in 0..j {
-            d -= a[j * n + k].0[0] * a[j * n + k].0[0];
-        }
-        if !(d > 0.0) {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * n + j].0[0] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j].0[0];
-            for k in 0..j {
-                s -= a[i * n + k].0[0] * a[j * n + k].0[0];
-            }
-            a[i * n + j].0[0] = s / d;
-        }
-    }
-    // forward substitution L y = b, then back substitution Lᵀ x = y
-    for i in 0..n {
-        let mut s = b[i].0[0];
-        for k in 0..i {
-            s -= a[i * n + k].0[0] * b[k].0[0];
-        }
-        b[i].0[0] = s / a[i * n + i].0[0];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i].0[0];
-        for k in i + 1..n {
-            s -= a[k * n + i].0[0] * b[k].0[0];
-        }
-        b[i].0[0] = s / a[i * n + i].0[0];
-    }
-    true
 }
