@@ -4,7 +4,9 @@
 //! state per row) and returns `float64` arrays in C order: a matrix result has shape
 //! `(dof, dof)` or `(N, dof, dof)` with row `i` = equation `i`; a vector result `(dof,)` or
 //! `(N, dof)`. Batches release the GIL and run on all cores (rayon, one workspace per thread),
-//! returning to Python between chunks of states to check for Ctrl-C (`KeyboardInterrupt`).
+//! returning to Python between chunks of states to check for Ctrl-C (`KeyboardInterrupt`);
+//! H, C, Ḣ, g, C q̇, bias torques, inverse dynamics and `dynamics_terms` go through
+//! `simgap_core::batch`, several states per SIMD register.
 //! The physics is entirely in `simgap_core`; this file only checks, converts and dispatches.
 
 use std::borrow::Cow;

@@ -46,6 +46,11 @@
 //! assert!((c_simple - 0.5 * hdot).norm() < 1e-12);
 //! ```
 //!
+//! # Batches
+//!
+//! The [`batch`] functions (`mass_matrix_batch`, `dynamics_terms_batch`, ...) evaluate many
+//! states at once, several per SIMD register (AVX-512 or AVX2, picked at run time).
+//!
 //! References: R. Featherstone, *Rigid Body Dynamics Algorithms*, 2008; S. Echeandia and
 //! P. M. Wensing, "Numerical methods to compute the Coriolis matrix and Christoffel symbols for
 //! rigid-body systems", J. Comput. Nonlinear Dynam., 2021.

@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::algorithms::coriolis::Formulation;
 use crate::model::Model;
-use crate::spatial::sin_cos;
+use crate::lanes::Lanes;
 
 /// The generated closed form of a two-joint arm.
 #[derive(Clone, Debug, PartialEq)]
@@ -75,8 +75,9 @@ impl TwoJoint {
     /// H, C of `formulation` and g at `(q, qd)`.
     #[inline]
     pub(crate) fn terms(&self, q: &[f64], qd: &[f64], formulation: Formulation) -> Terms {
-        let (s1, c1) = sin_cos(q[0]);
-        let (s2, c2) = sin_cos(q[1]);
+        // both angles in one two-lane evaluation (the same numbers as `sin_cos`)
+        let (s, c) = Lanes([q[0], q[1]]).sin_cos();
+        let ([s1, s2], [c1, c2]) = (s.0, c.0);
         // H and ∂H/∂q2 from the degree-2 polynomial in q2
         let (cc, ss) = (c2 * c2 - s2 * s2, 2.0 * s2 * c2);
         let basis = [1.0, c2, s2, cc, ss];
@@ -137,7 +138,8 @@ impl TwoJoint {
         let [h11, h12, h22] = t.h;
         let det = h11 * h22 - h12 * h12;
         assert!(h11 > 0.0 && det > 0.0, "matrix is not positive definite");
-        out[0] = (h22 * r1 - h12 * r2) / det;
-        out[1] = (h11 * r2 - h12 * r1) / det;
+        let inv = 1.0 / det;
+        out[0] = (h22 * r1 - h12 * r2) * inv;
+        out[1] = (h11 * r2 - h12 * r1) * inv;
     }
 }
