@@ -5,7 +5,10 @@
 //!   `simulate/paper_experiment_mcap` written as ROS 2 MCAP as it goes (logging cost), and
 //!   `simulate/paper_experiment_friction` with the reported viscous and Coulomb friction.
 //! - `paper/euler_lagrange` and `paper/simplified`: what `simgap paper` simulates per model
-//!   (2 s at 2.5 ms, RK4, paper encoders) into a `MemorySink`, plant built inside.
+//!   (2 s at 2.5 ms, RK4, paper encoders) into a `MemorySink`, plant built inside; and
+//!   `paper/euler_lagrange_general`, the same run through the general algorithms (an armature
+//!   of 1e-300 kg·m², which leaves H unchanged in floating point, sends the plant to bias
+//!   torques + CRBA + Cholesky): the side-by-side reference of the two-joint closed form.
 //! - `rk4_step/<robot>`: one RK4 step of the plant (four accelerations), throughput in steps
 //!   per second, on the paper arm and a random 7-joint chain.
 //! - `acceleration/<robot>`: one plant acceleration (bias torques, H, Cholesky).
@@ -104,10 +107,15 @@ fn paper(c: &mut Criterion) {
     let params = SimParams { duration: 2.0, sample_period: paper_arm::SAMPLE_PERIOD, ..SimParams::default() };
     let mut group = c.benchmark_group("paper");
     group.measurement_time(Duration::from_secs(3));
-    for formulation in Formulation::ALL {
-        group.bench_function(formulation.as_str().replace('-', "_"), |b| {
+    let general = [Effect::Armature { ia: vec![1e-300; 2] }];
+    for (id, formulation, effects) in [
+        ("euler_lagrange", Formulation::EulerLagrange, &[][..]),
+        ("simplified", Formulation::Simplified, &[][..]),
+        ("euler_lagrange_general", Formulation::EulerLagrange, &general[..]),
+    ] {
+        group.bench_function(id, |b| {
             b.iter(|| {
-                let plant = Plant::new(black_box(&model), formulation, &[]).unwrap();
+                let plant = Plant::new(black_box(&model), formulation, effects).unwrap();
                 let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
                 let mut sink = MemorySink::new();
                 simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap();

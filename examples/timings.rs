@@ -21,7 +21,8 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use nalgebra::DMatrix;
 use simgap::core::{
-    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_into, gravity_torques_into,
+    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into,
+    forward_dynamics_into, gravity_torques_into,
     inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
 };
 
@@ -127,6 +128,9 @@ fn functions() -> Vec<(&'static str, Timed)> {
         ("bias_torques", |m, b, s| bias_torques_into(m, &mut b.ws, &s.q, &s.qd, EL, &mut b.v)),
         ("inverse_dynamics", |m, b, s| inverse_dynamics_into(m, &mut b.ws, &s.q, &s.qd, &s.qdd, &mut b.v)),
         ("forward_dynamics", |m, b, s| forward_dynamics_into(m, &mut b.ws, &s.q, &s.qd, &s.tau, EL, &mut b.v)),
+        // the two algorithms forward_dynamics picks from (ABA from ABA_MIN_DOF joints on)
+        ("forward_dynamics_crba", |m, b, s| forward_dynamics_crba_into(m, &mut b.ws, &s.q, &s.qd, &s.tau, EL, &mut b.v)),
+        ("forward_dynamics_aba", |m, b, s| forward_dynamics_aba_into(m, &mut b.ws, &s.q, &s.qd, &s.tau, EL, &mut b.v)),
         ("dynamics_terms", |m, b, s| dynamics_terms_into(m, &mut b.ws, &s.q, &s.qd, EL, &mut b.terms)),
         // H, C and g as three separate calls, to compare with dynamics_terms
         ("h_c_g_three_calls", |m, b, s| {

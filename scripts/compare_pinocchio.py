@@ -73,7 +73,9 @@ PEERS = {
     "mass_matrix_derivative": ("computeCoriolisMatrix", "Pinocchio has no Hdot; Hdot = C + C^T"),
     "bias_torques": ("nonLinearEffects", ""),
     "inverse_dynamics": ("rnea", ""),
-    "forward_dynamics": ("aba", "ABA vs our CRBA + Cholesky"),
+    "forward_dynamics": ("aba", "ABA vs ours: ABA, or a two-joint arm's closed form"),
+    "forward_dynamics_crba": ("aba", "our CRBA + Cholesky, whatever the size"),
+    "forward_dynamics_aba": ("aba", "our ABA, whatever the size"),
     "dynamics_terms": ("crba+computeCoriolisMatrix+computeGeneralizedGravity", "one call vs Pinocchio's three"),
     "h_c_g_three_calls": ("crba+computeCoriolisMatrix+computeGeneralizedGravity", "three calls each"),
 }
