@@ -3,6 +3,12 @@
 //! 2 to 64 joints. The `_into` variants are timed (no allocation); each iteration takes the
 //! next of 64 random states, passed through `black_box`.
 //!
+//! Also, per robot: `forward_dynamics_crba` and `forward_dynamics_aba` (the two algorithms
+//! `forward_dynamics` picks from, side by side); `h_c_g_general` (three calls of the general
+//! algorithms, the reference of the two-joint closed form behind `dynamics_terms/paper_arm`);
+//! and the batch functions on 1000 states, `mass_matrix_batch/panda/1000` etc., beside
+//! `mass_matrix_loop/panda/1000` etc. (the one-state function in a loop over the same states).
+//!
 //! `cargo bench --bench dynamics` (all), `cargo bench --bench dynamics -- panda` (a filter).
 //! UR5 and Panda come from `example-robot-data`: see `benches/support/robots.rs`.
 
@@ -11,9 +17,11 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use nalgebra::DMatrix;
+use criterion::Throughput;
 use simgap::core::{
-    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_into, gravity_torques_into,
-    inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
+    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into,
+    forward_dynamics_into, gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model,
+    Workspace,
 };
 
 #[path = "support/robots.rs"]
@@ -64,7 +72,7 @@ fn dynamics(c: &mut Criterion) {
         })
         .collect();
     type F = fn(&Model, &mut Workspace, &State, &mut DMatrix<f64>, &mut [f64], &mut DynamicsTerms);
-    let functions: [(&str, F); 10] = [
+    let functions: [(&str, F); 13] = [
         ("mass_matrix", |m, ws, s, h, _, _| mass_matrix_into(m, ws, &s.q, h)),
         ("coriolis_matrix/euler_lagrange", |m, ws, s, c, _, _| coriolis_matrix_into(m, ws, &s.q, &s.qd, Formulation::EulerLagrange, c)),
         ("coriolis_matrix/simplified", |m, ws, s, c, _, _| coriolis_matrix_into(m, ws, &s.q, &s.qd, Formulation::Simplified, c)),
@@ -75,6 +83,13 @@ fn dynamics(c: &mut Criterion) {
         ("inverse_dynamics", |m, ws, s, _, v, _| inverse_dynamics_into(m, ws, &s.q, &s.qd, &s.qdd, v)),
         ("forward_dynamics", |m, ws, s, _, v, _| forward_dynamics_into(m, ws, &s.q, &s.qd, &s.tau, Formulation::EulerLagrange, v)),
         ("dynamics_terms", |m, ws, s, _, _, t| dynamics_terms_into(m, ws, &s.q, &s.qd, Formulation::EulerLagrange, t)),
+        ("forward_dynamics_crba", |m, ws, s, _, v, _| forward_dynamics_crba_into(m, ws, &s.q, &s.qd, &s.tau, Formulation::EulerLagrange, v)),
+        ("forward_dynamics_aba", |m, ws, s, _, v, _| forward_dynamics_aba_into(m, ws, &s.q, &s.qd, &s.tau, Formulation::EulerLagrange, v)),
+        ("h_c_g_general", |m, ws, s, _, _, t| {
+            mass_matrix_into(m, ws, &s.q, &mut t.mass_matrix);
+            coriolis_matrix_into(m, ws, &s.q, &s.qd, Formulation::EulerLagrange, &mut t.coriolis_matrix);
+            gravity_torques_into(m, ws, &s.q, t.gravity_torques.as_mut_slice());
+        }),
     ];
     for (function, f) in functions {
         let mut group = c.benchmark_group(function);
@@ -86,5 +101,49 @@ fn dynamics(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, dynamics);
+/// States in one batch call.
+const BATCH: usize = 1000;
+
+/// The batch functions on [`BATCH`] states, and the one-state functions looped over the same
+/// states, id `function/robot/1000`, throughput in states.
+fn batches(c: &mut Criterion) {
+    use simgap::core::batch;
+    for robot in all_robots(false).into_iter().chain([robots::Robot { name: "chain16".into(), model: Model::random_chain(16, 58), source: String::new() }]) {
+        let (model, n) = (&robot.model, robot.model.dof());
+        let states = random_states(model, BATCH, 11);
+        let q: Vec<f64> = states.iter().flat_map(|s| s.q.iter().copied()).collect();
+        let qd: Vec<f64> = states.iter().flat_map(|s| s.qd.iter().copied()).collect();
+        let qdd: Vec<f64> = states.iter().flat_map(|s| s.qdd.iter().copied()).collect();
+        let (mut h, mut cm, mut g) = (vec![0.0; BATCH * n * n], vec![0.0; BATCH * n * n], vec![0.0; BATCH * n]);
+        let mut ws = Workspace::new(model);
+        let mut terms = DynamicsTerms::new(model);
+        let mut m = DMatrix::zeros(n, n);
+        let id = format!("{}/{BATCH}", robot.name);
+        let el = Formulation::EulerLagrange;
+        let mut group = |name: &str, f: &mut dyn FnMut()| {
+            let mut group = c.benchmark_group(name);
+            group.throughput(Throughput::Elements(BATCH as u64)).measurement_time(Duration::from_secs(1)).warm_up_time(Duration::from_millis(300)).sample_size(20);
+            group.bench_function(id.as_str(), |b| b.iter(|| f()));
+            group.finish();
+        };
+        group("mass_matrix_batch", &mut || batch::mass_matrix_batch(model, black_box(&q), &mut h));
+        group("mass_matrix_loop", &mut || {
+            for s in &states {
+                mass_matrix_into(model, &mut ws, black_box(&s.q), &mut m);
+            }
+        });
+        group("dynamics_terms_batch", &mut || batch::dynamics_terms_batch(model, black_box(&q), &qd, el, &mut h, &mut cm, &mut g));
+        group("dynamics_terms_loop", &mut || {
+            for s in &states {
+                dynamics_terms_into(model, &mut ws, black_box(&s.q), &s.qd, el, &mut terms);
+            }
+        });
+        group("coriolis_matrix_batch", &mut || batch::coriolis_matrix_batch(model, black_box(&q), &qd, el, &mut cm));
+        group("gravity_torques_batch", &mut || batch::gravity_torques_batch(model, black_box(&q), &mut g));
+        group("bias_torques_batch", &mut || batch::bias_torques_batch(model, black_box(&q), &qd, el, &mut g));
+        group("inverse_dynamics_batch", &mut || batch::inverse_dynamics_batch(model, black_box(&q), &qd, &qdd, &mut g));
+    }
+}
+
+criterion_group!(benches, dynamics, batches);
 criterion_main!(benches);

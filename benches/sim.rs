@@ -4,6 +4,11 @@
 //!   samples); also `simulate/paper_experiment_memory` into a `MemorySink`,
 //!   `simulate/paper_experiment_mcap` written as ROS 2 MCAP as it goes (logging cost), and
 //!   `simulate/paper_experiment_friction` with the reported viscous and Coulomb friction.
+//! - `paper/euler_lagrange` and `paper/simplified`: what `simgap paper` simulates per model
+//!   (2 s at 2.5 ms, RK4, paper encoders) into a `MemorySink`, plant built inside; and
+//!   `paper/euler_lagrange_general`, the same run through the general algorithms (an armature
+//!   of 1e-300 kg·m², which leaves H unchanged in floating point, sends the plant to bias
+//!   torques + CRBA + Cholesky): the side-by-side reference of the two-joint closed form.
 //! - `rk4_step/<robot>`: one RK4 step of the plant (four accelerations), throughput in steps
 //!   per second, on the paper arm and a random 7-joint chain.
 //! - `acceleration/<robot>`: one plant acceleration (bias torques, H, Cholesky).
@@ -96,6 +101,32 @@ fn paper_experiment(c: &mut Criterion) {
     group.finish();
 }
 
+/// The paper's experiment as `simgap paper` runs it, per formulation, 2 s.
+fn paper(c: &mut Criterion) {
+    let model = Model::paper_arm();
+    let reference = Step { target: paper_arm::Q_DESIRED.to_vec() };
+    let params = SimParams { duration: 2.0, sample_period: paper_arm::SAMPLE_PERIOD, ..SimParams::default() };
+    let mut group = c.benchmark_group("paper");
+    group.measurement_time(Duration::from_secs(3));
+    let general = [Effect::Armature { ia: vec![1e-300; 2] }];
+    for (id, formulation, effects) in [
+        ("euler_lagrange", Formulation::EulerLagrange, &[][..]),
+        ("simplified", Formulation::Simplified, &[][..]),
+        ("euler_lagrange_general", Formulation::EulerLagrange, &general[..]),
+    ] {
+        group.bench_function(id, |b| {
+            b.iter(|| {
+                let plant = Plant::new(black_box(&model), formulation, effects).unwrap();
+                let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+                let mut sink = MemorySink::new();
+                simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap();
+                sink.into_run()
+            })
+        });
+    }
+    group.finish();
+}
+
 fn steps(c: &mut Criterion) {
     let robots = [("paper_arm", Model::paper_arm()), ("chain7", Model::random_chain(7, 1))];
     for (name, model) in &robots {
@@ -134,5 +165,5 @@ fn steps(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, paper_experiment, steps);
+criterion_group!(benches, paper_experiment, paper, steps);
 criterion_main!(benches);

@@ -11,7 +11,8 @@
 //! `chainN` (`Model::random_chain(N, 42 + N)`); `--urdf PATH [--tip LINK]` loads any URDF.
 //! `--states` reads a CSV with columns `q_<joint>`, `qd_<joint>`, `qdd_<joint>`, `tau_<joint>`
 //! (mapped by joint name; missing `qdd_`/`tau_` columns are zero); otherwise `--count` random
-//! states from `--seed`. `--reps` repetitions (default 21).
+//! states from `--seed`. `--reps` repetitions (default 21). `--write-urdf PATH` writes the
+//! robot as a URDF and exits (how the comparison script gives Pinocchio the random chains).
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -20,7 +21,8 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use nalgebra::DMatrix;
 use simgap::core::{
-    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_into, gravity_torques_into,
+    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into,
+    forward_dynamics_into, gravity_torques_into,
     inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
 };
 
@@ -38,10 +40,11 @@ struct Args {
     count: usize,
     seed: u64,
     reps: usize,
+    write_urdf: Option<PathBuf>,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
-    let mut a = Args { robot: None, urdf: None, tip: None, name: None, states: None, count: 1000, seed: 1, reps: 21 };
+    let mut a = Args { robot: None, urdf: None, tip: None, name: None, states: None, count: 1000, seed: 1, reps: 21, write_urdf: None };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let mut value = || it.next().with_context(|| format!("{flag} needs a value"));
@@ -54,8 +57,9 @@ fn parse_args() -> anyhow::Result<Args> {
             "--count" => a.count = value()?.parse().context("--count")?,
             "--seed" => a.seed = value()?.parse().context("--seed")?,
             "--reps" => a.reps = value()?.parse().context("--reps")?,
+            "--write-urdf" => a.write_urdf = Some(value()?.into()),
             "-h" | "--help" => {
-                println!("timings (--robot NAME | --urdf PATH [--tip LINK]) [--name NAME] [--states CSV | --count N --seed S] [--reps R]");
+                println!("timings (--robot NAME | --urdf PATH [--tip LINK]) [--name NAME] [--states CSV | --count N --seed S] [--reps R] [--write-urdf PATH]");
                 std::process::exit(0);
             }
             other => bail!("unknown argument '{other}'"),
@@ -124,6 +128,9 @@ fn functions() -> Vec<(&'static str, Timed)> {
         ("bias_torques", |m, b, s| bias_torques_into(m, &mut b.ws, &s.q, &s.qd, EL, &mut b.v)),
         ("inverse_dynamics", |m, b, s| inverse_dynamics_into(m, &mut b.ws, &s.q, &s.qd, &s.qdd, &mut b.v)),
         ("forward_dynamics", |m, b, s| forward_dynamics_into(m, &mut b.ws, &s.q, &s.qd, &s.tau, EL, &mut b.v)),
+        // the two algorithms forward_dynamics picks from (ABA from ABA_MIN_DOF joints on)
+        ("forward_dynamics_crba", |m, b, s| forward_dynamics_crba_into(m, &mut b.ws, &s.q, &s.qd, &s.tau, EL, &mut b.v)),
+        ("forward_dynamics_aba", |m, b, s| forward_dynamics_aba_into(m, &mut b.ws, &s.q, &s.qd, &s.tau, EL, &mut b.v)),
         ("dynamics_terms", |m, b, s| dynamics_terms_into(m, &mut b.ws, &s.q, &s.qd, EL, &mut b.terms)),
         // H, C and g as three separate calls, to compare with dynamics_terms
         ("h_c_g_three_calls", |m, b, s| {
@@ -158,6 +165,10 @@ fn main() -> anyhow::Result<()> {
         }
         _ => bail!("give either --robot NAME or --urdf PATH"),
     };
+    if let Some(path) = &args.write_urdf {
+        std::fs::write(path, to_urdf(&model)).with_context(|| format!("{}: cannot write", path.display()))?;
+        return Ok(());
+    }
     let states = match &args.states {
         Some(p) => read_states(p, &model)?,
         None => random_states(&model, args.count, args.seed),
@@ -194,4 +205,33 @@ fn main() -> anyhow::Result<()> {
     });
     println!("{out}");
     Ok(())
+}
+
+/// The model as a URDF: one link per joint (inertia about its centre of mass), joint origins
+/// as xyz + roll-pitch-yaw, gravity not included (URDF has none).
+fn to_urdf(model: &Model) -> String {
+    use std::fmt::Write;
+    let mut s = format!("<?xml version=\"1.0\"?>\n<robot name=\"{}\">\n  <link name=\"{}\"/>\n", model.name(), model.base_link());
+    let mut parent = model.base_link().to_string();
+    for j in model.joints() {
+        let (com, i) = (j.inertia.com(), j.inertia.inertia_about_com());
+        let _ = write!(
+            s,
+            "  <link name=\"{}\">\n    <inertial>\n      <origin xyz=\"{:e} {:e} {:e}\" rpy=\"0 0 0\"/>\n      <mass value=\"{:e}\"/>\n      \
+             <inertia ixx=\"{:e}\" ixy=\"{:e}\" ixz=\"{:e}\" iyy=\"{:e}\" iyz=\"{:e}\" izz=\"{:e}\"/>\n    </inertial>\n  </link>\n",
+            j.link, com.x, com.y, com.z, j.inertia.mass, i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 1)], i[(1, 2)], i[(2, 2)]
+        );
+        let (roll, pitch, yaw) = nalgebra::Rotation3::from_matrix_unchecked(j.placement.rotation).euler_angles();
+        let t = &j.placement.translation;
+        let l = &j.limits;
+        let limit = if l.lower.is_finite() { format!("lower=\"{:e}\" upper=\"{:e}\" ", l.lower, l.upper) } else { String::new() };
+        let _ = write!(
+            s,
+            "  <joint name=\"{}\" type=\"{}\">\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    <origin xyz=\"{:e} {:e} {:e}\" rpy=\"{:e} {:e} {:e}\"/>\n    \
+             <axis xyz=\"{:e} {:e} {:e}\"/>\n    <limit {limit}effort=\"{:e}\" velocity=\"{:e}\"/>\n  </joint>\n",
+            j.name, j.kind.as_str(), parent, j.link, t.x, t.y, t.z, roll, pitch, yaw, j.axis.x, j.axis.y, j.axis.z, l.effort.min(1e9), l.velocity.min(1e9)
+        );
+        parent = j.link.clone();
+    }
+    s + "</robot>\n"
 }

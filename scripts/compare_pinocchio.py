@@ -20,6 +20,15 @@ For each robot (the paper arm, UR5 and the Panda with its fingers locked) it
    overhead, estimated separately on a one-joint model),
 
 and prints a table of ratios simgap / Pinocchio (below 1: simgap faster), then the raw JSON.
+
+The same is done for random chains of ``--chains`` joints (default 2, 4, 8, 16, 32, 64):
+``timings --robot chainN --write-urdf`` writes ``Model::random_chain(N, 42 + N)`` as a URDF that
+both libraries load (this is where ``forward_dynamics`` meets Pinocchio's ``aba`` on long chains).
+
+Then the **batch** rows (``--batch-count`` states, default 100 000, of ``--batch-robots``,
+default the Panda): simgap's Python batch call on the whole ``(N, dof)`` array, on
+``--batch-threads`` threads (default 1: ``RAYON_NUM_THREADS``), against a Python loop over
+Pinocchio's call(s) on the same states, same process; the speed-up is loop time / batch time.
 Every figure is the median over ``--reps`` repetitions of one pass over all states, divided by
 the number of states; the timers alternate for ``--rounds`` rounds and the fastest median is kept. On a shared machine absolute numbers are noisy; the ratios come from one
 run in which both libraries see the same load.
@@ -64,7 +73,9 @@ PEERS = {
     "mass_matrix_derivative": ("computeCoriolisMatrix", "Pinocchio has no Hdot; Hdot = C + C^T"),
     "bias_torques": ("nonLinearEffects", ""),
     "inverse_dynamics": ("rnea", ""),
-    "forward_dynamics": ("aba", "ABA vs our CRBA + Cholesky"),
+    "forward_dynamics": ("aba", "ABA vs ours: ABA, or a two-joint arm's closed form"),
+    "forward_dynamics_crba": ("aba", "our CRBA + Cholesky, whatever the size"),
+    "forward_dynamics_aba": ("aba", "our ABA, whatever the size"),
     "dynamics_terms": ("crba+computeCoriolisMatrix+computeGeneralizedGravity", "one call vs Pinocchio's three"),
     "h_c_g_three_calls": ("crba+computeCoriolisMatrix+computeGeneralizedGravity", "three calls each"),
 }
@@ -96,6 +107,50 @@ def cmeel_prefix() -> Path | None:
         return p if p.is_dir() else None
     except importlib.metadata.PackageNotFoundError:
         return None
+
+
+def batch_timings(pin, model, urdf: Path, tip: str | None, states: dict[str, np.ndarray], reps: int, rounds: int) -> dict:
+    """Per-state time of simgap's Python batch calls and of a Python loop over Pinocchio."""
+    import simgap  # after RAYON_NUM_THREADS is set
+
+    sm = simgap.Model.from_urdf(str(urdf), tip=tip)
+    names = [j[0] for j in joint_layout(model)]
+    if sm.joint_names != names:
+        raise SystemExit(f"joint order differs: simgap {sm.joint_names}, Pinocchio {names}")
+    data = pin.Data(model)
+    q, qd, qdd, tau = (np.ascontiguousarray(states[k]) for k in ("angle", "qd", "qdd", "tau"))
+    qs = [to_configuration(model, a) for a in q]
+    vs, As, taus = list(qd), list(qdd), list(tau)
+    idx = range(len(qs))
+
+    def three(i):
+        pin.crba(model, data, qs[i])
+        pin.computeCoriolisMatrix(model, data, qs[i], vs[i])
+        pin.computeGeneralizedGravity(model, data, qs[i])
+
+    # simgap batch call, Pinocchio peer, Pinocchio loop
+    rows = {
+        "mass_matrix": (lambda: sm.mass_matrix(q), "crba", lambda: [pin.crba(model, data, qs[i]) for i in idx]),
+        "coriolis_matrix": (lambda: sm.coriolis_matrix(q, qd), "computeCoriolisMatrix", lambda: [pin.computeCoriolisMatrix(model, data, qs[i], vs[i]) for i in idx]),
+        "gravity_torques": (lambda: sm.gravity_torques(q), "computeGeneralizedGravity", lambda: [pin.computeGeneralizedGravity(model, data, qs[i]) for i in idx]),
+        "bias_torques": (lambda: sm.bias_torques(q, qd), "nonLinearEffects", lambda: [pin.nonLinearEffects(model, data, qs[i], vs[i]) for i in idx]),
+        "inverse_dynamics": (lambda: sm.inverse_dynamics(q, qd, qdd), "rnea", lambda: [pin.rnea(model, data, qs[i], vs[i], As[i]) for i in idx]),
+        "forward_dynamics": (lambda: sm.forward_dynamics(q, qd, tau), "aba", lambda: [pin.aba(model, data, qs[i], vs[i], taus[i]) for i in idx]),
+        "dynamics_terms": (lambda: sm.dynamics_terms(q, qd), "crba+computeCoriolisMatrix+computeGeneralizedGravity", lambda: [three(i) for i in idx]),
+    }
+    out = {}
+    for name, (ours, peer, theirs) in rows.items():
+        best_ours, best_theirs = float("inf"), float("inf")
+        for _ in range(rounds):
+            best_ours = min(best_ours, median_pass(ours, reps, len(qs)))
+            best_theirs = min(best_theirs, median_pass(theirs, reps, len(qs)))
+        out[name] = {"peer": peer, "simgap_batch_ns": best_ours, "pinocchio_loop_ns": best_theirs, "speedup": best_theirs / best_ours}
+    # the batch H equals Pinocchio's (upper triangle) on a few states
+    h = sm.mass_matrix(q[:50])
+    hp = np.array([np.triu(pin.crba(model, data, x)) for x in qs[:50]])
+    hp = hp + np.triu(hp, 1).transpose(0, 2, 1)
+    out["max_abs_difference_of_mass_matrix"] = float(np.abs(h - hp).max())
+    return out
 
 
 def pinocchio_model(pin, urdf: Path, locked: list[str]):
@@ -239,7 +294,13 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", type=Path, help="also write the results here")
     ap.add_argument("--no-native", action="store_true", help="skip the native Pinocchio timer")
+    ap.add_argument("--chains", default="2,4,8,16,32,64", help="random chain sizes, comma-separated ('' for none)")
+    ap.add_argument("--batch-count", type=int, default=100_000, help="states of the batch rows (0: no batch rows)")
+    ap.add_argument("--batch-robots", default="panda", help="robots of the batch rows, comma-separated")
+    ap.add_argument("--batch-threads", type=int, default=1, help="threads of simgap's batch calls (RAYON_NUM_THREADS)")
+    ap.add_argument("--batch-reps", type=int, default=3, help="timed passes of the batch rows, median reported")
     args = ap.parse_args()
+    os.environ["RAYON_NUM_THREADS"] = str(args.batch_threads)
 
     try:
         import pinocchio as pin
@@ -256,10 +317,16 @@ def main() -> int:
 
     overhead = python_overhead(pin, args.reps, args.count)
     results = {"pinocchio_version": pin.__version__, "count": args.count, "reps": args.reps, "rounds": args.rounds, "python_call_overhead_ns": overhead, "robots": {}}
+    results["batch"] = {"count": args.batch_count, "threads": args.batch_threads, "reps": args.batch_reps, "robots": {}}
     with tempfile.TemporaryDirectory() as tmp:
-        for name, rel, tip, locked in ROBOTS:
+        chains = [int(c) for c in args.chains.split(",") if c.strip()]
+        robots = list(ROBOTS) + [(f"chain{n}", f"chain{n}", None, []) for n in chains]
+        for name, rel, tip, locked in robots:
             if rel is None:
                 urdf = ROOT / "crates" / "simgap-core" / "models" / "paper_arm.urdf"
+            elif rel.startswith("chain"):
+                urdf = Path(tmp) / f"{rel}.urdf"
+                subprocess.run([str(TIMINGS), "--robot", rel, "--write-urdf", str(urdf)], check=True)
             elif rdir is None:
                 print(f"skipping {name}: example-robot-data not found (make venv, or set SIMGAP_ROBOTS_DIR)", file=sys.stderr)
                 continue
@@ -285,6 +352,9 @@ def main() -> int:
                     keep_min(entry, "pinocchio_native", json.loads(out.stdout)["ns_per_call"])
                 keep_min(entry, "pinocchio_python", python_timings(pin, model, states, args.reps))
             results["robots"][name] = entry
+            if args.batch_count > 0 and name in args.batch_robots.split(","):
+                batch_states = random_states(model, args.batch_count, args.seed + 1)
+                results["batch"]["robots"][name] = batch_timings(pin, model, urdf, tip, batch_states, args.batch_reps, args.rounds)
 
     print_table(results)
     print(json.dumps(results))
@@ -326,6 +396,14 @@ def print_table(results) -> None:
             else:
                 cols += [f"{'-':>10s}", f"{'-':>6s}", f"{'-':>6s}"]
             print(" ".join(cols) + f"  {peer}" + (f" ({note})" if note else ""))
+    batch = results.get("batch", {})
+    for robot, rows in batch.get("robots", {}).items():
+        print(f"\n## batch: {robot}, {batch['count']} states, simgap on {batch['threads']} thread(s), median of {batch['reps']} passes")
+        print(f"{'simgap batch call':20s} {'simgap':>8s} {'pin loop':>9s} {'speed-up':>8s}  Python loop over")
+        for fn, r in rows.items():
+            if isinstance(r, dict):
+                print(f"{fn:20s} {r['simgap_batch_ns']:8.0f} {r['pinocchio_loop_ns']:9.0f} {r['speedup']:7.1f}x  {r['peer']}")
+        print(f"(max |H_simgap - H_pinocchio| over 50 states: {rows['max_abs_difference_of_mass_matrix']:.1e})")
 
 
 if __name__ == "__main__":

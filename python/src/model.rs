@@ -4,7 +4,9 @@
 //! state per row) and returns `float64` arrays in C order: a matrix result has shape
 //! `(dof, dof)` or `(N, dof, dof)` with row `i` = equation `i`; a vector result `(dof,)` or
 //! `(N, dof)`. Batches release the GIL and run on all cores (rayon, one workspace per thread),
-//! returning to Python between chunks of states to check for Ctrl-C (`KeyboardInterrupt`).
+//! returning to Python between chunks of states to check for Ctrl-C (`KeyboardInterrupt`);
+//! H, C, Ḣ, g, C q̇, bias torques, inverse dynamics and `dynamics_terms` go through
+//! `simgap_core::batch`, several states per SIMD register.
 //! The physics is entirely in `simgap_core`; this file only checks, converts and dispatches.
 
 use std::borrow::Cow;
@@ -62,6 +64,9 @@ fn write_c_order(m: &DMatrix<f64>, out: &mut [f64]) {
 fn states_per_check(dof: usize) -> usize {
     (400_000 / (dof * dof).max(1)).max(16)
 }
+
+/// A batch kernel with one output: consecutive states' inputs, their outputs.
+type BlockKernel = Box<dyn Fn(&Model, BlockInputs<'_>, &mut [f64]) + Sync>;
 
 /// Below this many states a batch runs on the calling thread.
 const PARALLEL_THRESHOLD: usize = 64;
@@ -154,6 +159,61 @@ where
     Ok(())
 }
 
+/// Inputs of a block of states: up to three state-major slices (unused ones empty).
+type BlockInputs<'a> = [&'a [f64]; 3];
+
+/// Evaluates `kernel` (a `simgap_core::batch` function) on every state of a batch of `len`
+/// states: the GIL released, blocks of states in parallel, a signal check between chunks.
+/// Each call of `kernel` gets consecutive states' inputs and outputs, state after state.
+fn evaluate_blocks<K>(py: Python<'_>, this: &PyModel, len: usize, inputs: &[Cow<'_, [f64]>], outputs: &[&Bound<'_, PyArrayDyn<f64>>], kernel: K) -> PyResult<()>
+where
+    K: Fn(&Model, BlockInputs<'_>, Outputs<'_>) + Sync,
+{
+    let model = this.model();
+    let n = model.dof();
+    let input = |a: usize, first: usize, end: usize| inputs.get(a).map_or(&[][..], |x| &x[first * n..end * n]);
+    // SAFETY: as in `evaluate`: fresh, contiguous arrays not yet visible to Python.
+    let mut bufs = outputs.iter().map(|o| unsafe { o.as_slice_mut() }.expect("a fresh array is contiguous"));
+    let mut outs: [&mut [f64]; 3] = std::array::from_fn(|_| bufs.next().unwrap_or_default());
+    let widths = outs.each_ref().map(|o| o.len().checked_div(len).unwrap_or(0));
+    // chunks between signal checks, each split into blocks (whole SIMD registers) for the threads
+    let chunk = states_per_check(n).next_multiple_of(BLOCK_STATES);
+    let threads = rayon::current_num_threads().max(1);
+    let mut start = 0;
+    while start < len {
+        let end = (start + chunk).min(len);
+        let count = end - start;
+        let [a, b, c] = &mut outs;
+        let (a, b, c) = (&mut a[start * widths[0]..end * widths[0]], &mut b[start * widths[1]..end * widths[1]], &mut c[start * widths[2]..end * widths[2]]);
+        py.detach(|| {
+            let block = if count < PARALLEL_THRESHOLD || threads == 1 { count } else { count.div_ceil(4 * threads).next_multiple_of(BLOCK_STATES) };
+            let nblocks = count.div_ceil(block);
+            let blocks: Vec<_> = blocks_of(a, widths[0], block, nblocks)
+                .into_iter()
+                .zip(blocks_of(b, widths[1], block, nblocks))
+                .zip(blocks_of(c, widths[2], block, nblocks))
+                .enumerate()
+                .collect();
+            let run_block = |(i, ((a, b), c)): (usize, ((&mut [f64], &mut [f64]), &mut [f64]))| {
+                let first = start + i * block;
+                let last = (first + block).min(end);
+                kernel(&model, [input(0, first, last), input(1, first, last), input(2, first, last)], [a, b, c]);
+            };
+            if nblocks <= 1 {
+                blocks.into_iter().for_each(run_block);
+            } else {
+                blocks.into_par_iter().for_each(run_block);
+            }
+        });
+        py.check_signals()?;
+        start = end;
+    }
+    Ok(())
+}
+
+/// States per parallel block are a multiple of this (the widest SIMD register holds 8).
+const BLOCK_STATES: usize = 8;
+
 /// Parses a formulation name.
 pub(crate) fn formulation(name: &str) -> PyResult<Formulation> {
     match name {
@@ -189,14 +249,20 @@ impl PyModel {
         self.model.read().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
-    /// Evaluates a kernel with one matrix output per state.
-    fn matrix_fn<'py, K>(&self, py: Python<'py>, args: &[(&str, &ArrayArg<'py>)], kernel: K) -> PyResult<Bound<'py, PyAny>>
+    /// Evaluates a kernel with one matrix output per state; a batch goes through `batch`
+    /// (a `simgap_core::batch` function on consecutive states).
+    fn matrix_fn<'py, K, B>(&self, py: Python<'py>, args: &[(&str, &ArrayArg<'py>)], kernel: K, batch_kernel: B) -> PyResult<Bound<'py, PyAny>>
     where
         K: Fn(&Model, &mut Workspace, Inputs<'_>, &mut DMatrix<f64>) + Sync,
+        B: Fn(&Model, BlockInputs<'_>, &mut [f64]) + Sync,
     {
         let n = self.dof;
         let (batch, data) = joint_vectors(n, args)?;
         let out = output(py, &batch.shape(&[n, n]));
+        if let Batch::Many(len) = batch {
+            evaluate_blocks(py, self, len, &data, &[&out], |m, i, [o, _, _]| batch_kernel(m, i, o))?;
+            return Ok(out.into_any());
+        }
         evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
             kernel(m, &mut s.ws, i, &mut s.matrix);
             write_c_order(&s.matrix, o);
@@ -205,14 +271,19 @@ impl PyModel {
         Ok(out.into_any())
     }
 
-    /// Evaluates a kernel with one joint-vector output per state.
-    fn vector_fn<'py, K>(&self, py: Python<'py>, args: &[(&str, &ArrayArg<'py>)], kernel: K) -> PyResult<Bound<'py, PyAny>>
+    /// Evaluates a kernel with one joint-vector output per state; a batch goes through
+    /// `batch_kernel` when given (a `simgap_core::batch` function on consecutive states).
+    fn vector_fn<'py, K>(&self, py: Python<'py>, args: &[(&str, &ArrayArg<'py>)], kernel: K, batch_kernel: Option<BlockKernel>) -> PyResult<Bound<'py, PyAny>>
     where
         K: Fn(&Model, &mut Workspace, Inputs<'_>, &mut [f64]) + Sync,
     {
         let n = self.dof;
         let (batch, data) = joint_vectors(n, args)?;
         let out = output(py, &batch.shape(&[n]));
+        if let (Batch::Many(len), Some(batch_kernel)) = (batch, batch_kernel) {
+            evaluate_blocks(py, self, len, &data, &[&out], |m, i, [o, _, _]| batch_kernel(m, i, o))?;
+            return Ok(out.into_any());
+        }
         evaluate(py, self, batch, &data, &[&out], |m, s, i, [o, _, _]| {
             kernel(m, &mut s.ws, i, o);
             Ok(())
@@ -333,46 +404,56 @@ impl PyModel {
     /// Mass matrix H(q) (composite rigid body algorithm): symmetric positive definite.
     #[pyo3(signature = (q))]
     fn mass_matrix<'py>(&self, py: Python<'py>, q: ArrayArg<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.matrix_fn(py, &[("q", &q)], |m, ws, [q, _, _], out| simgap_core::mass_matrix_into(m, ws, q, out))
+        self.matrix_fn(py, &[("q", &q)], |m, ws, [q, _, _], out| simgap_core::mass_matrix_into(m, ws, q, out), |m, [q, _, _], out| {
+            simgap_core::mass_matrix_batch(m, q, out)
+        })
     }
 
     /// Coriolis matrix C(q, q̇) of the chosen formulation.
     #[pyo3(signature = (q, qd, formulation = "euler_lagrange"))]
     fn coriolis_matrix<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, formulation: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self::formulation(formulation)?;
-        self.matrix_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::coriolis_matrix_into(m, ws, q, qd, f, out))
+        self.matrix_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::coriolis_matrix_into(m, ws, q, qd, f, out), |m, [q, qd, _], out| {
+            simgap_core::coriolis_matrix_batch(m, q, qd, f, out)
+        })
     }
 
     /// Time derivative of the mass matrix, Ḣ(q, q̇) = Σ_k ∂H/∂q_k q̇_k.
     #[pyo3(signature = (q, qd))]
     fn mass_matrix_derivative<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.matrix_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::mass_matrix_derivative_into(m, ws, q, qd, out))
+        self.matrix_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::mass_matrix_derivative_into(m, ws, q, qd, out), |m, [q, qd, _], out| {
+            simgap_core::mass_matrix_derivative_batch(m, q, qd, out)
+        })
     }
 
     /// Coriolis and centrifugal torques C(q, q̇) q̇ of the chosen formulation.
     #[pyo3(signature = (q, qd, formulation = "euler_lagrange"))]
     fn coriolis_torques<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, formulation: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self::formulation(formulation)?;
-        self.vector_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::coriolis_torques_into(m, ws, q, qd, f, out))
+        let batch: BlockKernel = Box::new(move |m, [q, qd, _], out| simgap_core::coriolis_torques_batch(m, q, qd, f, out));
+        self.vector_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::coriolis_torques_into(m, ws, q, qd, f, out), Some(batch))
     }
 
     /// Gravity torques g(q) = ∂U/∂q; equivalent to inverse_dynamics(q, 0, 0).
     #[pyo3(signature = (q))]
     fn gravity_torques<'py>(&self, py: Python<'py>, q: ArrayArg<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.vector_fn(py, &[("q", &q)], |m, ws, [q, _, _], out| simgap_core::gravity_torques_into(m, ws, q, out))
+        let batch: BlockKernel = Box::new(|m, [q, _, _], out| simgap_core::gravity_torques_batch(m, q, out));
+        self.vector_fn(py, &[("q", &q)], |m, ws, [q, _, _], out| simgap_core::gravity_torques_into(m, ws, q, out), Some(batch))
     }
 
     /// Joint torques τ = H q̈ + C q̇ + g (recursive Newton–Euler), with the true Coriolis torque.
     #[pyo3(signature = (q, qd, qdd))]
     fn inverse_dynamics<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, qdd: ArrayArg<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.vector_fn(py, &[("q", &q), ("qd", &qd), ("qdd", &qdd)], |m, ws, [q, qd, qdd], out| simgap_core::inverse_dynamics_into(m, ws, q, qd, qdd, out))
+        let batch: BlockKernel = Box::new(|m, [q, qd, qdd], out| simgap_core::inverse_dynamics_batch(m, q, qd, qdd, out));
+        self.vector_fn(py, &[("q", &q), ("qd", &qd), ("qdd", &qdd)], |m, ws, [q, qd, qdd], out| simgap_core::inverse_dynamics_into(m, ws, q, qd, qdd, out), Some(batch))
     }
 
     /// Bias torques C(q, q̇) q̇ + g(q) of the chosen formulation.
     #[pyo3(signature = (q, qd, formulation = "euler_lagrange"))]
     fn bias_torques<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, formulation: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self::formulation(formulation)?;
-        self.vector_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::bias_torques_into(m, ws, q, qd, f, out))
+        let batch: BlockKernel = Box::new(move |m, [q, qd, _], out| simgap_core::bias_torques_batch(m, q, qd, f, out));
+        self.vector_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::bias_torques_into(m, ws, q, qd, f, out), Some(batch))
     }
 
     /// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
@@ -417,6 +498,10 @@ impl PyModel {
         let (batch, data) = joint_vectors(n, &[("q", &q), ("qd", &qd)])?;
         let (mshape, vshape) = (batch.shape(&[n, n]), batch.shape(&[n]));
         let (h, c, g) = (output(py, &mshape), output(py, &mshape), output(py, &vshape));
+        if let Batch::Many(len) = batch {
+            evaluate_blocks(py, self, len, &data, &[&h, &c, &g], |m, [q, qd, _], [h, c, g]| simgap_core::dynamics_terms_batch(m, q, qd, f, h, c, g))?;
+            return Ok((h.into_any(), c.into_any(), g.into_any()));
+        }
         evaluate(py, self, batch, &data, &[&h, &c, &g], |m, s, [q, qd, _], [h, c, g]| {
             simgap_core::dynamics_terms_into(m, &mut s.ws, q, qd, f, &mut s.terms);
             write_c_order(&s.terms.mass_matrix, h);

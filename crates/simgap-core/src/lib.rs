@@ -46,12 +46,19 @@
 //! assert!((c_simple - 0.5 * hdot).norm() < 1e-12);
 //! ```
 //!
+//! # Batches
+//!
+//! The [`batch`] functions (`mass_matrix_batch`, `dynamics_terms_batch`, ...) evaluate many
+//! states at once, several per SIMD register (AVX-512 or AVX2, picked at run time).
+//!
 //! References: R. Featherstone, *Rigid Body Dynamics Algorithms*, 2008; S. Echeandia and
 //! P. M. Wensing, "Numerical methods to compute the Coriolis matrix and Christoffel symbols for
 //! rigid-body systems", J. Comput. Nonlinear Dynam., 2021.
 
 pub mod algorithms;
+pub mod batch;
 pub mod error;
+pub(crate) mod lanes;
 pub mod model;
 pub mod robots;
 pub mod spatial;
@@ -59,9 +66,14 @@ pub mod urdf;
 pub mod workspace;
 
 pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matrix_derivative, mass_matrix_derivative_into, Formulation};
+pub use batch::{
+    batch_lanes, bias_torques_batch, coriolis_matrix_batch, coriolis_torques_batch, dynamics_terms_batch, gravity_torques_batch, inverse_dynamics_batch,
+    mass_matrix_batch, mass_matrix_derivative_batch,
+};
 pub use algorithms::crba::{mass_matrix, mass_matrix_into};
 pub use algorithms::energy::{kinetic_energy, potential_energy};
-pub use algorithms::forward_dynamics::{forward_dynamics, forward_dynamics_into, solve_spd_in_place, try_solve_spd_in_place};
+pub use algorithms::aba::forward_dynamics_aba_into;
+pub use algorithms::forward_dynamics::{forward_dynamics, forward_dynamics_crba_into, forward_dynamics_into, solve_spd_in_place, try_solve_spd_in_place, ABA_MIN_DOF};
 pub use algorithms::kinematics::forward_kinematics;
 pub use algorithms::regressor::{inertia_from_parameters, inertial_parameters, inverse_dynamics_regressor, inverse_dynamics_regressor_into, PARAMS_PER_LINK};
 pub use algorithms::rnea::{

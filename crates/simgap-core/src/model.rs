@@ -2,6 +2,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use crate::algorithms::two_joint::TwoJoint;
 use crate::error::{Error, Result};
 use crate::spatial::{SpatialInertia, Transform};
 
@@ -107,6 +108,8 @@ pub struct Model {
     gravity: Vector3<f64>,
     cache: Vec<JointCache>,
     warnings: Vec<String>,
+    /// Closed form of a two-joint rotational arm, generated from the parameters.
+    two_joint: Option<Box<TwoJoint>>,
 }
 
 /// Standard gravity along −z [m/s²].
@@ -140,7 +143,9 @@ impl Model {
             return Err(Error::Massless { source_name: "<code>".into(), links: joints.iter().map(|j| j.link.clone()).collect() });
         }
         let cache = joints.iter().map(JointCache::new).collect();
-        Ok(Model { name: name.into(), base_link: base_link.into(), joints, gravity: STANDARD_GRAVITY, cache, warnings: Vec::new() })
+        let mut model = Model { name: name.into(), base_link: base_link.into(), joints, gravity: STANDARD_GRAVITY, cache, warnings: Vec::new(), two_joint: None };
+        model.refresh_closed_forms();
+        Ok(model)
     }
 
     /// Robot name.
@@ -182,6 +187,7 @@ impl Model {
     /// Sets gravity [m/s²] (default −9.81 along z).
     pub fn set_gravity(&mut self, gravity: Vector3<f64>) {
         self.gravity = gravity;
+        self.refresh_closed_forms();
     }
 
     /// Replaces the inertia of the link moved by joint `index`.
@@ -194,6 +200,7 @@ impl Model {
     pub fn set_link_inertia(&mut self, index: usize, inertia: SpatialInertia) -> Result<()> {
         check_inertia("<code>", &self.joints[index].link, &inertia).map_err(|e| Error::InvalidModel(e.to_string()))?;
         self.joints[index].inertia = inertia;
+        self.refresh_closed_forms();
         Ok(())
     }
 
@@ -217,6 +224,24 @@ impl Model {
 
     pub(crate) fn push_warning(&mut self, w: String) {
         self.warnings.push(w);
+    }
+
+    /// Regenerates the closed forms after a parameter changed.
+    fn refresh_closed_forms(&mut self) {
+        self.two_joint = None;
+        self.two_joint = TwoJoint::of(self).map(Box::new);
+    }
+
+    /// The closed form of a two-joint rotational arm, if this is one.
+    #[inline]
+    pub(crate) fn two_joint(&self) -> Option<&TwoJoint> {
+        self.two_joint.as_deref()
+    }
+
+    /// The precomputed pieces of joint `i`'s transform.
+    #[inline]
+    pub(crate) fn joint_cache(&self, i: usize) -> &JointCache {
+        &self.cache[i]
     }
 
     /// Transform from the parent link frame to joint `i`'s frame at position `qi`.

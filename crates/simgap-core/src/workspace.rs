@@ -10,6 +10,8 @@ use crate::spatial::{Force, InertiaRate, Motion, SpatialInertia, Transform};
 /// Create one per thread with [`Workspace::new`]; algorithms taking `(model, ws, ...)` never
 /// allocate. Its fields hold the results of the last pass (world-frame quantities about the
 /// world origin) and may be read after a call, as Pinocchio's `Data`.
+/// [`forward_dynamics`](crate::forward_dynamics) (articulated-body algorithm, two-joint closed
+/// form) and [`dynamics_terms`](crate::dynamics_terms) of a two-joint arm leave them untouched.
 #[derive(Clone, Debug)]
 pub struct Workspace {
     pub(crate) dof: usize,
@@ -35,6 +37,8 @@ pub struct Workspace {
     pub forces: Vec<Force>,
     pub(crate) scratch_matrix: DMatrix<f64>,
     pub(crate) scratch_vector: DVector<f64>,
+    /// One-lane scratch of the fast paths (small chains, articulated-body algorithm).
+    pub(crate) lanes: crate::algorithms::soa::SoaWs<1>,
 }
 
 impl Workspace {
@@ -56,6 +60,7 @@ impl Workspace {
             forces: vec![Force::ZERO; n],
             scratch_matrix: DMatrix::zeros(n, n),
             scratch_vector: DVector::zeros(n),
+            lanes: crate::algorithms::soa::SoaWs::new(n),
         }
     }
 

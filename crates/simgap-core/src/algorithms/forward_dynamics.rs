@@ -11,8 +11,12 @@ use crate::workspace::Workspace;
 
 /// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
 ///
-/// Computes the bias torques (Newton–Euler), the mass matrix (composite rigid body algorithm)
-/// and solves by an in-place Cholesky factorisation.
+/// The algorithm is picked by the model: for an arm of two rotational joints, a closed form
+/// generated from the model when it was built; from [`ABA_MIN_DOF`] joints on, the
+/// articulated-body algorithm ([`forward_dynamics_aba_into`](crate::forward_dynamics_aba_into)),
+/// O(n); below, the bias torques (Newton–Euler), the mass matrix (composite rigid body
+/// algorithm) and an in-place Cholesky solve ([`forward_dynamics_crba_into`]), O(n³). All
+/// give the same q̈ to rounding.
 ///
 /// `q`, `qd`, `tau`: positions, velocities and joint torques, length `model.dof()`.
 ///
@@ -26,11 +30,35 @@ pub fn forward_dynamics(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64]
     out
 }
 
+/// Chains of at least this many joints take the articulated-body algorithm in
+/// [`forward_dynamics`]: measured side by side (`cargo bench --bench dynamics --
+/// forward_dynamics_`), it is faster than CRBA + Cholesky from two joints on.
+pub const ABA_MIN_DOF: usize = 2;
+
 /// In-place [`forward_dynamics`].
 ///
 /// # Panics
 /// As [`forward_dynamics`].
 pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
+    let n = model.dof();
+    if let Some(arm) = model.two_joint() {
+        check_len(model, "q", q);
+        check_len(model, "qd", qd);
+        check_len(model, "tau", tau);
+        check_len(model, "out", out);
+        arm.forward_dynamics(q, qd, tau, formulation, out);
+    } else if n >= ABA_MIN_DOF {
+        crate::algorithms::aba::forward_dynamics_aba_into(model, ws, q, qd, tau, formulation, out);
+    } else {
+        forward_dynamics_crba_into(model, ws, q, qd, tau, formulation, out);
+    }
+}
+
+/// [`forward_dynamics`] by bias torques, CRBA and Cholesky, whatever the number of joints.
+///
+/// # Panics
+/// As [`forward_dynamics`].
+pub fn forward_dynamics_crba_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
     check_len(model, "tau", tau);
     let n = model.dof();
     // bias torques; kinematics and world inertias stay in the workspace for H

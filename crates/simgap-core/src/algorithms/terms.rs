@@ -28,7 +28,9 @@ impl DynamicsTerms {
 }
 
 /// H(q), C(q, q̇) and g(q) in one call, cheaper than three: the kinematics, composite
-/// inertias and momenta are computed once.
+/// inertias and momenta are computed once. An arm of two rotational joints uses its closed
+/// form, generated when the model was built (the general algorithms give the same numbers to
+/// rounding).
 ///
 /// # Panics
 /// If a length or `ws` does not match the model.
@@ -46,6 +48,12 @@ pub fn dynamics_terms(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], 
 pub fn dynamics_terms_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], formulation: Formulation, out: &mut DynamicsTerms) {
     let n = model.dof();
     assert!(out.mass_matrix.shape() == (n, n) && out.coriolis_matrix.shape() == (n, n) && out.gravity_torques.len() == n, "dynamics terms output shape");
+    if let Some(arm) = model.two_joint() {
+        crate::algorithms::kinematics::check_len(model, "q", q);
+        crate::algorithms::kinematics::check_len(model, "qd", qd);
+        arm.terms_into(q, qd, formulation, &mut out.mass_matrix, &mut out.coriolis_matrix, &mut out.gravity_torques);
+        return;
+    }
     second_order_pass(model, ws, q, qd);
     fill_second_order(model, ws, SecondOrderOut { h: Some(&mut out.mass_matrix), c: Some((&mut out.coriolis_matrix, formulation)), hdot: None });
     gravity_from_composites(model, ws, out.gravity_torques.as_mut_slice());
