@@ -328,13 +328,12 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
     let mut th = theta_of(&phi0, &z0);
     let mut f = objective(&th);
     let mut lambda = 1e-3;
-    let (mut iters, mut evals, mut small) = (0, 0, 0);
+    let mut small = 0;
     let mut gp = g.clone();
     for i in first..first + w {
         gp[(i, i)] += mu;
     }
     for _ in 0..MAX_ITERATIONS {
-        iters += 1;
         // Jacobian of θ with respect to x = (z, φ)
         let mut jac = DMatrix::<f64>::zeros(k, nx);
         for (a, &i) in lin.iter().enumerate() {
@@ -375,7 +374,6 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
             let (z2, phi2) = split(&x2);
             let th2 = theta_of(&phi2, &z2);
             let f2 = objective(&th2);
-            evals += 1;
             if f2.is_finite() && f2 <= f {
                 small = if (f - f2) <= 1e-6 * f.abs() { small + 1 } else { 0 };
                 x = x2;
@@ -387,16 +385,9 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
             }
             lambda *= 4.0;
         }
-        if std::env::var_os("SIMGAP_DEBUG_INERTIAL_ITER").is_some() {
-            let gfree: f64 = free.iter().map(|&a| grad[a] * grad[a]).sum::<f64>().sqrt();
-            eprintln!("  it {iters}: f = {f:.10e} lambda {lambda:.1e} |g_free| {gfree:.3e} free {}/{nx} x = {:?}", free.len(), x.iter().map(|v| format!("{v:.3}")).collect::<Vec<_>>());
-        }
         if !improved || small >= 2 || lambda > 1e12 {
             break;
         }
-    }
-    if std::env::var_os("SIMGAP_DEBUG_INERTIAL").is_some() {
-        eprintln!("inertial LM: {iters} iterations, {evals} evaluations, f = {f:.6e}, mu = {mu:.3e}");
     }
     let eig = g.clone().symmetric_eigen();
     let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);

@@ -23,6 +23,7 @@ pub mod fit;
 pub mod html;
 pub mod inertial;
 pub mod locate;
+pub mod pitfalls;
 pub mod report;
 pub mod resim;
 pub mod select;

@@ -137,9 +137,6 @@ impl<'a> Context<'a> {
             })
             .collect();
         let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-        if std::env::var_os("SIMGAP_DEBUG_INERTIAL").is_some() {
-            eprintln!("inertial prior weight: cross-validated MSE {scores:?}");
-        }
         scores.iter().filter(|s| s.1 <= best * 1.01).map(|s| s.0).fold(crate::inertial::DEFAULT_PRIOR_WEIGHT.min(1e-6), f64::max)
     }
 
