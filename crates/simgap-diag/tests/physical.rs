@@ -241,7 +241,13 @@ fn no_effect_is_physically_impossible_on_dfki_runs() {
     let model = Model::from_urdf_file(dp.join("system_identification/identified_parameters/design_C.0/model_3.1/acrobot.urdf")).unwrap();
     let rec = dp.join("experiment_records/design_C.0/20220914/sys_id");
     let load = |i: &str| {
-        let mut r = head(simgap_sim::csv_log::read_csv_auto(&rec.join(format!("trajectory_{i}.csv.gz"))).unwrap(), 4.0);
+        let path = rec.join(format!("trajectory_{i}.csv.gz"));
+        let mut r = simgap_sim::csv_log::read_csv_auto(&path).unwrap();
+        // the torque the drives report (tau_meas1/2), as /joint_effort_measured would carry it
+        let joints = simgap_sim::csv_log::DFKI_DOUBLE_PENDULUM_JOINTS;
+        let measured = simgap_sim::csv_log::CsvMapping::from_suffixes("time", &joints, &["1", "2"], "pos_meas", None, Some("tau_meas"), None, None);
+        r.tau_measured = simgap_sim::csv_log::read_csv(&path, &measured).unwrap().tau;
+        let mut r = head(r, 4.0);
         replay(&mut r, 0.002);
         r
     };
