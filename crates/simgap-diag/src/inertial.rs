@@ -137,7 +137,7 @@ impl InertialPrior {
 /// of the origin: mass > 0 and a positive (semi-)definite pseudo-inertia (eigenvalues above
 /// −1e-9 of its scale).
 pub fn link_is_physical(p: &[f64; PARAMS_PER_LINK], reach: f64) -> bool {
-    if !(p[0] > 0.0) || p.iter().any(|v| !v.is_finite()) {
+    if p.iter().any(|v| !v.is_finite()) || p[0] <= 0.0 {
         return false;
     }
     let j = pseudo_inertia(p);
@@ -289,9 +289,9 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
         }
         for l in 0..nl {
             let p = parameters_of_log_cholesky(&phi[10 * l..10 * l + 10]);
-            for a in 0..PARAMS_PER_LINK {
+            for (a, v) in p.iter().enumerate() {
                 let idx = PARAMS_PER_LINK * l + a;
-                th[first + idx] = (p[a] - prior.nominal[idx]) / prior.scales[idx];
+                th[first + idx] = (v - prior.nominal[idx]) / prior.scales[idx];
             }
         }
         th
