@@ -365,11 +365,15 @@ fn describe_inertial(model: &Model, deltas: &[LinkDelta]) -> String {
             let old = &j.inertia;
             let mut words = Vec::new();
             if d.mass.abs() > 1e-4 * old.mass.max(1e-3) {
-                words.push(if old.mass > 0.0 { format!("mass {} ({} kg)", percent(d.mass / old.mass), sig3(d.mass)) } else { format!("mass {} kg", sig3(d.mass)) });
+                let ratio = (old.mass + d.mass) / old.mass;
+                let bound = if old.mass > 0.0 && (ratio <= 1.001 / crate::inertial::MASS_FACTOR || ratio >= 0.999 * crate::inertial::MASS_FACTOR) { " (at the plausibility bound: the data pull further)" } else { "" };
+                words.push(if old.mass > 0.0 { format!("mass {} ({} kg){bound}", percent(d.mass / old.mass), sig3(d.mass)) } else { format!("mass {} kg", sig3(d.mass)) });
             }
             let com: Vec<String> = ["x", "y", "z"].iter().zip(d.com).filter(|(_, c)| c.abs() >= 5e-4).map(|(a, c)| format!("{}{:.0} mm along {a}", if c < 0.0 { "−" } else { "+" }, 1e3 * c.abs())).collect();
             if !com.is_empty() {
-                words.push(format!("COM {}", com.join(", ")));
+                let reach = crate::inertial::link_reach(model)[d.joint];
+                let at = (old.com() + Vector3::from(d.com)).norm() >= 0.999 * reach;
+                words.push(format!("COM {}{}", com.join(", "), if at { format!(" (at its reach, {} m from the joint)", sig3(reach)) } else { String::new() }));
             }
             // the moment about the joint axis through the centre of mass
             let a = j.axis.normalize();

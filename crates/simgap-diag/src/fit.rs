@@ -202,9 +202,11 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
             *x = true;
         }
     }
+    // columns that are zero everywhere (parameters a planar motion does not see) add nothing
+    let zero: Vec<bool> = cols.iter().map(|c| c.values.iter().all(|v| *v == 0.0)).collect();
     for a in 0..k {
         for b in a..k {
-            if done[a] && done[b] {
+            if (done[a] && done[b]) || zero[a] || zero[b] {
                 continue;
             }
             p.dot_blocks(cols[a], cols[b], &mut buf);
@@ -212,6 +214,9 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
                 g[bl][(a, b)] = *v;
                 g[bl][(b, a)] = *v;
             }
+        }
+        if zero[a] {
+            continue;
         }
         p.dot_blocks(cols[a], &y, &mut buf);
         for (bl, v) in buf.iter().enumerate() {

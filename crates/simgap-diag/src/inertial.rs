@@ -137,7 +137,7 @@ impl InertialPrior {
 /// of the origin: mass > 0 and a positive (semi-)definite pseudo-inertia (eigenvalues above
 /// −1e-9 of its scale).
 pub fn link_is_physical(p: &[f64; PARAMS_PER_LINK], reach: f64) -> bool {
-    if !(p[0] > 0.0) || p.iter().any(|v| !v.is_finite()) {
+    if p.iter().any(|v| !v.is_finite()) || p[0] <= 0.0 {
         return false;
     }
     let j = pseudo_inertia(p);
@@ -289,9 +289,9 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
         }
         for l in 0..nl {
             let p = parameters_of_log_cholesky(&phi[10 * l..10 * l + 10]);
-            for a in 0..PARAMS_PER_LINK {
+            for (a, v) in p.iter().enumerate() {
                 let idx = PARAMS_PER_LINK * l + a;
-                th[first + idx] = (p[a] - prior.nominal[idx]) / prior.scales[idx];
+                th[first + idx] = (v - prior.nominal[idx]) / prior.scales[idx];
             }
         }
         th
@@ -328,13 +328,12 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
     let mut th = theta_of(&phi0, &z0);
     let mut f = objective(&th);
     let mut lambda = 1e-3;
-    let (mut iters, mut evals, mut small) = (0, 0, 0);
+    let mut small = 0;
     let mut gp = g.clone();
     for i in first..first + w {
         gp[(i, i)] += mu;
     }
     for _ in 0..MAX_ITERATIONS {
-        iters += 1;
         // Jacobian of θ with respect to x = (z, φ)
         let mut jac = DMatrix::<f64>::zeros(k, nx);
         for (a, &i) in lin.iter().enumerate() {
@@ -375,7 +374,6 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
             let (z2, phi2) = split(&x2);
             let th2 = theta_of(&phi2, &z2);
             let f2 = objective(&th2);
-            evals += 1;
             if f2.is_finite() && f2 <= f {
                 small = if (f - f2) <= 1e-6 * f.abs() { small + 1 } else { 0 };
                 x = x2;
@@ -387,16 +385,9 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
             }
             lambda *= 4.0;
         }
-        if std::env::var_os("SIMGAP_DEBUG_INERTIAL_ITER").is_some() {
-            let gfree: f64 = free.iter().map(|&a| grad[a] * grad[a]).sum::<f64>().sqrt();
-            eprintln!("  it {iters}: f = {f:.10e} lambda {lambda:.1e} |g_free| {gfree:.3e} free {}/{nx} x = {:?}", free.len(), x.iter().map(|v| format!("{v:.3}")).collect::<Vec<_>>());
-        }
         if !improved || small >= 2 || lambda > 1e12 {
             break;
         }
-    }
-    if std::env::var_os("SIMGAP_DEBUG_INERTIAL").is_some() {
-        eprintln!("inertial LM: {iters} iterations, {evals} evaluations, f = {f:.6e}, mu = {mu:.3e}");
     }
     let eig = g.clone().symmetric_eigen();
     let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);

@@ -36,6 +36,7 @@ pub mod html;
 pub mod inertial;
 pub mod kstep;
 pub mod locate;
+pub mod pitfalls;
 pub mod report;
 pub mod resim;
 pub mod robust;

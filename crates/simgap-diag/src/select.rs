@@ -102,10 +102,8 @@ impl<'a> Context<'a> {
         let dof = problem.dof;
         let saturation_floor = (0..dof)
             .map(|j| {
-                // the 99.5th percentile of the delivered torque (a glitch sample does not count)
-                let mut v: Vec<f64> = data.iter().flat_map(|d| d.raw.tau_measured.iter().skip(j).step_by(d.dof).map(|x| x.abs())).filter(|x| x.is_finite()).collect();
-                v.sort_by(f64::total_cmp);
-                v.get(((v.len() as f64) * 0.995) as usize).or(v.last()).copied().unwrap_or(0.0)
+                // the largest torque the drive delivered
+                data.iter().flat_map(|d| d.raw.tau_measured.iter().skip(j).step_by(d.dof)).filter(|x| x.is_finite()).fold(0.0f64, |m, x| m.max(x.abs()))
             })
             .collect();
         let mut prior = prior.clone();
@@ -137,9 +135,6 @@ impl<'a> Context<'a> {
             })
             .collect();
         let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-        if std::env::var_os("SIMGAP_DEBUG_INERTIAL").is_some() {
-            eprintln!("inertial prior weight: cross-validated MSE {scores:?}");
-        }
         scores.iter().filter(|s| s.1 <= best * 1.01).map(|s| s.0).fold(crate::inertial::DEFAULT_PRIOR_WEIGHT.min(1e-6), f64::max)
     }
 
