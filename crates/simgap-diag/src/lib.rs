@@ -374,6 +374,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let (headline, headline_reason) = headline(&prep, &before_runs, &after_runs, before);
     let alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
     let mut notes = prep.notes.clone();
+    if moving {
+        notes.extend(pitfalls::urdf_pitfalls(model, data));
+    }
     for j in &location.per_joint {
         if let (Some(a), Some(m)) = (j.actuator_residual_l2, j.mechanics_residual_l2) {
             let (part, other) = if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };

@@ -190,7 +190,9 @@ impl CsvMapping {
     /// (`docs/text/software_structure.trajectorydata.rst`; e.g.
     /// `design_C.0/20220914/sys_id/trajectory_0*.csv.gz`): q = `pos_meas1/2`, q̇ = `vel_filt1/2`
     /// (the velocity the controller used; equal to `vel_meas` in sys-id runs), τ = `tau_con1/2`
-    /// (commanded, after the software limit), reference `pos_des1/2`, `vel_des1/2` when present.
+    /// (commanded, after the software limit), reference `pos_des1/2`, `vel_des1/2` when present;
+    /// detection adds the torque the drives report, `tau_meas1/2`, as the measured torque when
+    /// the file has it.
     /// Joints `Joint1`, `Joint2` as in the DFKI URDFs.
     pub fn dfki_double_pendulum() -> CsvMapping {
         Self::from_suffixes(
@@ -263,7 +265,11 @@ impl CsvMapping {
 pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
     let has = |c: &str| header.iter().any(|h| h == c);
     if ["time", "pos_meas1", "pos_meas2", "vel_filt1", "vel_filt2", "tau_con1", "tau_con2"].iter().all(|c| has(c)) {
-        return Some(CsvMapping::dfki_double_pendulum());
+        let mapping = CsvMapping::dfki_double_pendulum();
+        if has("tau_meas1") && has("tau_meas2") {
+            return Some(mapping.effort_measured(DFKI_DOUBLE_PENDULUM_JOINTS[0], "tau_meas1").effort_measured(DFKI_DOUBLE_PENDULUM_JOINTS[1], "tau_meas2"));
+        }
+        return Some(mapping);
     }
     if ["time", "pos1", "pos2", "vel1", "vel2", "tau1", "tau2"].iter().all(|c| has(c)) {
         return Some(CsvMapping::dfki_double_pendulum_sysid());
