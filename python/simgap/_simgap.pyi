@@ -374,7 +374,7 @@ _LogArg: TypeAlias = Run | str | PathLike[str]
 
 @final
 class Report:
-    """The result of :func:`diagnose`: the report of BRIEF §3.3, with the runs behind its figures.
+    """The result of :func:`diagnose`: the diagnosis report, with the runs behind its figures.
 
     Every dict attribute is the JSON report parsed afresh (``json.loads(report.to_json())``),
     so ``to_dict()`` has exactly the keys of the CLI's ``--json`` output; ``where`` (a Python

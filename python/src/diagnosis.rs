@@ -1,4 +1,4 @@
-//! `simgap.diagnose` and `simgap.Report`: the Python face of `simgap diagnose` (BRIEF §3.3).
+//! `simgap.diagnose` and `simgap.Report`: the Python face of `simgap diagnose`.
 //!
 //! `diagnose` reads the logs given as paths and runs `simgap_diag::diagnose` on its own thread
 //! while this one, with the GIL released in between, checks for Ctrl-C every 50 ms (as
@@ -166,8 +166,8 @@ fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Diagnosis> {
     }
 }
 
-/// Diagnoses the gap between `model` and logged runs (the `simgap diagnose` pipeline, BRIEF
-/// §3.3): **where** the gap lies, **which** unmodelled effect causes it, and **how far** it
+/// Diagnoses the gap between `model` and logged runs (the `simgap diagnose`
+/// pipeline): **where** the gap lies, **which** unmodelled effect causes it, and **how far** it
 /// shrinks on held-out runs once that effect is added.
 ///
 /// `fit`: runs used to fit and select effects; `holdout`: runs used only to measure the gap
@@ -189,7 +189,7 @@ pub(crate) fn diagnose(py: Python<'_>, model: &PyModel, fit: &Bound<'_, PyAny>, 
     Ok(PyReport { diagnosis: Arc::new(diagnosis), json })
 }
 
-/// The result of `diagnose`: the report of BRIEF §3.3, with the runs behind its figures.
+/// The result of `diagnose`: the diagnosis report, with the runs behind its figures.
 #[pyclass(module = "simgap._simgap", name = "Report", frozen)]
 pub(crate) struct PyReport {
     diagnosis: Arc<Diagnosis>,

@@ -1,4 +1,4 @@
-//! `simgap diagnose` (BRIEF §3.3): where the gap lies, which effect causes it, how far it
+//! `simgap diagnose`: where the gap lies, which effect causes it, how far it
 //! shrinks on held-out runs.
 //!
 //! Outputs are written atomically (to `X.tmp`, then renamed), and Ctrl-C removes the temporary

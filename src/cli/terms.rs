@@ -1,4 +1,4 @@
-//! `simgap terms`: the dynamics terms as JSON lines (BRIEF §3.4), exactly the library's numbers.
+//! `simgap terms`: the dynamics terms as JSON lines (one object per state: `joints`, `q`, `qd`, `H`, `C`, `Hdot`, `g`), exactly the library's numbers.
 
 use std::io::Write;
 use std::path::PathBuf;

@@ -2,7 +2,7 @@
 
 use std::collections::BTreeMap;
 
-/// The controller of an experiment (BRIEF §3.1).
+/// The controller of an experiment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ControllerKind {
     /// τ = Kp (q_ref − q) + Kv (q̇_ref − q̇).
@@ -36,7 +36,7 @@ impl std::str::FromStr for ControllerKind {
     }
 }
 
-/// The `simgap.experiment` metadata of a log (BRIEF §3.1).
+/// The `simgap.experiment` metadata of a log.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Experiment {
     /// Controller kind.

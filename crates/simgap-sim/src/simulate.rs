@@ -311,7 +311,7 @@ fn diverged_joint(q: &[f64], qd: &[f64], bound: f64) -> Option<usize> {
     (v > bound).then_some(j)
 }
 
-/// Simulates an experiment (BRIEF §3.1) into memory: the controller from
+/// Simulates an experiment (`simgap.experiment`) into memory: the controller from
 /// [`controller_from_experiment`] (gains mapped by joint name; `replay` is the logged run of
 /// a replay experiment), the plant `model` + `effects` under `formulation`, and the sample
 /// period of the experiment (overriding `params.sample_period`). The run's metadata is the
