@@ -25,6 +25,57 @@ pub enum Error {
         /// What the parser said.
         message: String,
     },
+    /// Elements nest deeper than any URDF does (refused before parsing: the XML readers recurse
+    /// once per level).
+    #[error("{source_name}: elements nest {depth} levels deep (more than {limit} from line {line} on); expected a URDF, whose elements nest a handful of levels (robot > link > visual > geometry > mesh)")]
+    TooDeep {
+        /// File name.
+        source_name: String,
+        /// The deepest nesting found.
+        depth: usize,
+        /// The most levels accepted.
+        limit: usize,
+        /// Line where the nesting first exceeds the limit.
+        line: usize,
+    },
+    /// An unexpanded xacro element or expression.
+    #[error("{source_name}: line {line}: {}; expected plain URDF: run xacro first (xacro robot.urdf.xacro > robot.urdf)", xacro_found(.element, .attribute, .value))]
+    Xacro {
+        /// File name.
+        source_name: String,
+        /// Line of the element.
+        line: usize,
+        /// The element's tag.
+        element: String,
+        /// The attribute holding the expression; empty when the element itself is a xacro one.
+        attribute: String,
+        /// The attribute's value.
+        value: String,
+    },
+    /// A number attribute that is not a number.
+    #[error("{source_name}: line {line}: <{element}>{owner} has {attribute}=\"{value}\"; expected {expected}")]
+    BadNumber {
+        /// File name.
+        source_name: String,
+        /// Line of the element.
+        line: usize,
+        /// The element's tag.
+        element: String,
+        /// The link or joint it belongs to, as ` of link 'name'` (empty when none).
+        owner: String,
+        /// The attribute.
+        attribute: String,
+        /// The text found.
+        value: String,
+        /// What was expected, e.g. `a number` or `3 numbers separated by spaces`.
+        expected: String,
+    },
+    /// The `<robot>` element has no `<link>`.
+    #[error("{source_name}: <robot> has no <link> element; expected at least one link, and joints connecting them")]
+    NoLinks {
+        /// File name.
+        source_name: String,
+    },
     /// A link name appears twice.
     #[error("{source_name}: link '{link}' is defined more than once; expected unique link names")]
     DuplicateLink {
@@ -162,6 +213,14 @@ pub enum Error {
     /// A model built in code is inconsistent.
     #[error("invalid model: {0}")]
     InvalidModel(String),
+}
+
+fn xacro_found(element: &str, attribute: &str, value: &str) -> String {
+    if attribute.is_empty() {
+        format!("<{element}> is an unexpanded xacro element")
+    } else {
+        format!("<{element}> attribute {attribute}=\"{value}\" is an unexpanded xacro expression")
+    }
 }
 
 /// Result alias of this crate.

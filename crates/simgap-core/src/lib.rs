@@ -54,6 +54,7 @@ pub mod algorithms;
 pub mod error;
 pub mod model;
 pub mod robots;
+pub mod sincos;
 pub mod spatial;
 pub mod urdf;
 pub mod workspace;
