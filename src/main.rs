@@ -40,6 +40,8 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // after Ctrl-C: 128 + SIGINT, as a shell reports an interrupted program
+        Err(e) if e.is::<cli::Interrupted>() => std::process::ExitCode::from(130),
         Err(e) => {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE

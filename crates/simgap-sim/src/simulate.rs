@@ -201,8 +201,10 @@ fn step_loop(
     // delay line: delay = m T + r; ring buffer of the last m + 2 commands
     let ratio = plant.delay() / period;
     let ratio = if (ratio - ratio.round()).abs() < 1e-9 { ratio.round() } else { ratio };
-    let m = ratio.floor() as usize;
-    let frac = ratio - m as f64;
+    // a delay longer than the run holds the first command throughout: the line never needs
+    // more slots than the run has samples (a delay of 1e9 s allocates nothing more)
+    let m = (ratio.floor() as usize).min(intervals + 1);
+    let frac = if m == intervals + 1 { 0.0 } else { ratio - m as f64 };
     let depth = m + 2;
     let mut history = vec![0.0; depth * n];
     let limits = plant.effort_limits();
