@@ -136,7 +136,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         println!("wrote {}", path.display());
     }
     if let Some(path) = job.html {
-        write_atomically(path, |tmp| simgap::diag::html::write_html(&diagnosis, tmp).map_err(Into::into))?;
+        write_atomically(path, |tmp| simgap::diag::html::write_html_for(&diagnosis, Some(job.model), tmp).map_err(Into::into))?;
         println!("wrote {}", path.display());
     }
     if let Some(path) = job.mcap {
