@@ -89,7 +89,7 @@ fn tick_decimals(span: f64) -> usize {
     if !(span.is_finite() && span > 0.0) {
         return 3;
     }
-    ((-(span / 5.0).log10()).ceil().max(0.0) as usize + 1).min(8)
+    ((-(span / 5.0).log10()).ceil().max(0.0) as usize).clamp(1, 8)
 }
 
 /// Joint 1 (shoulder) under both models over the whole run with the zoom window shaded, and

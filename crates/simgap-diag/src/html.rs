@@ -560,7 +560,7 @@ fn decimals(span: f64) -> usize {
     if !(span.is_finite() && span > 0.0) {
         return 3;
     }
-    ((-(span / 5.0).log10()).ceil().max(0.0) as usize + 1).min(8)
+    ((-(span / 5.0).log10()).ceil().max(0.0) as usize).clamp(1, 8)
 }
 
 /// A label on a log axis: 1e-3, 0.01, 0.1, 1, 10, …
