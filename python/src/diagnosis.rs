@@ -114,7 +114,7 @@ struct Cancelled;
 
 /// How the worker ended.
 enum Outcome {
-    Done(simgap_diag::Result<Diagnosis>),
+    Done(Box<simgap_diag::Result<Diagnosis>>),
     Cancelled,
     Panicked(String),
 }
@@ -154,7 +154,7 @@ impl Job {
     /// `run`, with unwinding caught: never a panic out of the worker thread.
     fn run_caught(&self, stop: &AtomicBool) -> Outcome {
         match catch_unwind(AssertUnwindSafe(|| self.run(stop))) {
-            Ok(result) => Outcome::Done(result),
+            Ok(result) => Outcome::Done(Box::new(result)),
             Err(payload) if payload.is::<Cancelled>() => Outcome::Cancelled,
             Err(payload) => Outcome::Panicked(panic_message(payload.as_ref())),
         }
@@ -199,7 +199,7 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
         Err(WorkerError::Lost) => return Err(Kind::Simgap.err("the diagnosis thread ended without a result (a bug in simgap)")),
     };
     match outcome {
-        Outcome::Done(result) => result.map_err(from_diag),
+        Outcome::Done(result) => (*result).map_err(from_diag),
         Outcome::Cancelled => Err(Kind::Fit.err("the diagnosis was interrupted")),
         Outcome::Panicked(message) => Err(Kind::Simgap.err(format!("the diagnosis failed unexpectedly (a bug in simgap): {message}"))),
     }

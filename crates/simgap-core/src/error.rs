@@ -36,7 +36,7 @@ pub enum Error {
         /// The most levels accepted.
         limit: usize,
         /// Line where the nesting first exceeds the limit.
-        line: usize,
+        line: u32,
     },
     /// An unexpanded xacro element or expression.
     #[error("{source_name}: line {line}: {}; expected plain URDF: run xacro first (xacro robot.urdf.xacro > robot.urdf)", xacro_found(.element, .attribute, .value))]
@@ -44,7 +44,7 @@ pub enum Error {
         /// File name.
         source_name: String,
         /// Line of the element.
-        line: usize,
+        line: u32,
         /// The element's tag.
         element: String,
         /// The attribute holding the expression; empty when the element itself is a xacro one.
@@ -53,22 +53,20 @@ pub enum Error {
         value: String,
     },
     /// A number attribute that is not a number.
-    #[error("{source_name}: line {line}: <{element}>{owner} has {attribute}=\"{value}\"; expected {expected}")]
+    #[error("{source_name}: line {line}: {element} has {attribute}=\"{value}\"; expected {}", expected_numbers(*.count))]
     BadNumber {
         /// File name.
         source_name: String,
         /// Line of the element.
-        line: usize,
-        /// The element's tag.
+        line: u32,
+        /// The element and the link or joint it belongs to, e.g. `<mass> of link 'forearm'`.
         element: String,
-        /// The link or joint it belongs to, as ` of link 'name'` (empty when none).
-        owner: String,
         /// The attribute.
-        attribute: String,
+        attribute: &'static str,
         /// The text found.
         value: String,
-        /// What was expected, e.g. `a number` or `3 numbers separated by spaces`.
-        expected: String,
+        /// How many numbers the attribute holds.
+        count: u8,
     },
     /// The `<robot>` element has no `<link>`.
     #[error("{source_name}: <robot> has no <link> element; expected at least one link, and joints connecting them")]
@@ -213,6 +211,14 @@ pub enum Error {
     /// A model built in code is inconsistent.
     #[error("invalid model: {0}")]
     InvalidModel(String),
+}
+
+fn expected_numbers(count: u8) -> String {
+    if count == 1 {
+        "a number".into()
+    } else {
+        format!("{count} numbers separated by spaces")
+    }
 }
 
 fn xacro_found(element: &str, attribute: &str, value: &str) -> String {

@@ -2,7 +2,9 @@
 //! transform.
 //!
 //! A port of musl's (FreeBSD's) `sin`/`cos`: argument reduction by π/2 in three parts
-//! (Cody–Waite) and the minimax polynomials `__sin`/`__cos` on [−π/4, π/4].
+//! (Cody–Waite) and the minimax polynomials `__sin`/`__cos` on [−π/4, π/4]. The constants are
+//! musl's, digit for digit.
+#![allow(clippy::excessive_precision)]
 
 /// `(sin x, cos x)`, within 1 ulp of the correctly rounded values, inlined.
 ///

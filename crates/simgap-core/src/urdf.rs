@@ -104,8 +104,9 @@ struct Document {
 }
 
 /// Line (1-based) of byte offset `pos` in `text`.
-fn line_of(text: &str, pos: usize) -> usize {
-    text.as_bytes()[..pos.min(text.len())].iter().filter(|&&b| b == b'\n').count() + 1
+fn line_of(text: &str, pos: usize) -> u32 {
+    let lines = text.as_bytes()[..pos.min(text.len())].iter().filter(|&&b| b == b'\n').count() + 1;
+    u32::try_from(lines).unwrap_or(u32::MAX)
 }
 
 /// One lexical pass over the text before any parser sees it: the nesting depth (refused past
@@ -198,7 +199,7 @@ fn prescan(text: &str, src: &str) -> Result<()> {
 }
 
 /// The number attributes of URDF elements: (element, attribute, how many numbers).
-const NUMBER_ATTRIBUTES: [(&str, &str, usize); 16] = [
+const NUMBER_ATTRIBUTES: [(&str, &str, u8); 16] = [
     ("origin", "xyz", 3),
     ("origin", "rpy", 3),
     ("axis", "xyz", 3),
@@ -225,7 +226,7 @@ fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
         for &(_, attr, count) in NUMBER_ATTRIBUTES.iter().filter(|(t, _, _)| *t == tag) {
             let Some(value) = el.attribute(attr) else { continue };
             let parts: Vec<&str> = value.split_whitespace().collect();
-            if parts.len() != count || parts.iter().any(|p| p.parse::<f64>().is_err()) {
+            if parts.len() != usize::from(count) || parts.iter().any(|p| p.parse::<f64>().is_err()) {
                 // name the element by its own name or by the link or joint it belongs to
                 let owner = el.ancestors().find_map(|a| match (a.tag_name().name(), a.attribute("name")) {
                     (t @ ("link" | "joint"), Some(n)) => Some(format!(" of {t} '{n}'")),
@@ -233,12 +234,11 @@ fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
                 });
                 return Err(Error::BadNumber {
                     source_name: src.into(),
-                    line: doc.text_pos_at(el.range().start).row as usize,
-                    element: tag.into(),
-                    owner: owner.unwrap_or_default(),
-                    attribute: attr.into(),
+                    line: doc.text_pos_at(el.range().start).row,
+                    element: format!("<{tag}>{}", owner.unwrap_or_default()),
+                    attribute: attr,
                     value: value.into(),
-                    expected: if count == 1 { "a number".into() } else { format!("{count} numbers separated by spaces") },
+                    count,
                 });
             }
         }

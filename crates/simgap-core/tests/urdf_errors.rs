@@ -300,7 +300,7 @@ fn infinite_velocity_limit_is_refused_naming_the_joint() {
 fn number_that_is_not_a_number_names_element_attribute_and_owner() {
     let text = pendulum_with("<mass value=\"2.0\"/>", "<mass value=\"two\"/>");
     let (err, msg) = load_text(&text);
-    assert!(matches!(&err, Error::BadNumber { element, attribute, line: 20, .. } if element == "mass" && attribute == "value"), "{err:?}");
+    assert!(matches!(&err, Error::BadNumber { element, attribute, line: 20, .. } if element == "<mass> of link 'bob'" && *attribute == "value"), "{err:?}");
     assert_mentions(&msg, &["line 20", "<mass> of link 'bob'", "value=\"two\"", "expected a number"]);
     let text = pendulum_with("<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1\"/>");
     let (_, msg) = load_text(&text);

@@ -186,7 +186,7 @@ impl Report {
             let _ = writeln!(s, "  worst: {} t = {:.3}–{:.3} s, {} ({}), RMS {:.3e} rad", seg.log, seg.start, seg.end, seg.joint, seg.phase, seg.rms_error);
         }
         let _ = writeln!(s, "\nWHICH (candidates fitted alone, ranked by cross-validated residual removed)");
-        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>14} {:>8}  {}", "rank", "effect", "cv-resid", "held-out L2", "ratio", "selected");
+        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>14} {:>8}  selected", "rank", "effect", "cv-resid", "held-out L2", "ratio");
         for c in &self.candidates {
             let _ = writeln!(
                 s,
