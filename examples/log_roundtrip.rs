@@ -1,20 +1,23 @@
-//! Reads a log (MCAP, CSV, CSV.gz), prints a JSON summary, and optionally writes it again.
+//! Reads a log (MCAP, rosbag2 bag folder, CSV, CSV.gz), prints a JSON summary, and optionally
+//! writes it again.
 //!
 //! ```text
 //! cargo run --release --example log_roundtrip -- IN.mcap [OUT.mcap|OUT.csv]
 //! ```
 //!
-//! The summary: `joints`, `samples`, `t_first`, `t_last`, `duration`, `q_first` / `q_last` /
-//! `qd_last` / `tau_last` / `q_ref_last` (objects keyed by joint name), `has_reference`,
-//! `experiment` (the `simgap.experiment` map, or null) and `source`. Used by the Python interop
+//! The summary: `joints`, `samples`, `start_ns` (absolute start [ns], or null), `t_first`,
+//! `t_last` (time since the start [s]), `duration`, `q_first` / `q_last` / `qd_last` /
+//! `tau_last` / `q_ref_last` / `tau_ff_last` / `tau_measured_last` (objects keyed by joint name),
+//! `has_reference`, `experiment` (the `simgap.experiment` map, or null), `source` and `warnings`
+//! (e.g. a file recovered without its summary). Used by the Python interop
 //! tests (`tests/python/test_mcap_interop.py`).
 
 use std::path::Path;
 use std::process::ExitCode;
 
 use serde_json::{json, Map, Value};
-use simgap_sim::log::{experiment_to_map, read_log, write_log};
-use simgap_sim::Run;
+use simgap_log::{read_log_with_warnings, write_log, LogOptions};
+use simgap_sim::{experiment_to_map, Run};
 
 fn by_joint(run: &Run, m: &[f64], k: usize) -> Value {
     if m.is_empty() || run.is_empty() {
@@ -30,8 +33,8 @@ fn main() -> ExitCode {
         eprintln!("usage: log_roundtrip IN [OUT]   (.mcap, .csv, .csv.gz)");
         return ExitCode::from(2);
     }
-    let run = match read_log(Path::new(&args[0])) {
-        Ok(run) => run,
+    let (run, warnings) = match read_log_with_warnings(Path::new(&args[0]), &LogOptions::default()) {
+        Ok(read) => (read.run, read.warnings),
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::FAILURE;
@@ -41,6 +44,7 @@ fn main() -> ExitCode {
     let summary = json!({
         "joints": run.joints,
         "samples": run.len(),
+        "start_ns": run.start_ns,
         "t_first": run.t.first(),
         "t_last": run.t.last(),
         "duration": run.duration(),
@@ -49,9 +53,12 @@ fn main() -> ExitCode {
         "qd_last": by_joint(&run, &run.qd, last),
         "tau_last": by_joint(&run, &run.tau, last),
         "q_ref_last": by_joint(&run, &run.q_ref, last),
+        "tau_ff_last": by_joint(&run, &run.tau_ff, last),
+        "tau_measured_last": by_joint(&run, &run.tau_measured, last),
         "has_reference": !run.q_ref.is_empty(),
         "experiment": run.experiment.as_ref().map(experiment_to_map),
         "source": run.source,
+        "warnings": warnings,
     });
     println!("{summary}");
     if let Some(out) = args.get(1) {

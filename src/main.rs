@@ -26,6 +26,8 @@ enum Command {
     Diagnose(cli::diagnose::Args),
     /// Diagnose random blind scenarios and score the answers.
     Selfcheck(cli::selfcheck::Args),
+    /// How well a model (plus effects) predicts logged runs k steps ahead.
+    Predict(cli::predict::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -37,6 +39,7 @@ fn main() -> std::process::ExitCode {
         Command::Paper(a) => cli::paper::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
         Command::Selfcheck(a) => cli::selfcheck::run(a),
+        Command::Predict(a) => cli::predict::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

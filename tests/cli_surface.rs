@@ -100,7 +100,7 @@ fn out_honours_the_extension() {
     assert!(head.lines().next().unwrap().contains("shoulder"), "run.csv has a header naming the joints: {}", head.lines().next().unwrap());
     assert!(dir.join("run.experiment.json").is_file(), "the CSV log's experiment sidecar");
     // both read back as the same run
-    let (a, b) = (simgap::sim::read_log(&mcap).unwrap(), simgap::sim::read_log(&csv).unwrap());
+    let (a, b) = (simgap::log::read_log(&mcap, &Default::default()).unwrap(), simgap::log::read_log(&csv, &Default::default()).unwrap());
     assert_eq!(a.len(), b.len());
     let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().to_string()).filter(|n| n.contains("partial")).collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
@@ -124,7 +124,7 @@ fn ctrl_c_during_simulate_exits_130_with_a_whole_log() {
     assert!(text(&o).contains("interrupted at t ="), "{}", text(&o));
     // the log is finished (readable, the run so far) or absent; no temporary file remains
     if out.exists() {
-        let run = simgap::sim::read_log(&out).expect("an interrupted simulation leaves a whole log");
+        let run = simgap::log::read_log(&out, &Default::default()).expect("an interrupted simulation leaves a whole log");
         assert!(run.len() > 1 && run.duration() < 20_000.0);
     }
     let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().to_string()).collect();

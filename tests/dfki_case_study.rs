@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use simgap::sim::csv_log::{read_csv_auto, write_csv};
+use simgap::log::csv::{read_csv_auto, write_csv};
 
 mod common;
 use common::bin;

@@ -195,12 +195,17 @@ class Run:
         qd_ref: _ArrayLike | None = None,
         experiment: dict[str, str] | None = None,
         source: str = "python",
+        tau_ff: _ArrayLike | None = None,
+        tau_measured: _ArrayLike | None = None,
+        start_ns: int | None = None,
     ) -> Run:
         """Builds a run from arrays; ``joints`` names the columns.
 
-        ``t``: shape (N,); ``q``, ``qd`` and the optional ``tau``, ``q_ref``, ``qd_ref``: shape
-        (N, len(joints)). ``experiment`` is the ``simgap.experiment`` metadata map
-        (``controller``, ``joints``, ``kp``, ``kv``, ``sample_period``, as strings).
+        ``t``: shape (N,); ``q``, ``qd`` and the optional ``tau``, ``q_ref``, ``qd_ref``,
+        ``tau_ff``, ``tau_measured``: shape (N, len(joints)). ``experiment`` is the
+        ``simgap.experiment`` metadata map (``controller``, ``joints``, ``kp``, ``kv``,
+        ``sample_period``, as strings); ``start_ns`` the absolute time of ``t = 0`` [ns since
+        the Unix epoch].
 
         Raises DimensionError for arrays of the wrong shape, LogError for an invalid run (time
         not strictly increasing, non-finite values, duplicate joints, a bad experiment).
@@ -216,7 +221,7 @@ class Run:
 
     @property
     def t(self) -> _FloatArray:
-        """Sample times [s], shape (N,); absolute (a log need not start at 0)."""
+        """Sample times [s], shape (N,): time since the log's start (see ``start_ns``)."""
 
     @property
     def q(self) -> _FloatArray:
@@ -237,6 +242,21 @@ class Run:
     @property
     def qd_ref(self) -> _FloatArray | None:
         """Reference velocities, shape (N, dof); None when absent (zero)."""
+
+    @property
+    def tau_ff(self) -> _FloatArray | None:
+        """Feed-forward torques the controller adds to its feedback [N·m or N] (the effort of the
+        reference topic), shape (N, dof); None when absent (zero)."""
+
+    @property
+    def tau_measured(self) -> _FloatArray | None:
+        """Torques the drives report delivering [N·m or N] (``/joint_effort_measured``), shape
+        (N, dof); None when the log has none."""
+
+    @property
+    def start_ns(self) -> int | None:
+        """Absolute time of ``t = 0`` [ns since the Unix epoch] for logs with absolute stamps,
+        else None."""
 
     @property
     def experiment(self) -> dict[str, str] | None:
@@ -281,11 +301,23 @@ class L2Report:
     def samples(self) -> int:
         """Number of samples used."""
 
-def read_log(path: str | PathLike[str], joints: list[str] | None = None) -> Run:
-    """Reads a log (ROS 2 MCAP ``.mcap``, or CSV ``.csv`` / ``.csv.gz``, chosen by extension).
+def read_log(
+    path: str | PathLike[str],
+    joints: list[str] | None = None,
+    topics: dict[str, str] | None = None,
+    experiment: dict[str, str] | None = None,
+) -> Run:
+    """Reads a log: a ROS 2 MCAP file (``.mcap``), a rosbag2 bag folder (``metadata.yaml`` and
+    ``.mcap`` files), or CSV (``.csv`` / ``.csv.gz``).
 
     With ``joints`` (e.g. ``model.joint_names``), the columns are put in that order, matched by
-    name. Raises LogError naming the file and the problem.
+    name. ``topics`` maps roles to topics, e.g. ``{"states": "/arm/joint_states", "effort":
+    "/effort_controller/commands[j1;j2]"}`` (roles ``states``, ``reference``, ``effort``,
+    ``measured_effort``; joint names in brackets for messages without names). ``experiment``
+    (the ``simgap.experiment`` map) applies only if the log carries none (no metadata record,
+    no sidecar ``NAME.experiment.json``). A file its recorder did not finish is read up to its
+    last complete record, with a UserWarning saying how much was recovered. Raises LogError
+    naming the file and the problem, for any content of the file.
     """
 
 def write_log(run: Run, path: str | PathLike[str]) -> None:

@@ -22,7 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use simgap_core::{Formulation, Model};
 use simgap_diag::{DiagnoseOptions, Diagnosis, Progress};
-use simgap_sim::log::experiment_from_map;
+use simgap_sim::run::experiment_from_map;
 use simgap_sim::{Experiment, Run};
 
 use crate::errors::{from_diag, Kind};
@@ -62,7 +62,7 @@ impl Source {
     fn load(&self) -> simgap_diag::Result<Run> {
         match self {
             Source::Run(run) => Ok(Run::clone(run)),
-            Source::Path(path) => Ok(simgap_sim::read_log(path)?),
+            Source::Path(path) => Ok(simgap_log::read_log(path, &simgap_log::LogOptions::default()).map_err(simgap_sim::Error::from)?),
         }
     }
 
@@ -264,7 +264,7 @@ fn experiment_arg(arg: &Bound<'_, PyAny>) -> PyResult<Experiment> {
     let path: PathBuf = arg
         .extract()
         .map_err(|_| PyTypeError::new_err(format!("experiment: expected a dict of simgap.experiment metadata or the path of an experiment file, got {}", type_name(arg))))?;
-    simgap_sim::csv_log::read_experiment_file(&path).map_err(|e| from_diag(e.into()))
+    simgap_log::experiment::read_experiment_file(&path).map_err(crate::errors::from_log)
 }
 
 /// The result of `diagnose`: the diagnosis report, with the runs behind its figures.

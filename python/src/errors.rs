@@ -142,6 +142,15 @@ pub(crate) fn from_sim(e: simgap_sim::Error) -> PyErr {
     sim_error_kind(&e).err(e.to_string())
 }
 
+/// Converts a `simgap_log::Error` to its Python exception (`LogError`, or the class of the run
+/// error it carries); the message is the Rust one.
+pub(crate) fn from_log(e: simgap_log::Error) -> PyErr {
+    match e {
+        simgap_log::Error::Run(sim) => from_sim(sim),
+        other => Kind::Log.err(other.to_string()),
+    }
+}
+
 /// Adds every exception class to the module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     for kind in Kind::ALL {

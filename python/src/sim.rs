@@ -1,7 +1,7 @@
 //! `simgap.Run`, logs, the L² index and closed-loop simulation (`simgap-sim`).
 //!
-//! A `Run` holds columnar arrays (`t` of shape `(N,)`, `q`, `qd`, `tau`, `q_ref`, `qd_ref` of
-//! shape `(N, dof)` in `joints` order, C-ordered float64). Logs are matched to models by joint
+//! A `Run` holds columnar arrays (`t` of shape `(N,)`, `q`, `qd`, `tau`, `q_ref`, `qd_ref`,
+//! `tau_ff`, `tau_measured` of shape `(N, dof)` in `joints` order, C-ordered float64). Logs are matched to models by joint
 //! name. Reading, writing and simulating release the GIL; a simulation stops at the next sample
 //! on Ctrl-C and raises `KeyboardInterrupt`.
 
@@ -13,12 +13,13 @@ use std::sync::Arc;
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use simgap_core::Model;
-use simgap_sim::log::{experiment_from_map, experiment_to_map, reorder_joints};
+use simgap_log::{LogOptions, TopicMap};
+use simgap_sim::{experiment_from_map, experiment_to_map, reorder_joints};
 use simgap_sim::reference::{Reference, Step};
 use simgap_sim::{ControllerKind, Effect, Experiment, Integrator, L2Report, MemorySink, Plant, Run, RunEnd, SensorParams, SimParams, VelocityEstimate};
 
 use crate::conv::{row_major, to_array, ArrayArg};
-use crate::errors::{from_sim, Kind};
+use crate::errors::{from_log, from_sim, Kind};
 use crate::model::{formulation, PyModel};
 use crate::worker::WorkerError;
 
@@ -70,14 +71,15 @@ fn experiment(map: BTreeMap<String, String>) -> PyResult<Experiment> {
 
 #[pymethods]
 impl PyRun {
-    /// Builds a run from arrays; `joints` names the columns. `tau`, `q_ref`, `qd_ref` may be
-    /// omitted; `experiment` is the `simgap.experiment` metadata map (`controller`, `joints`,
-    /// `kp`, `kv`, `sample_period`, as strings).
+    /// Builds a run from arrays; `joints` names the columns. `tau`, `q_ref`, `qd_ref`,
+    /// `tau_ff`, `tau_measured` may be omitted; `experiment` is the `simgap.experiment` metadata
+    /// map (`controller`, `joints`, `kp`, `kv`, `sample_period`, as strings); `start_ns` the
+    /// absolute time of `t = 0` [ns since the Unix epoch].
     ///
     /// Raises DimensionError for arrays of the wrong shape, LogError for an invalid run (time
     /// not strictly increasing, non-finite values, duplicate joints, a bad experiment).
     #[new]
-    #[pyo3(signature = (joints, t, q, qd, tau = None, q_ref = None, qd_ref = None, experiment = None, source = "python"))]
+    #[pyo3(signature = (joints, t, q, qd, tau = None, q_ref = None, qd_ref = None, experiment = None, source = "python", tau_ff = None, tau_measured = None, start_ns = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         joints: Vec<String>,
@@ -89,6 +91,9 @@ impl PyRun {
         qd_ref: Option<ArrayArg<'_>>,
         experiment: Option<BTreeMap<String, String>>,
         source: &str,
+        tau_ff: Option<ArrayArg<'_>>,
+        tau_measured: Option<ArrayArg<'_>>,
+        start_ns: Option<i64>,
     ) -> PyResult<Self> {
         let n = joints.len();
         let t = match t.shape() {
@@ -103,9 +108,9 @@ impl PyRun {
             tau: opt("tau", &tau)?,
             q_ref: opt("q_ref", &q_ref)?,
             qd_ref: opt("qd_ref", &qd_ref)?,
-            tau_ff: Vec::new(),
-            tau_measured: Vec::new(),
-            start_ns: None,
+            tau_ff: opt("tau_ff", &tau_ff)?,
+            tau_measured: opt("tau_measured", &tau_measured)?,
+            start_ns,
             experiment: experiment.map(self::experiment).transpose()?,
             source: source.to_owned(),
             t,
@@ -127,7 +132,7 @@ impl PyRun {
         self.run.dof()
     }
 
-    /// Sample times [s], shape (N,); absolute (a log need not start at 0).
+    /// Sample times [s], shape (N,): time since the log's start (see `start_ns`).
     #[getter]
     fn t<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
         to_array(py, self.run.t.clone(), &[self.run.len()]).into_any()
@@ -161,6 +166,27 @@ impl PyRun {
     #[getter]
     fn qd_ref<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
         self.matrix(py, &self.run.qd_ref)
+    }
+
+    /// Feed-forward torques the controller adds to its feedback [N·m or N] (the effort of the
+    /// reference topic), shape (N, dof); None when absent (zero).
+    #[getter]
+    fn tau_ff<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        self.matrix(py, &self.run.tau_ff)
+    }
+
+    /// Torques the drives report delivering [N·m or N] (`/joint_effort_measured`), shape
+    /// (N, dof); None when the log has none.
+    #[getter]
+    fn tau_measured<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        self.matrix(py, &self.run.tau_measured)
+    }
+
+    /// Absolute time of `t = 0` [ns since the Unix epoch] for logs with absolute stamps, else
+    /// None.
+    #[getter]
+    fn start_ns(&self) -> Option<i64> {
+        self.run.start_ns
     }
 
     /// The `simgap.experiment` metadata as a dict of strings, or None.
@@ -239,19 +265,44 @@ impl PyL2Report {
     }
 }
 
-/// Reads a log (ROS 2 MCAP `.mcap`, or CSV `.csv` / `.csv.gz`, chosen by extension).
+/// Reads a log: a ROS 2 MCAP file (`.mcap`), a rosbag2 bag folder (`metadata.yaml` and
+/// `.mcap` files), or CSV (`.csv` / `.csv.gz`).
 ///
 /// With `joints` (e.g. `model.joint_names`), the columns are put in that order, matched by
-/// name. Raises LogError naming the file and the problem.
+/// name. `topics` maps roles to topics, e.g. `{"states": "/arm/joint_states", "effort":
+/// "/effort_controller/commands[j1;j2]"}` (roles `states`, `reference`, `effort`,
+/// `measured_effort`; joint names in brackets for messages without names). `experiment` (the
+/// `simgap.experiment` map) applies only if the log carries none (no metadata record, no
+/// sidecar `NAME.experiment.json`). A file its recorder did not finish is read up to its last
+/// complete record, with a UserWarning saying how much was recovered. Raises LogError naming
+/// the file and the problem, for any content of the file.
 #[pyfunction]
-#[pyo3(signature = (path, joints = None))]
-pub(crate) fn read_log(py: Python<'_>, path: PathBuf, joints: Option<Vec<String>>) -> PyResult<PyRun> {
-    let run = py
-        .detach(|| match joints {
-            None => simgap_sim::read_log(&path),
-            Some(j) => simgap_sim::log::read_log_for(&path, &j),
-        })
-        .map_err(from_sim)?;
+#[pyo3(signature = (path, joints = None, topics = None, experiment = None))]
+pub(crate) fn read_log(
+    py: Python<'_>,
+    path: PathBuf,
+    joints: Option<Vec<String>>,
+    topics: Option<BTreeMap<String, String>>,
+    experiment: Option<BTreeMap<String, String>>,
+) -> PyResult<PyRun> {
+    let mut options = LogOptions { experiment: experiment.map(self::experiment).transpose()?, ..LogOptions::default() };
+    if let Some(map) = topics {
+        let mut t = TopicMap::default();
+        for (role, spec) in map {
+            let spec = simgap_log::TopicSpec::parse(&spec).map_err(|m| Kind::Log.err(format!("topics: {m}")))?;
+            t.set(&role, spec).map_err(|m| Kind::Log.err(format!("topics: {m}")))?;
+        }
+        options.topics = t;
+    }
+    let read = py.detach(|| simgap_log::read_log_with_warnings(&path, &options)).map_err(from_log)?;
+    for w in &read.warnings {
+        let message = std::ffi::CString::new(format!("{}: {w}", path.display())).unwrap_or_default();
+        PyErr::warn(py, &py.get_type::<pyo3::exceptions::PyUserWarning>(), &message, 1)?;
+    }
+    let run = match joints {
+        None => read.run,
+        Some(j) => reorder_joints(&read.run, &j, false).map_err(from_sim)?,
+    };
     Ok(PyRun::from_run(run))
 }
 
@@ -261,7 +312,7 @@ pub(crate) fn read_log(py: Python<'_>, path: PathBuf, joints: Option<Vec<String>
 #[pyo3(signature = (run, path))]
 pub(crate) fn write_log(py: Python<'_>, run: &PyRun, path: PathBuf) -> PyResult<()> {
     let run = run.run.clone();
-    py.detach(|| simgap_sim::write_log(&run, &path)).map_err(from_sim)
+    py.detach(|| simgap_log::write_log(&run, &path)).map_err(from_log)
 }
 
 /// The L² index (eq. 127): sqrt(1/(t_end − t_0) ∫ ‖x‖² dt), trapezoid rule.

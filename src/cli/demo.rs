@@ -14,7 +14,7 @@ use anyhow::Context;
 use simgap::core::{Formulation, Model, PAPER_ARM_URDF};
 use simgap::diag::bench::{demo_effects, demo_specs, generate};
 use simgap::diag::{Param, Report};
-use simgap::sim::mcap_log::write_mcap;
+use simgap::log::write_mcap;
 use simgap::sim::Effect;
 
 use super::diagnose::{execute, write_atomically, Job};
@@ -72,6 +72,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         logs: &logs,
         holdouts: &holdouts,
         experiment: None,
+        topics: Default::default(),
         json: Some(&json),
         html: Some(&html),
         mcap: Some(&mcap),

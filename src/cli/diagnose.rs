@@ -11,7 +11,8 @@
 //! - `/holdout/<name>/nominal/joint_states`: the simulation of the nominal model;
 //! - `/holdout/<name>/measured/joint_states`: the log as measured.
 //!
-//! All are `sensor_msgs/msg/JointState` in CDR with the logged (absolute) stamps, so Foxglove
+//! All are `sensor_msgs/msg/JointState` in CDR with the logged (absolute) stamps to the
+//! nanosecond, so Foxglove
 //! or PlotJuggler overlay measured, nominal and corrected `position[i]` of a run in one plot.
 //! Metadata: `simgap.diagnosis` (verdict, selected effects, L² before and after) and one
 //! `simgap.holdout.<name>` record per run (its source log and `simgap.experiment` keys).
@@ -22,9 +23,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use simgap::core::{Formulation, Model};
 use simgap::diag::{diagnose, DiagnoseOptions, Diagnosis, Progress};
-use simgap::sim::log::experiment_to_map;
-use simgap::sim::mcap_log::{JointState, CDR_ENCODING, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, ROS2MSG_ENCODING};
-use simgap::sim::{read_log, Run};
+use simgap::log::{read_log_with_warnings, LogOptions, McapWriter, RunTopics, TopicMap};
+use simgap::sim::{experiment_to_map, Run};
 
 /// Arguments of `simgap diagnose`.
 #[derive(clap::Args)]
@@ -53,10 +53,20 @@ pub(crate) struct Args {
     /// Write the measured, nominal and corrected held-out runs to one MCAP file here.
     #[arg(long)]
     mcap: Option<PathBuf>,
-    /// Experiment file (controller, joints, kp, kv, sample_period) for logs without
-    /// `simgap.experiment` metadata (e.g. CSV logs without a sidecar file).
+    /// Experiment file (controller, joints, kp, kv, sample_period) for logs that carry none
+    /// (no `simgap.experiment` metadata, no sidecar `NAME.experiment.json`).
     #[arg(long)]
     experiment: Option<PathBuf>,
+    /// Topics of MCAP logs and bags, e.g.
+    /// `states=/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[j1;j2],measured_effort=/arm/effort`
+    /// (defaults /joint_states, /joint_reference, /joint_effort_measured).
+    #[arg(long = "topic", value_parser = parse_topic_map)]
+    topics: Option<TopicMap>,
+}
+
+/// Parses `--topic`.
+pub(crate) fn parse_topic_map(s: &str) -> Result<TopicMap, String> {
+    TopicMap::parse(s)
 }
 
 /// What to diagnose and where to write, shared by `simgap diagnose` and `simgap demo`.
@@ -66,6 +76,7 @@ pub(crate) struct Job<'a> {
     pub(crate) logs: &'a [PathBuf],
     pub(crate) holdouts: &'a [PathBuf],
     pub(crate) experiment: Option<&'a Path>,
+    pub(crate) topics: TopicMap,
     pub(crate) json: Option<&'a Path>,
     pub(crate) html: Option<&'a Path>,
     pub(crate) mcap: Option<&'a Path>,
@@ -79,6 +90,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         logs: &args.logs,
         holdouts: &args.holdouts,
         experiment: args.experiment.as_deref(),
+        topics: args.topics.unwrap_or_default(),
         json: args.json.as_deref(),
         html: args.html.as_deref(),
         mcap: args.mcap.as_deref(),
@@ -90,24 +102,25 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
 pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     super::interrupt::install();
     // read: every error names its file
-    let experiment = job.experiment.map(simgap::sim::csv_log::read_experiment_file).transpose()?;
+    let experiment = job.experiment.map(simgap::log::experiment::read_experiment_file).transpose()?;
+    let options = LogOptions { topics: job.topics.clone(), experiment, ..LogOptions::default() };
     let read = |paths: &[PathBuf]| -> anyhow::Result<Vec<Run>> {
         paths
             .iter()
             .map(|p| {
-                let mut run = read_log(p)?;
-                if run.experiment.is_none() {
-                    run.experiment = experiment.clone();
+                let read = read_log_with_warnings(p, &options)?;
+                for w in &read.warnings {
+                    eprintln!("warning: {}: {w}", p.display());
                 }
-                if run.experiment.is_none() {
+                if read.run.experiment.is_none() {
                     bail!(
                         "{}: no simgap.experiment metadata (controller, joints, kp, kv, sample_period), needed to re-simulate the closed loop; \
-                         give it with --experiment EXP.json, or for a CSV log as a sidecar file {}",
+                         give it with --experiment EXP.json, or as a sidecar file {}",
                         p.display(),
-                        simgap::sim::csv_log::sidecar_path(p).display()
+                        simgap::log::experiment::sidecar_path(p).display()
                     );
                 }
-                Ok(run)
+                Ok(read.run)
             })
             .collect()
     };
@@ -176,11 +189,7 @@ pub(crate) fn topic_name(source: &str) -> String {
 
 /// Writes the held-out runs (measured, nominal, corrected) into one MCAP file (module docs).
 fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
-    let err = |e: mcap::McapError| anyhow::anyhow!("{}: {e}", path.display());
-    let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut w = simgap::sim::McapSink::default_options().create(std::io::BufWriter::new(file)).map_err(err)?;
-    let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(err)?;
-    let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), String::new())].into();
+    let mut w = McapWriter::create(path)?;
 
     // the diagnosis as metadata
     let r = &d.report;
@@ -192,7 +201,7 @@ fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
         ("holdout_l2_after".to_string(), format!("{}", r.gap.holdout_l2_after)),
     ]);
     meta.insert("selected_effects".to_string(), serde_json::to_string(&r.selected_effects).unwrap_or_default());
-    w.write_metadata(&mcap::records::Metadata { name: "simgap.diagnosis".into(), metadata: meta }).map_err(err)?;
+    w.metadata("simgap.diagnosis", meta)?;
 
     let mut used: Vec<String> = Vec::new();
     for (i, measured) in d.holdout.iter().enumerate() {
@@ -204,46 +213,24 @@ fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
         used.push(name.clone());
         let mut run_meta = measured.experiment.as_ref().map(experiment_to_map).unwrap_or_default();
         run_meta.insert("source".into(), measured.source.clone());
-        w.write_metadata(&mcap::records::Metadata { name: format!("simgap.holdout.{name}"), metadata: run_meta }).map_err(err)?;
+        w.metadata(&format!("simgap.holdout.{name}"), run_meta)?;
 
-        let mut streams: Vec<(String, &Run, bool)> = vec![(format!("/holdout/{name}/measured/joint_states"), measured, false)];
+        // every stream stamped from the measured log's start, as the log was
+        let start = measured.start_ns;
+        let only_states = |topic: String| RunTopics { states: topic, reference: None, measured_effort: None };
+        w.write_run(measured, &only_states(format!("/holdout/{name}/measured/joint_states")), start)?;
         if let Some(Some(nominal)) = d.holdout_nominal.get(i) {
-            streams.push((format!("/holdout/{name}/nominal/joint_states"), nominal, false));
+            w.write_run(nominal, &only_states(format!("/holdout/{name}/nominal/joint_states")), start)?;
         }
         if let Some(Some(corrected)) = d.holdout_corrected.get(i) {
-            streams.push((format!("/holdout/{name}/joint_states"), corrected, false));
-            if !corrected.q_ref.is_empty() {
-                streams.push((format!("/holdout/{name}/joint_reference"), corrected, true));
-            }
-        }
-        for (topic, run, reference) in streams {
-            let channel = w.add_channel(schema, &topic, CDR_ENCODING, &qos).map_err(err)?;
-            let dof = run.dof();
-            let mut msg = JointState { name: run.joints.clone(), ..JointState::default() };
-            let mut buf = Vec::new();
-            let row = |m: &[f64], k: usize| -> Vec<f64> { if m.len() >= (k + 1) * dof { m[k * dof..(k + 1) * dof].to_vec() } else { Vec::new() } };
-            for k in 0..run.len() {
-                let ns = (run.t[k] * 1e9).round() as i64;
-                msg.set_stamp_ns(ns);
-                if reference {
-                    msg.position = row(&run.q_ref, k);
-                    msg.velocity = row(&run.qd_ref, k);
-                    msg.effort.clear();
-                } else {
-                    msg.position = row(&run.q, k);
-                    msg.velocity = row(&run.qd, k);
-                    msg.effort = row(&run.tau, k);
-                }
-                msg.encode_cdr_into(&mut buf);
-                let time = ns.max(0) as u64;
-                let header = mcap::records::MessageHeader { channel_id: channel, sequence: k as u32, log_time: time, publish_time: time };
-                w.write_to_known_channel(&header, &buf).map_err(err)?;
-            }
+            let topics = RunTopics {
+                states: format!("/holdout/{name}/joint_states"),
+                reference: Some(format!("/holdout/{name}/joint_reference")),
+                measured_effort: None,
+            };
+            w.write_run(corrected, &topics, start)?;
         }
     }
-    w.finish().map_err(err)?;
-    let mut inner = w.into_inner();
-    std::io::Write::flush(&mut inner).with_context(|| format!("cannot write {}", path.display()))?;
-    inner.get_ref().sync_all().ok();
+    w.finish()?;
     Ok(())
 }

@@ -3,6 +3,7 @@
 pub(crate) mod demo;
 pub(crate) mod diagnose;
 pub(crate) mod paper;
+pub(crate) mod predict;
 pub(crate) mod selfcheck;
 pub(crate) mod simulate;
 pub(crate) mod terms;

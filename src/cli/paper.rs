@@ -11,7 +11,7 @@ use anyhow::{anyhow, Context};
 use plotters::prelude::*;
 use simgap::core::robots::paper_arm;
 use simgap::core::{Formulation, Model};
-use simgap::sim::mcap_log::McapSink;
+use simgap::log::McapSink;
 use simgap::sim::{l2_between, l2_tracking, simulate, MemorySink, Pd, Plant, Run, RunEnd, SimParams, Step};
 
 use super::diagnose::write_atomically;

@@ -32,14 +32,18 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let _ = writeln!(s, "simgap selfcheck: {n} blind scenarios, seed {seed}");
-    let _ = writeln!(s, "\nhidden effects   scenarios   true set selected exactly");
-    for (k, (count, exact)) in &sum.by_count {
+    let _ = writeln!(s, "\nhidden effects   scenarios   true set selected exactly   or among the alternatives");
+    for (k, (count, exact, right)) in &sum.by_count {
         let label = match k {
             0 => "none".to_string(),
             1 => "one".to_string(),
             k => format!("{k}"),
         };
-        let _ = writeln!(s, "  {label:<14} {count:>9}   {exact:>4}  ({})", pct(*exact, *count));
+        let _ = writeln!(s, "  {label:<14} {count:>9}   {exact:>4}  ({})              {right:>4}  ({})", pct(*exact, *count), pct(*right, *count));
+    }
+    let _ = writeln!(s, "\nfamily          scenarios   right (or alternative)   median held-out k-step after/before (longest horizon)");
+    for (family, (count, right, ratio)) in &sum.by_family {
+        let _ = writeln!(s, "  {family:<14} {count:>9}   {right:>4}  ({})         {ratio:.4}", pct(*right, *count));
     }
     let _ = writeln!(s, "\nconfusion (rows: hidden effect, columns: selected effect; a scenario counts once per pair)");
     let mut cols: Vec<String> = sum.confusion.values().flat_map(|m| m.keys().cloned()).collect();

@@ -185,11 +185,11 @@ fn write_log_atomically(run: &simgap::sim::Run, path: &Path) -> anyhow::Result<(
     // the temporary file keeps the extension, which chooses the format
     let tmp = path.with_file_name(format!(".partial-{}.{name}", std::process::id()));
     let csv = log_format(path)? == "csv";
-    let tmp_sidecar = simgap::sim::csv_log::sidecar_path(&tmp);
+    let tmp_sidecar = simgap::log::experiment::sidecar_path(&tmp);
     super::interrupt::IN_PROGRESS.lock().map(|mut v| v.extend([tmp.clone(), tmp_sidecar.clone()])).ok();
-    let result = simgap::sim::write_log(run, &tmp).map_err(anyhow::Error::from).and_then(|()| {
+    let result = simgap::log::write_log(run, &tmp).map_err(anyhow::Error::from).and_then(|()| {
         if csv && tmp_sidecar.exists() {
-            std::fs::rename(&tmp_sidecar, simgap::sim::csv_log::sidecar_path(path))?;
+            std::fs::rename(&tmp_sidecar, simgap::log::experiment::sidecar_path(path))?;
         }
         std::fs::rename(&tmp, path).map_err(Into::into)
     });

@@ -43,16 +43,14 @@ pub struct RunSpec {
 }
 
 /// Simulates `spec` on `model` with the hidden `effects`, with encoders of `counts_per_rev`
-/// and velocity by backward difference, as a robot's log.
+/// and velocity by backward difference, as a robot's log: its experiment holds what a recorder
+/// writes (controller, gains, sample period), not the sensors, which the diagnosis infers.
 ///
 /// # Errors
 /// Simulator errors (including divergence).
 pub fn generate(model: &Model, formulation: Formulation, effects: &[Effect], spec: &RunSpec, sample_period: f64, counts_per_rev: f64) -> Result<Run> {
     let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
-    let mut extra = BTreeMap::new();
-    extra.insert("counts_per_rev".to_string(), format!("{counts_per_rev}"));
-    extra.insert("velocity".to_string(), "backward_difference".to_string());
-    let exp = Experiment { controller: spec.controller, joints, kp: spec.kp.clone(), kv: spec.kv.clone(), sample_period, extra };
+    let exp = Experiment { controller: spec.controller, joints, kp: spec.kp.clone(), kv: spec.kv.clone(), sample_period, extra: BTreeMap::new() };
     let reference: Box<dyn Reference> = match &spec.reference {
         RefSpec::Step(t) => Box::new(Step { target: t.clone() }),
         RefSpec::Piecewise { times, targets } => Box::new(PiecewiseSetpoints { times: times.clone(), targets: targets.clone() }),

@@ -97,6 +97,8 @@ pub struct FitData {
     pub qdd: Vec<f64>,
     /// Commanded torque filtered like the accelerations (see [`Smoother::apply_zoh`]).
     pub tau: Vec<f64>,
+    /// Delivered (measured) torque filtered likewise; empty when the log has none.
+    pub tau_measured: Vec<f64>,
     /// Nominal residual `τ − (H q̈ + C q̇ + g)` with the model's formulation.
     pub residual: Vec<f64>,
     /// `(C_other − C) q̇`: what switching the formulation of C would add to the model torque.
@@ -136,8 +138,10 @@ impl FitData {
         let qds = smoother.apply(&run.q, n, 1);
         let qdds = smoother.apply(&run.q, n, 2);
         let taus = smoother.apply_zoh(&run.tau, n);
+        let taus_measured = if run.tau_measured.len() == run.tau.len() { smoother.apply_zoh(&run.tau_measured, n) } else { Vec::new() };
         let pick = |m: &[f64]| -> Vec<f64> { kept.iter().flat_map(|&k| m[k * n..(k + 1) * n].iter().copied()).collect() };
         let (q, qd, qdd, tau) = (pick(&qs), pick(&qds), pick(&qdds), pick(&taus));
+        let tau_measured = if taus_measured.is_empty() { Vec::new() } else { pick(&taus_measured) };
         let t: Vec<f64> = kept.iter().map(|&k| run.t[k]).collect();
         let mut ws = Workspace::new(model);
         let mut h = nalgebra::DMatrix::zeros(n, n);
@@ -168,7 +172,7 @@ impl FitData {
                 }
             }
         }
-        Ok(FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, residual, coriolis_delta, regressor, raw: run, smoother, kept })
+        Ok(FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, tau_measured, residual, coriolis_delta, regressor, raw: run, smoother, kept })
     }
 
     /// Number of kept samples.

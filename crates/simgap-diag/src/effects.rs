@@ -102,6 +102,15 @@ fn delta_of(model: &Model, joint: usize, dpi: &[f64]) -> LinkDelta {
     LinkDelta { joint, mass: new.mass - old.mass, com: [dc.x, dc.y, dc.z], inertia: [di[(0, 0)], di[(0, 1)], di[(0, 2)], di[(1, 1)], di[(1, 2)], di[(2, 2)]] }
 }
 
+/// Whether a link change is too small to state: mass within 1e-6 of the link's, centre of mass
+/// within 1 µm, inertia within 1e-6 of the link's largest moment.
+fn negligible(model: &Model, d: &LinkDelta) -> bool {
+    let old = &model.joints()[d.joint].inertia;
+    let m = old.mass.max(1e-3);
+    let i = old.inertia_about_com().abs().max().max(m * 1e-4);
+    d.mass.abs() <= 1e-6 * m && d.com.iter().all(|c| c.abs() <= 1e-6) && d.inertia.iter().all(|v| v.abs() <= 1e-6 * i)
+}
+
 /// Converts fitted terms into simulator effects, merging per-joint terms of one effect.
 pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
     let n = model.dof();
@@ -171,12 +180,9 @@ pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
             Term::Delay { delay } => out.push(Effect::TimeDelay { delay }),
             Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
             Term::Payload { com } => out.push(Effect::Payload { mass: th[0], com }),
-            Term::InertialError { ref basis } => {
-                let dpi = basis * nalgebra::DVector::from_column_slice(th);
-                let deltas = (0..n)
-                    .map(|j| delta_of(model, j, &dpi.as_slice()[PARAMS_PER_LINK * j..PARAMS_PER_LINK * (j + 1)]))
-                    .filter(|d| d.mass != 0.0 || d.com.iter().chain(&d.inertia).any(|v| *v != 0.0))
-                    .collect();
+            Term::InertialError { ref prior } => {
+                let dpi: Vec<f64> = prior.scales.iter().zip(th).map(|(s, t)| s * t).collect();
+                let deltas = (0..n).map(|j| delta_of(model, j, &dpi[PARAMS_PER_LINK * j..PARAMS_PER_LINK * (j + 1)])).filter(|d| !negligible(model, d)).collect();
                 out.push(Effect::InertialError { deltas });
             }
         }
@@ -251,13 +257,132 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
                     e.parameters.insert("delta_mass".into(), Param::PerJoint(deltas.iter().map(|d| d.mass).collect()));
                     e.parameters.insert("delta_com".into(), Param::PerLink(deltas.iter().map(|d| d.com.to_vec()).collect()));
                     e.parameters.insert("delta_inertia".into(), Param::PerLink(deltas.iter().map(|d| d.inertia.to_vec()).collect()));
-                    e.parameters.insert("identifiable_directions".into(), Param::Number(th.len() as f64));
+                    let identifiable = if let Term::InertialError { prior } = &f.term { prior.identifiable } else { 0 };
+                    e.parameters.insert("identifiable_directions".into(), Param::Number(identifiable as f64));
+                    e.description = describe_inertial(model, deltas);
                 }
             }
         }
     }
     for e in &mut out {
         e.units = e.parameters.keys().map(|k| (k.clone(), param_unit(&e.effect, k).to_string())).collect();
+        if e.description.is_empty() {
+            e.description = describe(model, e);
+        }
     }
     out
+}
+
+/// A number with three significant digits (no exponent between 1e-3 and 1e4).
+pub fn sig3(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let a = x.abs();
+    if !(1e-3..1e4).contains(&a) {
+        return format!("{x:.2e}");
+    }
+    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+    format!("{x:.decimals$}")
+}
+
+/// A signed percentage ("+12 %", "−48 %").
+fn percent(x: f64) -> String {
+    let v = 100.0 * x;
+    let s = if v.abs() >= 10.0 { format!("{:.0}", v.abs()) } else { format!("{:.1}", v.abs()) };
+    format!("{}{s} %", if v < 0.0 { "−" } else { "+" })
+}
+
+/// The per-joint values of parameter `key` of a report entry, with their joints.
+fn per_joint<'a>(e: &'a EffectReport, key: &str) -> Vec<(&'a str, f64)> {
+    match e.parameters.get(key) {
+        Some(Param::PerJoint(v)) => e.joints.iter().map(String::as_str).zip(v.iter().copied()).collect(),
+        _ => vec![],
+    }
+}
+
+/// "b = 0.17 N·m·s/rad on elbow, 0 on shoulder (at its bound: none)".
+fn list_per_joint(e: &EffectReport, key: &str, unit: &str) -> String {
+    per_joint(e, key)
+        .iter()
+        .map(|(j, v)| if *v == 0.0 { format!("{key} = 0 on {j} (at its bound: none there)") } else { format!("{key} = {} {unit} on {j}", sig3(*v)) })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The effect in words (the `description` of [`EffectReport`]).
+fn describe(model: &Model, e: &EffectReport) -> String {
+    let num = |k: &str| match e.parameters.get(k) {
+        Some(Param::Number(x)) => *x,
+        _ => f64::NAN,
+    };
+    match e.effect.as_str() {
+        "viscous_friction" => format!("viscous friction {}", list_per_joint(e, "b", "N·m·s/rad")),
+        "coulomb_friction" => format!("Coulomb friction {}", list_per_joint(e, "fc", "N·m")),
+        "stribeck_friction" => {
+            let (fc, fs, vs) = (per_joint(e, "fc"), per_joint(e, "fs"), per_joint(e, "vs"));
+            let parts: Vec<String> = fc.iter().zip(&fs).zip(&vs).map(|((c, s), v)| format!("on {}: fc = {} N·m, fs = {} N·m below {} rad/s", c.0, sig3(c.1), sig3(s.1), sig3(v.1))).collect();
+            format!("Stribeck friction {}", parts.join("; "))
+        }
+        "armature" => format!("rotor inertia (armature) {}", list_per_joint(e, "ia", "kg·m²")),
+        "torque_gain" => {
+            let parts: Vec<String> = per_joint(e, "k").iter().map(|(j, k)| format!("k = {} on {j} (the drive delivers {:.0} % of the command)", sig3(*k), 100.0 * k)).collect();
+            format!("torque gain {}", parts.join(", "))
+        }
+        "torque_offset" => format!("torque offset {}", list_per_joint(e, "offset", "N·m")),
+        "torque_saturation" => {
+            let parts: Vec<String> = per_joint(e, "limit").iter().map(|(j, l)| format!("±{} N·m on {j}", sig3(*l))).collect();
+            format!("torque saturation at {}", parts.join(", "))
+        }
+        "cogging" => {
+            let parts: Vec<String> = per_joint(e, "amplitude").iter().zip(per_joint(e, "periods_per_rev")).map(|((j, a), (_, n))| format!("{} N·m, {n:.0} periods per revolution on {j}", sig3(a.abs()))).collect();
+            format!("cogging torque {}", parts.join(", "))
+        }
+        "time_delay" => format!("actuation delay of {} ms (whole robot)", sig3(1e3 * num("delay"))),
+        "coriolis_structure" => "the model's Coriolis matrix C misses (or wrongly has) its skew-symmetric part: the other formulation fits better".into(),
+        "payload" => {
+            let com = match e.parameters.get("com") {
+                Some(Param::Vector(c)) => c.clone(),
+                _ => vec![],
+            };
+            let link = model.joints().last().map_or("the last link", |j| j.link.as_str());
+            let at: Vec<String> = com.iter().map(|c| format!("{:.0}", 1e3 * c)).collect();
+            format!("payload of {} kg on {link}, centre of mass at ({}) mm in its frame", sig3(num("mass")), at.join(", "))
+        }
+        _ => String::new(),
+    }
+}
+
+/// "Link2 (joint Joint2): mass −12 %, COM +3 mm along x, inertia about the COM −48 %" per link.
+fn describe_inertial(model: &Model, deltas: &[LinkDelta]) -> String {
+    if deltas.is_empty() {
+        return "no link differs from the URDF".into();
+    }
+    let parts: Vec<String> = deltas
+        .iter()
+        .map(|d| {
+            let j = &model.joints()[d.joint];
+            let old = &j.inertia;
+            let mut words = Vec::new();
+            if d.mass.abs() > 1e-4 * old.mass.max(1e-3) {
+                words.push(if old.mass > 0.0 { format!("mass {} ({} kg)", percent(d.mass / old.mass), sig3(d.mass)) } else { format!("mass {} kg", sig3(d.mass)) });
+            }
+            let com: Vec<String> = ["x", "y", "z"].iter().zip(d.com).filter(|(_, c)| c.abs() >= 5e-4).map(|(a, c)| format!("{}{:.0} mm along {a}", if c < 0.0 { "−" } else { "+" }, 1e3 * c.abs())).collect();
+            if !com.is_empty() {
+                words.push(format!("COM {}", com.join(", ")));
+            }
+            // the moment about the joint axis through the centre of mass
+            let a = j.axis.normalize();
+            let di = Matrix3::new(d.inertia[0], d.inertia[1], d.inertia[2], d.inertia[1], d.inertia[3], d.inertia[4], d.inertia[2], d.inertia[4], d.inertia[5]);
+            let (i0, di_a) = ((a.transpose() * old.inertia_about_com() * a)[0], (a.transpose() * di * a)[0]);
+            if di_a.abs() > 1e-4 * i0.abs().max(1e-9) {
+                words.push(if i0 > 1e-12 { format!("inertia about the COM (joint axis) {} ({} kg·m²)", percent(di_a / i0), sig3(di_a)) } else { format!("inertia about the COM (joint axis) {} kg·m²", sig3(di_a)) });
+            }
+            if words.is_empty() {
+                words.push("unchanged within rounding".into());
+            }
+            format!("{} (joint {}): {}", j.link, j.name, words.join(", "))
+        })
+        .collect();
+    format!("inertial parameters differ from the URDF: {}", parts.join("; "))
 }

@@ -24,6 +24,9 @@ pub enum Error {
     /// Model error.
     #[error(transparent)]
     Model(#[from] simgap_core::Error),
+    /// Stopped on request (Ctrl-C) before the end.
+    #[error("interrupted")]
+    Interrupted,
     /// Writing a report failed.
     #[error("{path}: cannot write: {message}")]
     Write {

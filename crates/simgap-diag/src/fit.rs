@@ -5,6 +5,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 
 use crate::dataset::FitData;
+use crate::inertial::InertialPrior;
 use crate::terms::{design, Column, Term, TermDesign};
 
 /// Blocks per run for the bootstrap; cross-validation folds group [`BLOCKS_PER_FOLD`] of them.
@@ -29,6 +30,9 @@ pub struct Problem {
     pub tau_rms: Vec<f64>,
     /// Nominal residual, global column.
     pub y: Column,
+    /// The block Grams of the inertial correction's columns with themselves, by their scales (the
+    /// same columns recur in every fit of a selection).
+    inertial_gram: std::sync::Arc<std::sync::Mutex<Option<(Vec<f64>, Vec<DMatrix<f64>>)>>>,
 }
 
 impl Problem {
@@ -51,7 +55,7 @@ impl Problem {
         let tau_rms: Vec<f64> = (0..dof).map(|j| rms(&|s, j| tau[s * dof + j], j)).collect();
         // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();
-        Problem { dof, samples, block_of, blocks, weights, tau_rms, y }
+        Problem { dof, samples, block_of, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
     }
 
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
@@ -108,6 +112,25 @@ pub struct Grams {
     pub dof: usize,
     /// Which term each column belongs to.
     pub owner: Vec<usize>,
+    /// Lower bound of each column's parameter (`-∞` when free).
+    pub lo: Vec<f64>,
+    /// Upper bound of each column's parameter (`+∞` when free).
+    pub hi: Vec<f64>,
+    /// The inertial correction among the terms, if any: its first column and its prior.
+    pub inertial: Option<(usize, std::sync::Arc<InertialPrior>)>,
+}
+
+impl Grams {
+    /// Minimises `½ θᵀ g θ − cᵀ θ` (a sum of these Grams' blocks) under the physical constraints
+    /// of the terms: bounds on linear parameters ([`solve_bounded`]) and, with an inertial
+    /// correction, physically consistent links ([`crate::inertial::solve`]). Returns θ and the
+    /// effective rank.
+    pub fn solve(&self, g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
+        match &self.inertial {
+            Some((first, prior)) => crate::inertial::solve(prior, *first, g, c, &self.lo, &self.hi),
+            None => solve_bounded(g, c, &self.lo, &self.hi),
+        }
+    }
 }
 
 /// Builds the Gram matrices of `terms` (their designs given) against the nominal residual
@@ -132,13 +155,58 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
     let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
     let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat(i).take(d.cols.len())).collect();
     let k = cols.len();
+    let (mut lo, mut hi) = (Vec::with_capacity(k), Vec::with_capacity(k));
+    let mut inertial = None;
+    for d in designs {
+        if let Some(prior) = &d.inertial {
+            inertial = Some((lo.len(), prior.clone()));
+        }
+        for i in 0..d.cols.len() {
+            lo.push(d.lo.get(i).copied().unwrap_or(f64::NEG_INFINITY));
+            hi.push(d.hi.get(i).copied().unwrap_or(f64::INFINITY));
+        }
+    }
     let nb = p.blocks * p.dof;
     let mut g = vec![DMatrix::zeros(k, k); nb];
     let mut c = vec![DVector::zeros(k); nb];
     let mut s = vec![0.0; nb];
     let mut buf = vec![0.0; nb];
+    // the inertial columns' own block, computed once per problem
+    let mut done = vec![false; k];
+    for (first, d) in designs.iter().scan(0, |c, d| {
+        let f = *c;
+        *c += d.cols.len();
+        Some((f, d))
+    }) {
+        let Some(prior) = &d.inertial else { continue };
+        let mut cache = p.inertial_gram.lock().expect("inertial Gram cache");
+        if cache.as_ref().is_none_or(|(scales, _)| *scales != prior.scales) {
+            let ki = d.cols.len();
+            let mut blocks = vec![DMatrix::zeros(ki, ki); nb];
+            for a in 0..ki {
+                for b in a..ki {
+                    p.dot_blocks(&d.cols[a], &d.cols[b], &mut buf);
+                    for (bl, v) in buf.iter().enumerate() {
+                        blocks[bl][(a, b)] = *v;
+                        blocks[bl][(b, a)] = *v;
+                    }
+                }
+            }
+            *cache = Some((prior.scales.clone(), blocks));
+        }
+        let blocks = &cache.as_ref().expect("filled").1;
+        for (bl, m) in blocks.iter().enumerate() {
+            g[bl].view_mut((first, first), m.shape()).copy_from(m);
+        }
+        for x in done.iter_mut().skip(first).take(d.cols.len()) {
+            *x = true;
+        }
+    }
     for a in 0..k {
         for b in a..k {
+            if done[a] && done[b] {
+                continue;
+            }
             p.dot_blocks(cols[a], cols[b], &mut buf);
             for (bl, v) in buf.iter().enumerate() {
                 g[bl][(a, b)] = *v;
@@ -152,7 +220,7 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
     }
     p.dot_blocks(&y, &y, &mut buf);
     s.copy_from_slice(&buf);
-    Grams { k, g, c, s, owner, dof: p.dof }
+    Grams { k, g, c, s, owner, dof: p.dof, lo, hi, inertial }
 }
 
 /// Minimum-norm least-squares solution of `G θ = c` (eigenvalues below `1e-10 · max` dropped);
@@ -174,6 +242,64 @@ pub fn solve(g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
         }
     }
     (theta, rank)
+}
+
+/// Minimises `½ θᵀ G θ − cᵀ θ` subject to `lo ≤ θ ≤ hi` (infinite bounds allowed): a primal
+/// active-set method (Lawson & Hanson, *Solving Least Squares Problems*, 1974, ch. 23, for
+/// bounds on both sides). When the minimum-norm unconstrained solution ([`solve`]) is within the
+/// bounds it is the answer; otherwise parameters are held at the bounds they reach, and released
+/// when the gradient pulls them back inside. Returns θ and the effective rank of the free block.
+pub fn solve_bounded(g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64]) -> (DVector<f64>, usize) {
+    let k = g.nrows();
+    let inside = |th: &DVector<f64>| (0..k).all(|i| th[i] >= lo[i] && th[i] <= hi[i]);
+    let (theta, rank) = solve(g, c);
+    if lo.len() < k || inside(&theta) {
+        return (theta, rank);
+    }
+    // start: every bounded parameter at the feasible value nearest zero
+    let mut th = DVector::from_fn(k, |i, _| 0.0f64.clamp(lo[i], hi[i]));
+    let mut held: Vec<bool> = (0..k).map(|i| th[i] == lo[i] || th[i] == hi[i]).collect();
+    let mut rank = 0;
+    for _ in 0..(10 * k + 20) {
+        // minimise over the free parameters with the held ones fixed
+        let free: Vec<usize> = (0..k).filter(|&i| !held[i]).collect();
+        let gf = DMatrix::from_fn(free.len(), free.len(), |a, b| g[(free[a], free[b])]);
+        let cf = DVector::from_fn(free.len(), |a, _| c[free[a]] - (0..k).filter(|&j| held[j]).map(|j| g[(free[a], j)] * th[j]).sum::<f64>());
+        let (sf, r) = solve(&gf, &cf);
+        rank = r;
+        // step toward it until the first bound
+        let mut alpha = 1.0f64;
+        let mut hit = None;
+        for (a, &i) in free.iter().enumerate() {
+            let d = sf[a] - th[i];
+            let t = if sf[a] < lo[i] { (lo[i] - th[i]) / d } else if sf[a] > hi[i] { (hi[i] - th[i]) / d } else { continue };
+            if t < alpha {
+                alpha = t.max(0.0);
+                hit = Some(i);
+            }
+        }
+        for (a, &i) in free.iter().enumerate() {
+            th[i] = (th[i] + alpha * (sf[a] - th[i])).clamp(lo[i], hi[i]);
+        }
+        if let Some(i) = hit {
+            th[i] = if (th[i] - lo[i]).abs() <= (th[i] - hi[i]).abs() { lo[i] } else { hi[i] };
+            held[i] = true;
+            continue;
+        }
+        // the free minimum is feasible: release the held parameter the gradient pulls inside most
+        let w = c - g * &th;
+        let scale = w.amax().max(1e-300);
+        let release = (0..k)
+            .filter(|&i| held[i])
+            .map(|i| (i, if th[i] <= lo[i] { w[i] } else { -w[i] }))
+            .filter(|&(_, v)| v > 1e-12 * scale)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        match release {
+            Some((i, _)) => held[i] = false,
+            None => break,
+        }
+    }
+    (th, rank)
 }
 
 /// Result of fitting a set of terms.
@@ -210,17 +336,18 @@ fn sse(g: &DMatrix<f64>, c: &DVector<f64>, s: f64, theta: &DVector<f64>) -> f64 
     (s - 2.0 * theta.dot(c) + theta.dot(&(g * theta))).max(0.0)
 }
 
-/// Fits and cross-validates.
+/// Fits and cross-validates, every fit (all data and each fold) under the terms' physical
+/// constraints (see [`Grams::solve`]).
 pub fn fit(p: &Problem, gr: &Grams) -> Fit {
     let (g, c, s) = sum_blocks(gr, |_, _| true);
-    let (theta, rank) = solve(&g, &c);
+    let (theta, rank) = gr.solve(&g, &c);
     let mse = sse(&g, &c, s, &theta) / p.rows();
     let folds = p.blocks / BLOCKS_PER_FOLD;
     let mut cv_joint = vec![0.0; p.dof];
     for f in 0..folds {
         let in_fold = |b: usize| b / BLOCKS_PER_FOLD == f;
         let (gt, ct, _) = sum_blocks(gr, |b, _| !in_fold(b));
-        let (th, _) = solve(&gt, &ct);
+        let (th, _) = gr.solve(&gt, &ct);
         for (j, cv) in cv_joint.iter_mut().enumerate() {
             let (gv, cvv, sv) = sum_blocks(gr, |b, jj| in_fold(b) && jj == j);
             *cv += sse(&gv, &cvv, sv, &th);
@@ -231,7 +358,8 @@ pub fn fit(p: &Problem, gr: &Grams) -> Fit {
     Fit { theta, rank, mse, cv_mse, cv_joint }
 }
 
-/// Block-bootstrap standard deviations of the parameters (`draws` resamples, fixed seed).
+/// Block-bootstrap standard deviations of the parameters (`draws` resamples, fixed seed), each
+/// draw fitted under the terms' physical constraints.
 pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
     let nb = gr.g.len() / gr.dof;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
@@ -257,12 +385,22 @@ pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
             g += &blocks[b].0;
             c += &blocks[b].1;
         }
-        let (th, _) = solve(&g, &c);
+        let (th, _) = gr.solve(&g, &c);
         sum += &th;
         sum2 += th.component_mul(&th);
     }
     let n = draws as f64;
     (sum2 / n - (&sum / n).component_mul(&(&sum / n))).map(|v| v.max(0.0).sqrt())
+}
+
+/// A term's parameters as the effect states them, from its fitted column coefficients: the
+/// same numbers except for Stribeck friction, fitted as `(fc, fs − fc)` (both ≥ 0, so that
+/// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)`.
+pub fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
+    match term {
+        Term::Stribeck { .. } => vec![raw[0], raw[0] + raw[1]],
+        _ => raw.to_vec(),
+    }
 }
 
 /// Splits a joint parameter vector (and its standard deviations, if any) per term.
@@ -271,8 +409,13 @@ pub fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>
     let mut c = 0;
     for (t, d) in terms.iter().zip(designs) {
         let k = d.cols.len();
-        let sd = std.map_or_else(|| vec![0.0; k], |s| s.as_slice()[c..c + k].to_vec());
-        out.push(crate::FittedTerm { term: t.clone(), theta: theta.as_slice()[c..c + k].to_vec(), std: sd });
+        let mut sd = std.map_or_else(|| vec![0.0; k], |s| s.as_slice()[c..c + k].to_vec());
+        let th = contract_parameters(t, &theta.as_slice()[c..c + k]);
+        if matches!(t, Term::Stribeck { .. }) {
+            // fs = fc + (fs − fc): the spread of a sum, its covariance ignored
+            sd[1] = sd[0].hypot(sd[1]);
+        }
+        out.push(crate::FittedTerm { term: t.clone(), theta: th, std: sd });
         c += k;
     }
     out

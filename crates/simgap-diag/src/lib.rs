@@ -2,17 +2,29 @@
 //! **which** unmodelled effect causes it, and **how far** it shrinks once that effect is added,
 //! measured on held-out runs the fit never saw.
 //!
-//! 1. Each fit log is aligned to the model by joint name, smoothed and differentiated
-//!    ([`differentiate`]), and the nominal inverse-dynamics residual
-//!    `r = τ_cmd − (H q̈ + C q̇ + g)` is formed ([`dataset`]).
-//! 2. Every effect of BRIEF §3.2 is a family of candidate terms linear in its parameters, or
-//!    searched on a grid where it is not ([`terms`]); terms are fitted by weighted least
-//!    squares and compared by cross-validation over contiguous blocks of every fit run
-//!    ([`fit`]); a forward stepwise selection with backward pruning picks the set
-//!    ([`select`]); block bootstrap gives the uncertainties.
-//! 3. Every held-out run is re-simulated in closed loop with the nominal model, with each
-//!    candidate alone and with the selected set ([`resim`]); the L² index (eq. 127) before and
-//!    after is the answer to "how far". Held-out runs are never used to fit or to select.
+//! [`diagnose`] runs in named stages:
+//!
+//! 1. **prepare**: each log is aligned to the model by joint name; glitch samples are found and
+//!    kept out ([`robust`]); the sample period is checked against the stamps; the sensors are
+//!    inferred from the samples ([`resim::infer_sensors`]); fit logs are smoothed and
+//!    differentiated ([`differentiate`]) and the nominal inverse-dynamics residual
+//!    `r = τ_cmd − (H q̈ + C q̇ + g)` is formed ([`dataset`]); a held-out log that repeats a fit
+//!    log is refused.
+//! 2. **locate**: where the gap lies ([`locate`]).
+//! 3. **select**: every effect of the vocabulary is a family of candidate terms ([`terms`]),
+//!    fitted by weighted least squares and compared by cross-validation of the torque residual
+//!    over contiguous blocks of every fit run ([`fit`]); a forward stepwise selection proposes a
+//!    set ([`select`]).
+//! 4. **prune by prediction**: the set is pruned, and completed with whole effects, by the
+//!    cross-validated k-step prediction error on the fit runs ([`kstep`]): each fold of each fit
+//!    run is predicted by the effects fitted without it. A term stays only if prediction needs
+//!    it; the whole-run closed-loop gap never drives selection.
+//! 5. **screen**: every candidate alone, scored by prediction on the fit runs and, for the
+//!    report, on the held-out runs.
+//! 6. **how far**: the held-out runs, never used to fit or to select, are predicted k steps
+//!    ahead and re-simulated in closed loop ([`resim`]) with the nominal model and with the
+//!    selected set; `gap.headline` says which of the two figures answers "how far" for them.
+//! 7. **report**: alternatives the data cannot tell apart, notes, the verdict ([`report`]).
 
 pub mod bench;
 pub mod dataset;
@@ -21,16 +33,22 @@ pub mod effects;
 pub mod error;
 pub mod fit;
 pub mod html;
+pub mod inertial;
+pub mod kstep;
 pub mod locate;
 pub mod report;
 pub mod resim;
+pub mod robust;
 pub mod select;
 pub mod selfcheck;
 pub mod terms;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
-use simgap_sim::{Effect, Run};
+use simgap_sim::{ControllerKind, Effect, Run};
 
 pub use dataset::{align_run, FitData, PrepareOptions};
 pub use effects::{EffectReport, FittedTerm, Param};
@@ -38,7 +56,8 @@ pub use error::{Error, Result};
 pub use report::{Alternative, Candidate, Decision, Gap, KStep, Report, RunKStep};
 pub use select::SelectOptions;
 
-use crate::fit::{bootstrap_std, fit_terms, fitted_terms};
+use crate::fit::{bootstrap_std, fit_terms, fitted_terms, Grams};
+use crate::kstep::{PredictionRun, FOLDS_PER_RUN};
 use crate::select::{families, select, Context};
 use crate::terms::Term;
 
@@ -49,12 +68,17 @@ pub struct DiagnoseOptions {
     pub prepare: PrepareOptions,
     /// Selection thresholds.
     pub select: SelectOptions,
+    /// Prediction horizons [s] of the k-step figures; empty = [`kstep::DEFAULT_HORIZONS`].
+    pub horizons: Vec<f64>,
+    /// When set (e.g. by Ctrl-C), the diagnosis stops at its next step with
+    /// [`Error::Interrupted`].
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 /// Progress of a diagnosis, for a progress bar.
 #[derive(Clone, Debug)]
 pub struct Progress {
-    /// What is being done.
+    /// What is being done (the stage, and the candidate when there is one).
     pub stage: &'static str,
     /// Steps done.
     pub done: usize,
@@ -65,11 +89,11 @@ pub struct Progress {
 /// Everything [`diagnose`] produced: the report and the runs behind its figures.
 #[derive(Clone, Debug)]
 pub struct Diagnosis {
-    /// The report (BRIEF §3.3).
+    /// The report (see [`Report`]).
     pub report: Report,
     /// The selected effects, as simulator effects.
     pub effects: Vec<Effect>,
-    /// Held-out runs as measured (model-aligned).
+    /// Held-out runs as measured (model-aligned, glitches repaired).
     pub holdout: Vec<Run>,
     /// Their nominal closed-loop simulations.
     pub holdout_nominal: Vec<Option<Run>>,
@@ -79,118 +103,231 @@ pub struct Diagnosis {
     pub fit_data: Vec<FitData>,
 }
 
-fn sample_period(runs: &[Run]) -> f64 {
-    runs.iter()
-        .find_map(|r| r.experiment.as_ref().map(|e| e.sample_period))
-        .filter(|t| t.is_finite() && *t > 0.0)
-        .unwrap_or_else(|| runs.first().map_or(0.0025, |r| r.duration() / (r.len().max(2) - 1) as f64))
+/// Removing a term keeps it out when prediction worsens by less than this (relative).
+const PRUNE_TOLERANCE: f64 = 0.005;
+/// An effect joins the set when it improves prediction by at least this (relative).
+const ADD_GAIN: f64 = 0.02;
+/// The forward path from the nominal model is also tried when the torque-residual path
+/// predicts the fit runs at more than this fraction of the nominal model's error.
+const SECOND_PATH_ABOVE: f64 = 0.5;
+/// Two sets whose prediction scores differ by less than this (relative) are a tie.
+const TIE_TOLERANCE: f64 = 0.02;
+
+/// Everything the stages share: the model, the prepared runs, the fit context.
+struct Prepared {
+    fit_runs: Vec<Run>,
+    hold_runs: Vec<Run>,
+    data: Vec<FitData>,
+    fit_pred: Vec<PredictionRun>,
+    hold_pred: Vec<PredictionRun>,
+    horizons: Vec<f64>,
+    notes: Vec<String>,
+    sensors: Vec<resim::InferredSensors>,
+    passive: Vec<bool>,
+}
+
+/// Scores sets of terms by cross-validated prediction on the fit runs: the one helper for
+/// "fit → effects → predict → combine".
+struct Scorer<'a> {
+    model: &'a Model,
+    formulation: Formulation,
+    ctx: &'a Context<'a>,
+    prep: &'a Prepared,
+    nominal: Vec<f64>,
+    /// Cross-validated errors of the sets scored so far (the selection revisits sets).
+    memo: std::sync::Mutex<std::collections::HashMap<String, Vec<f64>>>,
+}
+
+impl Scorer<'_> {
+    /// Cross-validated k-step RMS per horizon on the fit runs: each fold predicted by the terms
+    /// fitted without it.
+    fn cv(&self, terms: &[Term]) -> Vec<f64> {
+        let mut key: Vec<String> = terms.iter().map(|t| format!("{t:?}")).collect();
+        key.sort();
+        let key = key.join("|");
+        if let Some(v) = self.memo.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return v;
+        }
+        let v = self.cv_uncached(terms);
+        if let Ok(mut m) = self.memo.lock() {
+            m.insert(key, v.clone());
+        }
+        v
+    }
+
+    fn cv_uncached(&self, terms: &[Term]) -> Vec<f64> {
+        let folds = self.prep.fit_runs.len() * FOLDS_PER_RUN;
+        if terms.is_empty() {
+            let e = kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new());
+            return e.map(|e| e.rms()).unwrap_or_else(|_| vec![f64::INFINITY; self.prep.horizons.len()]);
+        }
+        let (designs, gr, _) = fit_terms(&self.ctx.problem, self.ctx.data, terms);
+        let effects_of = |f: usize| -> Vec<Effect> {
+            let theta = fold_theta(&gr, f);
+            effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
+        };
+        match kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of) {
+            Ok(e) => e.rms(),
+            Err(_) => vec![f64::INFINITY; self.prep.horizons.len()],
+        }
+    }
+
+    /// One number per set: the geometric mean over horizons of its cross-validated k-step error
+    /// relative to the nominal model's (lower is better).
+    fn score(&self, terms: &[Term]) -> f64 {
+        kstep::score(&self.cv(terms), &self.nominal)
+    }
+}
+
+/// Parameters fitted without fold `f` (contiguous fifth of a fit run), under the terms'
+/// physical constraints.
+fn fold_theta(gr: &Grams, f: usize) -> nalgebra::DVector<f64> {
+    let mut g = nalgebra::DMatrix::zeros(gr.k, gr.k);
+    let mut c = nalgebra::DVector::zeros(gr.k);
+    for b in 0..gr.g.len() {
+        if (b / gr.dof) / fit::BLOCKS_PER_FOLD != f {
+            g += &gr.g[b];
+            c += &gr.c[b];
+        }
+    }
+    // the same physical constraints as the full fit
+    gr.solve(&g, &c).0
+}
+
+fn check_stop(options: &DiagnoseOptions) -> Result<()> {
+    match &options.stop {
+        Some(s) if s.load(Ordering::Relaxed) => Err(Error::Interrupted),
+        _ => Ok(()),
+    }
 }
 
 /// Diagnoses the gap between `model` (in `formulation`) and logged runs.
 ///
 /// `fit` runs are used to fit and select; `holdout` runs only to measure how far the gap
-/// shrinks. Both must carry their experiment (`simgap.experiment`) to be re-simulated.
+/// shrinks. Every run must carry its experiment (controller, gains, sample period): a replay
+/// experiment for open-loop runs and for any controller that cannot be reproduced.
 ///
 /// # Errors
-/// [`Error::Input`] with no fit or no held-out run; [`Error::Log`] for logs whose joints do
-/// not match the model, too short logs, or logs without experiment.
+/// [`Error::Input`] with no fit or no held-out run, or a held-out run that repeats a fit run;
+/// [`Error::Log`] for logs whose joints do not match the model, too short logs, logs without
+/// experiment or with a sample period the stamps contradict; [`Error::Interrupted`] when
+/// `options.stop` is set.
 pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions, progress: &mut dyn FnMut(Progress)) -> Result<Diagnosis> {
-    if fit.is_empty() {
-        return Err(Error::Input("no fit log given; expected at least one".into()));
-    }
-    if holdout.is_empty() {
-        return Err(Error::Input("no held-out log given; expected at least one (held-out runs measure how far the gap shrinks)".into()));
-    }
+    // prepare
+    progress(Progress { stage: "preparing logs", done: 0, total: fit.len() + holdout.len() });
+    let prep = prepare(model, formulation, fit, holdout, options)?;
+    check_stop(options)?;
     let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
-    let fit_runs: Vec<Run> = fit.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
-    let hold_runs: Vec<Run> = holdout.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
-    for r in fit_runs.iter().chain(&hold_runs) {
-        if r.experiment.is_none() {
-            return Err(Error::Log { log: r.source.clone(), message: "no simgap.experiment metadata (controller, joints, kp, kv, sample_period); expected it to re-simulate the closed loop".into() });
-        }
-    }
-    progress(Progress { stage: "preparing logs", done: 0, total: fit_runs.len() });
-    let data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), &options.prepare)).collect::<Result<_>>()?;
+    let data = &prep.data;
     let moving = data.iter().any(|d| d.qd.iter().any(|v| v.abs() > 1e-3));
     let scales = select::parameter_scales(model);
-    let ctx = Context::new(&data, sample_period(&fit_runs), &scales);
+    let ctx = Context::new(data, sample_period(&prep.fit_runs), &scales);
     let p = &ctx.problem;
+    let horizons = prep.horizons.clone();
 
-    // nominal closed loop: fit runs (for "where") and held-out runs (the gap before)
-    // every effect of the vocabulary as a candidate, fitted alone on the nominal residual
-    let groups = candidate_groups(&ctx, &p.y);
-    let total_sims = fit_runs.len() + hold_runs.len() * (groups.len() + 2);
-    let mut sims_done = 0;
-    let mut tick = |progress: &mut dyn FnMut(Progress), n: usize| {
-        sims_done += n;
-        progress(Progress { stage: "re-simulating", done: sims_done, total: total_sims });
-    };
-    let fit_nominal: Vec<(resim::RunGap, Option<Run>)> = fit_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
-    tick(progress, fit_runs.len());
-    let hold_nominal: Vec<(resim::RunGap, Option<Run>)> = hold_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
-    tick(progress, hold_runs.len());
-    let before_runs: Vec<resim::RunGap> = hold_nominal.iter().map(|g| g.0.clone()).collect();
-    let (before, before_joint) = resim::combine(&before_runs, &hold_runs);
-    let fit_before = resim::combine(&fit_nominal.iter().map(|g| g.0.clone()).collect::<Vec<_>>(), &fit_runs).0;
-    let nominal_sims: Vec<Option<Run>> = fit_nominal.into_iter().map(|g| g.1).collect();
-    let location = locate::locate(&joints, &data, &fit_runs, &nominal_sims);
+    // locate: the nominal closed loop on the fit runs
+    progress(Progress { stage: "locating the gap", done: 0, total: prep.fit_runs.len() });
+    let fit_nominal: Vec<(resim::RunGap, Option<Run>)> = prep.fit_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
+    let nominal_sims: Vec<Option<Run>> = fit_nominal.iter().map(|g| g.1.clone()).collect();
+    let location = locate::locate(&joints, data, &prep.fit_runs, &nominal_sims);
+    check_stop(options)?;
 
-    // which: the stepwise selection
-    progress(Progress { stage: "selecting", done: 0, total: 1 });
+    // select: stepwise on the torque residual
+    progress(Progress { stage: "selecting on the torque residual", done: 0, total: 1 });
     let mut selection = if moving { select(&ctx, &options.select) } else { select_nothing(&ctx) };
-    // closed-loop check on the fit runs (never the held-out ones): a term whose removal does not
-    // worsen the fit runs' simulated gap by the entry threshold changes nothing that matters
-    progress(Progress { stage: "checking in closed loop", done: 0, total: selection.terms.len() });
-    closed_loop_prune(model, formulation, &ctx, &fit_runs, &mut selection, options.select.min_relative_gain);
-    let (_, sel_grams, _) = fit_terms(p, &data, &selection.terms);
+    drop_passive_actuator_terms(&mut selection.terms, &prep.passive);
+    check_stop(options)?;
+
+    // candidates: every effect of the vocabulary alone
+    let groups: Vec<(&'static str, Vec<Term>)> = candidate_groups(&ctx, &p.y).into_iter().map(|(n, mut t)| {
+        drop_passive_actuator_terms(&mut t, &prep.passive);
+        (n, t)
+    }).filter(|(_, t)| !t.is_empty()).collect();
+
+    // prune by prediction: cross-validated k-step error on the fit runs
+    let mut scorer = Scorer { model, formulation, ctx: &ctx, prep: &prep, nominal: Vec::new(), memo: Default::default() };
+    scorer.nominal = scorer.cv(&[]);
+    let total_steps = groups.len() * 2 + selection.terms.len() + 4;
+    let mut step = 0usize;
+    let mut tick = |progress: &mut dyn FnMut(Progress), stage: &'static str| {
+        step += 1;
+        progress(Progress { stage, done: step.min(total_steps), total: total_steps });
+    };
+    let alone_cv: Vec<Vec<f64>> = groups
+        .iter()
+        .map(|(_, t)| {
+            tick(progress, "scoring candidates by prediction");
+            if options.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed)) {
+                return vec![f64::NAN; horizons.len()];
+            }
+            scorer.cv(t)
+        })
+        .collect();
+    check_stop(options)?;
+    let alone_score: Vec<f64> = alone_cv.iter().map(|v| kstep::score(v, &scorer.nominal)).collect();
+    if moving {
+        prune_and_complete(&scorer, &groups, &alone_score, &mut selection, progress, options)?;
+    }
+    check_stop(options)?;
+    let final_score = scorer.score(&selection.terms);
+    let final_cv = scorer.cv(&selection.terms);
+
+    // the selected set, fitted on all fit data, with uncertainties
+    let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
+    selection.designs = designs;
+    selection.fit = sel_fit;
     let sel_std = bootstrap_std(&sel_grams, 100, 7);
     let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
-    let selected_effects = effects::to_reports(model, &fitted);
+    let mut selected_effects = effects::to_reports(model, &fitted);
     let sel_effects = effects::to_effects(model, &fitted);
+    // report order: by how much each effect's removal would worsen prediction
+    rank_selected(&scorer, &selection.terms, &mut selected_effects);
 
-    // how far: the selected set on held-out runs, and every candidate alone
-    let hold_after: Vec<(resim::RunGap, Option<Run>)> = hold_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect();
-    tick(progress, hold_runs.len());
+    // how far: held-out runs, k-step and closed loop, before and after
+    progress(Progress { stage: "predicting held-out runs", done: 0, total: 3 });
+    let (floor_all, floor_runs) = kstep::floor_all(&prep.hold_pred, &horizons, model.dof());
+    let (before_k, before_runs_k) = kstep::predict_all(model, formulation, &[], &prep.hold_pred, &horizons)?;
+    let (after_k, after_runs_k) = if sel_effects.is_empty() { (before_k.clone(), before_runs_k.clone()) } else { kstep::predict_all(model, formulation, &sel_effects, &prep.hold_pred, &horizons)? };
+    check_stop(options)?;
+    progress(Progress { stage: "re-simulating held-out runs", done: 1, total: 3 });
+    let hold_nominal: Vec<(resim::RunGap, Option<Run>)> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
+    let hold_after: Vec<(resim::RunGap, Option<Run>)> = if sel_effects.is_empty() { hold_nominal.clone() } else { prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect() };
+    let before_runs: Vec<resim::RunGap> = hold_nominal.iter().map(|g| g.0.clone()).collect();
     let after_runs: Vec<resim::RunGap> = hold_after.iter().map(|g| g.0.clone()).collect();
-    let (after, after_joint) = if sel_effects.is_empty() { (before, before_joint.clone()) } else { resim::combine(&after_runs, &hold_runs) };
+    let (before, before_joint) = resim::combine(&before_runs, &prep.hold_runs);
+    let (after, after_joint) = resim::combine(&after_runs, &prep.hold_runs);
+    let fit_before = resim::combine(&fit_nominal.iter().map(|g| g.0.clone()).collect::<Vec<_>>(), &prep.fit_runs).0;
     let fit_after = if sel_effects.is_empty() {
         fit_before
     } else {
-        let g: Vec<resim::RunGap> = fit_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r).0).collect();
-        resim::combine(&g, &fit_runs).0
+        let g: Vec<resim::RunGap> = prep.fit_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r).0).collect();
+        resim::combine(&g, &prep.fit_runs).0
     };
+    check_stop(options)?;
 
+    // screen: every candidate alone on the held-out runs (k-step and closed loop)
     let mut candidates = Vec::new();
-    for (name, terms) in groups {
-        let (designs, gr, f) = fit_terms(p, &data, &terms);
+    for (gi, (name, terms)) in groups.iter().enumerate() {
+        tick(progress, "screening candidates on held-out runs");
+        check_stop(options)?;
+        let (designs, gr, f) = fit_terms(p, data, terms);
         let std = bootstrap_std(&gr, 50, 11);
-        let fitted_c = fitted_terms(&terms, &designs, &f.theta, Some(&std));
+        let fitted_c = fitted_terms(terms, &designs, &f.theta, Some(&std));
         let rep = effects::to_reports(model, &fitted_c).into_iter().next();
-        // a candidate whose fit is not physical (negative friction, rotor inertia, mass, a gain
-        // out of range) is reported but not simulated
+        let eff = effects::to_effects(model, &fitted_c);
         let unphysical: Vec<String> = fitted_c.iter().filter(|f| !select::physical(&f.term, &f.theta)).map(|f| describe_term(&f.term, &joints)).collect();
-        let l2 = if unphysical.is_empty() {
-            let eff = effects::to_effects(model, &fitted_c);
-            let gaps: Vec<resim::RunGap> = hold_runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
-            resim::combine(&gaps, &hold_runs).0
-        } else {
-            f64::NAN
-        };
-        tick(progress, hold_runs.len());
-        let selected = selection.terms.iter().any(|t| t.effect_name() == name);
-        let reason = if selected && !unphysical.is_empty() {
-            format!("selected; fitted alone (without the other selected effects) it is not physical ({}), so it is not simulated alone", unphysical.join(", "))
-        } else if selected {
+        let kstep_after = kstep::predict_all(model, formulation, &eff, &prep.hold_pred, &horizons).map(|e| e.0.rms()).unwrap_or_else(|_| vec![f64::NAN; horizons.len()]);
+        let gaps: Vec<resim::RunGap> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
+        let l2 = resim::combine(&gaps, &prep.hold_runs).0;
+        let selected = selection.terms.iter().any(|t| t.effect_name() == *name);
+        let reason = if selected {
             "selected".to_string()
+        } else if let Some(s) = selection.log.iter().rev().find(|s| s.term.effect_name() == *name) {
+            s.reason.clone()
         } else if !unphysical.is_empty() {
-            format!("fitted alone it is not physical ({}): not simulated", unphysical.join(", "))
+            format!("fitted alone it is not physical ({})", unphysical.join(", "))
         } else {
-            selection
-                .log
-                .iter()
-                .find(|s| s.term.effect_name() == name)
-                .map(|s| s.reason.clone())
-                .unwrap_or_else(|| "not among the best terms of any selection step".to_string())
+            format!("alone it predicts the fit runs at {:.3} of the nominal model's k-step error (cross-validated); not among the best terms of any selection step", alone_score[gi])
         };
         let (joints_c, parameters, uncertainty) = match rep {
             Some(r) => (r.joints, r.parameters, r.uncertainty),
@@ -205,25 +342,45 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             cv_residual_reduction: if selection.nominal_cv_mse > 0.0 { 1.0 - f.cv_mse / selection.nominal_cv_mse } else { 0.0 },
             holdout_l2_after: l2,
             holdout_ratio: if before > 0.0 { l2 / before } else { f64::NAN },
-            holdout_kstep_after: vec![],
-            fit_kstep_cv: vec![],
+            holdout_kstep_after: kstep_after,
+            fit_kstep_cv: alone_cv[gi].clone(),
             selected,
             reason,
         });
     }
-    candidates.sort_by(|a, b| b.cv_residual_reduction.total_cmp(&a.cv_residual_reduction));
+    // rank: by cross-validated prediction on the fit runs, then by torque residual removed
+    let score_of = |c: &Candidate| kstep::score(&c.fit_kstep_cv, &scorer.nominal);
+    candidates.sort_by(|a, b| score_of(a).total_cmp(&score_of(b)).then(b.cv_residual_reduction.total_cmp(&a.cv_residual_reduction)));
     for (i, c) in candidates.iter_mut().enumerate() {
         c.rank = i + 1;
     }
 
-    let verdict = if !moving {
-        "cannot tell: the fit logs show no motion (all velocities below 1e-3 rad/s), so no effect can be told apart".to_string()
-    } else if selected_effects.is_empty() {
-        format!("nothing significant: no candidate removes enough of the torque residual; held-out L2 {before:.3e} rad")
-    } else {
-        let names: Vec<String> = selected_effects.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
-        format!("the gap is explained by {}; held-out L2 {:.3e} → {:.3e} rad ({:.1} % of before)", names.join("; "), before, after, 100.0 * after / before)
+    // report: headline, alternatives, notes, verdict
+    let kstep_report = KStep {
+        horizons_s: horizons.clone(),
+        before: before_k.rms(),
+        after: after_k.rms(),
+        floor: floor_all.rms(),
+        per_joint_before: before_k.rms_per_joint(),
+        per_joint_after: after_k.rms_per_joint(),
+        runs: prep
+            .hold_pred
+            .iter()
+            .enumerate()
+            .map(|(i, pr)| RunKStep { log: pr.run.source.clone(), windows: pr.windows(), before: before_runs_k[i].rms(), after: after_runs_k[i].rms(), floor: floor_runs[i].rms() })
+            .collect(),
     };
+    let (headline, headline_reason) = headline(&prep, &before_runs, &after_runs, before);
+    let alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
+    let mut notes = prep.notes.clone();
+    for j in &location.per_joint {
+        if let (Some(a), Some(m)) = (j.actuator_residual_l2, j.mechanics_residual_l2) {
+            let (part, other) = if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };
+            notes.push(format!("{}: with the measured torque the gap splits into actuator {a:.3e} N·m and mechanics {m:.3e} N·m (RMS): most of it lies in {part}, less in {other}", j.joint));
+        }
+    }
+    notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons));
+    let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, before, after, &before_runs);
     let selection_log = selection
         .log
         .iter()
@@ -234,17 +391,20 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         model: model.name().into(),
         formulation: formulation.as_str().into(),
         joints: joints.clone(),
-        fit_logs: fit_runs.iter().map(|r| r.source.clone()).collect(),
-        holdout_logs: hold_runs.iter().map(|r| r.source.clone()).collect(),
+        fit_logs: prep.fit_runs.iter().map(|r| r.source.clone()).collect(),
+        holdout_logs: prep.hold_runs.iter().map(|r| r.source.clone()).collect(),
         verdict,
         selected_effects,
         candidates,
-        alternatives: vec![],
-        notes: vec![],
+        alternatives,
+        notes,
+        sensors: prep.sensors.clone(),
         gap: Gap {
-            headline: "closed_loop".into(),
-            headline_reason: String::new(),
-            kstep: KStep::default(),
+            headline,
+            headline_reason,
+            kstep: kstep_report,
+            fit_kstep_cv_before: scorer.nominal.clone(),
+            fit_kstep_cv_after: final_cv,
             holdout_l2_before: before,
             holdout_l2_after: after,
             ratio: if before > 0.0 { after / before } else { f64::NAN },
@@ -259,6 +419,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         selection_log,
         nominal_cv_mse: selection.nominal_cv_mse,
     };
+    let Prepared { hold_runs, data, .. } = prep;
     Ok(Diagnosis {
         report,
         effects: sel_effects,
@@ -269,49 +430,367 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     })
 }
 
-/// Closed-loop L² over the fit runs with `terms` fitted and added.
-fn fit_gap(model: &Model, formulation: Formulation, ctx: &Context<'_>, runs: &[Run], terms: &[Term]) -> f64 {
-    let (designs, _, f) = fit_terms(&ctx.problem, ctx.data, terms);
-    let fitted = fitted_terms(terms, &designs, &f.theta, None);
-    let eff = effects::to_effects(model, &fitted);
-    let gaps: Vec<resim::RunGap> = runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
-    resim::combine(&gaps, runs).0
+/// The controller sample period of the fit runs [s].
+fn sample_period(runs: &[Run]) -> f64 {
+    runs.iter()
+        .find_map(|r| r.experiment.as_ref().map(|e| e.sample_period))
+        .filter(|t| t.is_finite() && *t > 0.0)
+        .unwrap_or_else(|| runs.first().map_or(0.0025, |r| kstep::median_spacing(&r.t)))
 }
 
-/// Backward elimination on the fit runs' closed-loop gap.
-fn closed_loop_prune(model: &Model, formulation: Formulation, ctx: &Context<'_>, runs: &[Run], sel: &mut select::Selection, threshold: f64) {
-    if sel.terms.is_empty() {
-        return;
+/// The prepare stage: align, check, repair glitches, infer sensors, smooth.
+fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions) -> Result<Prepared> {
+    if fit.is_empty() {
+        return Err(Error::Input("no fit log given; expected at least one".into()));
     }
-    let mut current = fit_gap(model, formulation, ctx, runs, &sel.terms);
+    if holdout.is_empty() {
+        return Err(Error::Input("no held-out log given; expected at least one (held-out runs measure how far the gap shrinks)".into()));
+    }
+    let mut notes = Vec::new();
+    let mut fit_runs: Vec<Run> = fit.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
+    let mut hold_runs: Vec<Run> = holdout.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
+    // every run carries its experiment, with a sample period its stamps allow
+    for r in fit_runs.iter().chain(&hold_runs) {
+        let Some(exp) = &r.experiment else {
+            return Err(Error::Log {
+                log: r.source.clone(),
+                message: "no experiment (controller, joints, kp, kv, sample_period) in its metadata, sidecar or the call; expected one to predict and re-simulate it (use controller 'replay' for open-loop runs or an unknown controller)".into(),
+            });
+        };
+        let spacing = kstep::median_spacing(&r.t);
+        let ratio = exp.sample_period / spacing;
+        if !(exp.sample_period.is_finite() && exp.sample_period > 0.0) || !(0.02..=50.0).contains(&ratio) {
+            return Err(Error::Log {
+                log: r.source.clone(),
+                message: format!("sample_period {} s, but the log's stamps are {:.6} s apart (median); expected a period within a factor 50 of the stamp spacing", exp.sample_period, spacing),
+            });
+        }
+        if (ratio - 1.0).abs() > 0.05 {
+            notes.push(format!("{}: the experiment's sample period {} s differs from the median stamp spacing {:.6} s; the controller is simulated at the experiment's period", r.source, exp.sample_period, spacing));
+        }
+    }
+    // a held-out run must be one the fit never saw
+    for h in &hold_runs {
+        if let Some(f) = fit_runs.iter().find(|f| robust::same_content(f, h)) {
+            return Err(Error::Input(format!("held-out log {} holds the same samples as fit log {}; a held-out run must be one the fit never saw", h.source, f.source)));
+        }
+    }
+    // glitches: found, replaced, reported
+    for r in fit_runs.iter_mut().chain(hold_runs.iter_mut()) {
+        let found = robust::repair_glitches(r);
+        for g in found.iter().take(5) {
+            notes.push(g.to_string());
+        }
+        if found.len() > 5 {
+            notes.push(format!("{}: {} more glitch samples replaced (the first five are listed)", r.source, found.len() - 5));
+        }
+    }
+    // sensors as the logs show them
+    let sensors: Vec<resim::InferredSensors> = fit_runs.iter().chain(&hold_runs).map(resim::infer_sensors).collect();
+    for s in &sensors {
+        if s.velocity == "backward_difference" || s.counts_per_rev.is_some() {
+            notes.push(format!(
+                "{}: sensors inferred from the log: velocity {}{}; the re-simulated controller sees the same",
+                s.log,
+                s.velocity.replace('_', " "),
+                s.counts_per_rev.map_or(String::new(), |c| format!(", encoder {c} counts per revolution"))
+            ));
+        }
+    }
+    // passive joints: commanded effort always zero in every run
+    let n = model.dof();
+    let passive: Vec<bool> = (0..n).map(|j| fit_runs.iter().chain(&hold_runs).all(|r| r.tau.iter().skip(j).step_by(n).all(|v| *v == 0.0))).collect();
+    for (j, p) in passive.iter().enumerate() {
+        if *p {
+            notes.push(format!("joint {} is passive (commanded effort always 0): actuator effects (gain, offset, saturation) are not tried on it", model.joint_names()[j]));
+        }
+    }
+    let data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), &options.prepare)).collect::<Result<_>>()?;
+    let horizons = if options.horizons.is_empty() { kstep::DEFAULT_HORIZONS.to_vec() } else { options.horizons.clone() };
+    if let Some(h) = horizons.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+        return Err(Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
+    }
+    let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
+    let fit_pred: Vec<PredictionRun> = fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN)).collect();
+    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
+    if let Some(pr) = hold_pred.iter().find(|p| p.windows() == 0) {
+        return Err(Error::Log { log: pr.run.source.clone(), message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]) });
+    }
+    Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive })
+}
+
+/// Removes torque gain, offset and saturation terms of passive joints (nothing drives them).
+fn drop_passive_actuator_terms(terms: &mut Vec<Term>, passive: &[bool]) {
+    terms.retain(|t| !(matches!(t, Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. }) && t.joint().is_some_and(|j| passive[j])));
+}
+
+/// Whether `t` fits in `terms`: one term per slot.
+fn fits_in(terms: &[Term], t: &Term) -> bool {
+    let gain_vs_inertia = |a: &Term, b: &Term| matches!(a, Term::Gain(_)) && matches!(b, Term::InertialError { .. });
+    !terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
+}
+
+/// The prune stage: two paths, the better kept. (a) The torque-residual selection pruned by
+/// backward elimination and completed with whole effects, by cross-validated prediction;
+/// (b) forward selection of whole effects by prediction from the nominal model, then pruned
+/// (only when (a) does not reach [`SECOND_PATH_ABOVE`]).
+/// A set that does not beat the nominal model's prediction by [`ADD_GAIN`] is emptied: the
+/// data then support no effect.
+fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], sel: &mut select::Selection, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<()> {
+    let mut path_a = (sel.terms.clone(), Vec::new());
+    let score_a = refine_by_prediction(scorer, groups, alone_score, &mut path_a.0, &mut path_a.1, progress, options)?;
+    // the second path only where the first does not already halve the nominal error
+    let mut path_b = (Vec::new(), Vec::new());
+    let score_b = if score_a > SECOND_PATH_ABOVE { refine_by_prediction(scorer, groups, alone_score, &mut path_b.0, &mut path_b.1, progress, options)? } else { f64::INFINITY };
+    let (best, score) = if score_b < score_a * (1.0 - PRUNE_TOLERANCE) { (path_b, score_b) } else { (path_a, score_a) };
+    let (mut terms, mut log) = best;
+    if score >= 1.0 - ADD_GAIN {
+        for t in terms.drain(..) {
+            log.push(select::Step {
+                term: t,
+                cv_mse: f64::NAN,
+                accepted: false,
+                reason: format!("dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, not better by {:.0} %", 100.0 * ADD_GAIN),
+            });
+        }
+    }
+    sel.log.extend(log);
+    sel.terms = terms;
+    Ok(())
+}
+
+/// Backward elimination, then forward completion with whole effects (at most three), repeated;
+/// returns the final prediction score.
+fn refine_by_prediction(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], terms: &mut Vec<Term>, log: &mut Vec<select::Step>, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<f64> {
+    let mut current = scorer.score(terms);
+    let mut added = 0;
     loop {
-        let mut best: Option<(usize, f64)> = None;
-        let gaps: Vec<f64> = (0..sel.terms.len())
-            .into_par_iter()
-            .map(|i| {
-                let mut rest = sel.terms.clone();
-                rest.remove(i);
-                fit_gap(model, formulation, ctx, runs, &rest)
-            })
-            .collect();
-        for (i, g) in gaps.into_iter().enumerate() {
-            if g <= current * (1.0 + threshold) + 1e-12 && best.is_none_or(|b| g < b.1) {
-                best = Some((i, g));
+        // backward: a term whose removal does not worsen prediction goes
+        loop {
+            check_stop(options)?;
+            if terms.is_empty() {
+                break;
+            }
+            progress(Progress { stage: "pruning by prediction", done: 0, total: terms.len() });
+            let without: Vec<f64> = (0..terms.len())
+                .into_par_iter()
+                .map(|i| {
+                    let mut rest = terms.clone();
+                    rest.remove(i);
+                    scorer.score(&rest)
+                })
+                .collect();
+            let (i, best) = without.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).expect("non-empty");
+            if best <= current * (1.0 + PRUNE_TOLERANCE) {
+                let term = terms.remove(i);
+                log.push(select::Step {
+                    term,
+                    cv_mse: f64::NAN,
+                    accepted: false,
+                    reason: format!("pruned by prediction: without it the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (with it {current:.4})"),
+                });
+                current = best;
+            } else {
+                break;
             }
         }
-        let Some((i, g)) = best else { break };
-        let term = sel.terms.remove(i);
-        sel.log.push(select::Step {
-            term,
-            cv_mse: f64::NAN,
-            accepted: false,
-            reason: format!("pruned in closed loop: without it the fit runs' simulated gap is {g:.3e} rad (with it {current:.3e} rad)"),
-        });
-        current = g;
+        if added >= 3 {
+            break;
+        }
+        // forward: the whole effect (all joints) that improves prediction most
+        check_stop(options)?;
+        progress(Progress { stage: "completing by prediction", done: 0, total: groups.len() });
+        let tries: Vec<(usize, Vec<Term>)> = groups
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| alone_score[*i] < 1.0 - ADD_GAIN)
+            .map(|(i, (_, g))| (i, g.iter().filter(|t| fits_in(terms, t)).cloned().collect::<Vec<_>>()))
+            .filter(|(_, g)| !g.is_empty())
+            .collect();
+        let scores: Vec<f64> = tries
+            .par_iter()
+            .map(|(_, g)| {
+                let mut with = terms.clone();
+                with.extend(g.iter().cloned());
+                scorer.score(&with)
+            })
+            .collect();
+        let Some((k, best)) = scores.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)) else { break };
+        if best < current * (1.0 - ADD_GAIN) {
+            let (gi, g) = &tries[k];
+            for t in g {
+                log.push(select::Step {
+                    term: t.clone(),
+                    cv_mse: f64::NAN,
+                    accepted: true,
+                    reason: format!("added by prediction: with {} the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (without it {current:.4})", groups[*gi].0),
+                });
+            }
+            terms.extend(g.iter().cloned());
+            current = best;
+            added += 1;
+        } else {
+            break;
+        }
     }
-    let (designs, _, f) = fit_terms(&ctx.problem, ctx.data, &sel.terms);
-    sel.designs = designs;
-    sel.fit = f;
+    Ok(current)
+}
+
+/// Orders the selected effects by how much prediction worsens without each (most needed first).
+fn rank_selected(scorer: &Scorer<'_>, terms: &[Term], reports: &mut [EffectReport]) {
+    if reports.len() < 2 {
+        return;
+    }
+    let loss: Vec<(String, f64)> = reports
+        .par_iter()
+        .map(|r| {
+            let rest: Vec<Term> = terms.iter().filter(|t| t.effect_name() != r.effect).cloned().collect();
+            (r.effect.clone(), scorer.score(&rest))
+        })
+        .collect();
+    let of = |name: &str| loss.iter().find(|l| l.0 == name).map_or(0.0, |l| l.1);
+    reports.sort_by(|a, b| of(&b.effect).total_cmp(&of(&a.effect)));
+}
+
+/// Which figure answers "how far", and why.
+fn headline(prep: &Prepared, before_runs: &[resim::RunGap], after_runs: &[resim::RunGap], before: f64) -> (String, String) {
+    let open_loop: Vec<&str> = prep.hold_runs.iter().filter(|r| r.experiment.as_ref().is_none_or(|e| e.controller == ControllerKind::Replay)).map(|r| r.source.as_str()).collect();
+    if !open_loop.is_empty() {
+        return ("k_step".into(), format!("held-out run(s) {} are open-loop replays: a whole-run simulation of an open loop measures how fast trajectories diverge, not the model", open_loop.join(", ")));
+    }
+    if let Some(g) = before_runs.iter().chain(after_runs).find(|g| g.status != "completed") {
+        return ("k_step".into(), format!("the closed-loop simulation of {} did not complete ({}): its whole-run figure measures divergence", g.log, g.status));
+    }
+    // the closed loop must stay near the measured run: within a fifth of the motion's spread
+    let spread = {
+        let (mut s, mut c) = (0.0, 0usize);
+        for r in &prep.hold_runs {
+            let n = r.dof();
+            for j in 0..n {
+                let col: Vec<f64> = r.q.iter().skip(j).step_by(n).copied().collect();
+                let m = col.iter().sum::<f64>() / col.len().max(1) as f64;
+                s += col.iter().map(|v| (v - m).powi(2)).sum::<f64>();
+                c += col.len();
+            }
+        }
+        (s / c.max(1) as f64 * prep.hold_runs.first().map_or(1, Run::dof) as f64).sqrt()
+    };
+    if before > 0.2 * spread {
+        return ("k_step".into(), format!("the nominal closed-loop simulation strays {before:.3e} rad (L²) from the measured runs, more than a fifth of the motion's spread ({spread:.3e} rad): the whole-run figure would measure divergence"));
+    }
+    ("closed_loop".into(), "every held-out run is a feedback loop and its closed-loop simulation stays near the measured run: the whole-run L² (eq. 127) is meaningful; k-step figures are given beside it".into())
+}
+
+/// Effect sets the data cannot tell apart from the selected one: exact equivalences, and swaps
+/// of one selected effect for another whose prediction score ties within the tolerance.
+fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], terms: &[Term], current: f64, selected: &[EffectReport]) -> Vec<Alternative> {
+    let names: Vec<String> = selected.iter().map(|e| e.effect.clone()).collect();
+    let with = |drop: &str, add: &str| -> Vec<String> {
+        let mut v: Vec<String> = names.iter().filter(|n| n.as_str() != drop).cloned().collect();
+        if !v.iter().any(|n| n == add) {
+            v.push(add.to_string());
+        }
+        v
+    };
+    let mut out = Vec::new();
+    // exact equivalences
+    for e in selected {
+        match e.effect.as_str() {
+            "payload" => out.push(Alternative { effects: with("payload", "inertial_error"), why: "a point mass on the last link is an inertial error of the last link: the same dynamics".into() }),
+            "torque_gain" => {
+                if let Some(Param::PerJoint(k)) = e.parameters.get("k") {
+                    let mean = k.iter().sum::<f64>() / k.len().max(1) as f64;
+                    if e.joints.len() == scorer.model.dof() && k.iter().all(|x| (x - mean).abs() <= 0.02 * mean.abs()) {
+                        out.push(Alternative {
+                            effects: with("torque_gain", "inertial_error"),
+                            why: format!("a torque gain equal on every joint (k ≈ {mean:.3}) and every link's inertial parameters scaled by 1/k are the same dynamics up to friction"),
+                        });
+                    }
+                }
+            }
+            "stribeck_friction" => {
+                if let Some(Param::PerJoint(vs)) = e.parameters.get("vs") {
+                    if vs.iter().all(|v| *v <= 0.02) {
+                        out.push(Alternative { effects: with("stribeck_friction", "coulomb_friction"), why: "the Stribeck velocity is below what these runs resolve: Coulomb friction is the same effect here".into() });
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    // ties: swap one selected effect for a candidate of similar prediction on its own
+    if current.is_finite() && !terms.is_empty() {
+        let mut swaps: Vec<(String, usize)> = Vec::new();
+        for name in &names {
+            let Some(si) = groups.iter().position(|g| g.0 == name.as_str()) else { continue };
+            let mut others: Vec<usize> = (0..groups.len()).filter(|&i| i != si && !names.iter().any(|n| n == groups[i].0) && alone_score[i] <= alone_score[si] * (1.0 + 5.0 * TIE_TOLERANCE)).collect();
+            others.sort_by(|a, b| alone_score[*a].total_cmp(&alone_score[*b]));
+            for i in others.into_iter().take(2) {
+                swaps.push((name.clone(), i));
+            }
+        }
+        let scored: Vec<(String, usize, f64)> = swaps
+            .par_iter()
+            .map(|(name, i)| {
+                let mut set: Vec<Term> = terms.iter().filter(|t| t.effect_name() != name.as_str()).cloned().collect();
+                set.extend(groups[*i].1.iter().filter(|t| fits_in(&set, t)).cloned().collect::<Vec<_>>());
+                (name.clone(), *i, scorer.score(&set))
+            })
+            .collect();
+        for (name, i, s) in scored {
+            if s <= current * (1.0 + TIE_TOLERANCE) {
+                let effects = with(&name, groups[i].0);
+                if !out.iter().any(|a: &Alternative| a.effects == effects) {
+                    out.push(Alternative {
+                        effects,
+                        why: format!("replacing {name} by {} predicts the fit runs as well (cross-validated k-step score {s:.4} against {current:.4}, within {:.0} %)", groups[i].0, 100.0 * TIE_TOLERANCE),
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// What is left after the selected effects, in words.
+fn residual_notes(k: &KStep, fit_cv: &[f64], fit_nominal: &[f64], horizons: &[f64]) -> Vec<String> {
+    let mut notes = Vec::new();
+    for (i, h) in horizons.iter().enumerate() {
+        let (a, f) = (k.after.get(i).copied().unwrap_or(f64::NAN), k.floor.get(i).copied().unwrap_or(f64::NAN));
+        if a.is_finite() && f.is_finite() && a >= f {
+            notes.push(format!("at {h} s the corrected model predicts the held-out runs no better than constant-velocity extrapolation ({a:.3e} vs {f:.3e} rad): at this horizon the figures say nothing about physics"));
+        }
+    }
+    if let (Some(a), Some(b)) = (fit_cv.first(), fit_nominal.first()) {
+        if a.is_finite() && b.is_finite() && *b > 0.0 && a / b > 0.5 {
+            notes.push(format!("after the selected effects the fit runs' cross-validated k-step error at {} s is still {:.0} % of the nominal model's: much of the gap is noise or structure the vocabulary does not hold", horizons[0], 100.0 * a / b));
+        }
+    }
+    notes
+}
+
+/// The one-sentence conclusion; never says "explained" when the held-out figure got worse or
+/// the nominal simulation diverged.
+fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, before: f64, after: f64, before_runs: &[resim::RunGap]) -> String {
+    if !moving {
+        return "cannot tell: the fit logs show no motion (all velocities below 1e-3 rad/s), so no effect can be told apart".to_string();
+    }
+    let names: Vec<String> = selected.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
+    let (figure, b, a) = if headline == "closed_loop" {
+        ("closed-loop L²".to_string(), before, after)
+    } else {
+        let i = k.horizons_s.len().saturating_sub(1).min(k.horizons_s.iter().position(|h| *h >= 0.5).unwrap_or(usize::MAX));
+        (format!("k-step error at {} s", k.horizons_s.get(i).copied().unwrap_or(f64::NAN)), k.before.get(i).copied().unwrap_or(f64::NAN), k.after.get(i).copied().unwrap_or(f64::NAN))
+    };
+    let diverged = before_runs.iter().any(|g| g.status != "completed");
+    let diverged_note = if diverged && headline != "closed_loop" { " (the nominal closed-loop simulation diverged, so the closed-loop figure is not used)" } else { "" };
+    if selected.is_empty() {
+        return format!("nothing significant: no effect improves the cross-validated prediction of the fit runs; held-out {figure} {b:.3e} rad{diverged_note}");
+    }
+    if !(a < b) {
+        return format!("not explained: the effects the fit runs support ({}) do not improve the held-out {figure}: {b:.3e} → {a:.3e} rad (worse or equal){diverged_note}", names.join("; "));
+    }
+    format!("the gap is explained by {}; held-out {figure} {b:.3e} → {a:.3e} rad ({:.1} % of before){diverged_note}", names.join("; "), 100.0 * a / b)
 }
 
 fn describe_term(t: &Term, joints: &[String]) -> String {
@@ -345,3 +824,4 @@ fn candidate_groups(ctx: &Context<'_>, resid: &terms::Column) -> Vec<(&'static s
     }
     groups
 }
+

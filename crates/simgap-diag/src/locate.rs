@@ -18,6 +18,12 @@ pub struct JointGap {
     pub torque_residual_l2: f64,
     /// Share of the total squared simulation gap.
     pub share: f64,
+    /// With a measured torque in the logs: RMS of (delivered − commanded) torque, the
+    /// actuator's part of the gap [N·m]; `null` without one.
+    pub actuator_residual_l2: Option<f64>,
+    /// With a measured torque: RMS of (delivered torque − H q̈ − C q̇ − g), the mechanics' part
+    /// [N·m]; `null` without one.
+    pub mechanics_residual_l2: Option<f64>,
 }
 
 /// A time segment where the gap is largest.
@@ -132,8 +138,8 @@ pub fn locate(joints: &[String], data: &[FitData], measured: &[Run], nominal: &[
             let jmax = (0..n).max_by(|&a, &b| per[a].total_cmp(&per[b])).unwrap_or(0);
             segments.push(Segment {
                 log: run.source.clone(),
-                start: run.t[k],
-                end: run.t[k + win - 1],
+                start: run.t[k] - run.t[0],
+                end: run.t[k + win - 1] - run.t[0],
                 rms_error: (e2 / (win * n) as f64).sqrt(),
                 joint: joints[jmax].clone(),
                 phase: phase(run, k, k + win).into(),
@@ -151,11 +157,22 @@ pub fn locate(joints: &[String], data: &[FitData], measured: &[Run], nominal: &[
         let col = |f: &dyn Fn(&FitData) -> &Vec<f64>| -> Vec<f64> { data.iter().flat_map(|d| (0..d.len()).map(move |s| f(d)[s * n + j])).collect() };
         let r = col(&|d| &d.residual);
         let rl2 = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
+        // with a measured torque: actuator (commanded → delivered) and mechanics (delivered →
+        // motion) apart, over the runs that have one
+        let measured: Vec<&FitData> = data.iter().filter(|d| !d.tau_measured.is_empty()).collect();
+        let rms_over = |f: &dyn Fn(&FitData, usize) -> f64| -> Option<f64> {
+            let v: Vec<f64> = measured.iter().flat_map(|d| (0..d.len()).map(move |s| f(d, s))).collect();
+            (!v.is_empty()).then(|| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt())
+        };
+        let actuator = rms_over(&|d, s| d.tau_measured[s * n + j] - d.tau[s * n + j]);
+        let mechanics = rms_over(&|d, s| d.residual[s * n + j] - (d.tau[s * n + j] - d.tau_measured[s * n + j]));
         per_joint.push(JointGap {
             joint: joints[j].clone(),
             sim_l2: if span > 0.0 { (sq[j] / span).sqrt() } else { f64::NAN },
             torque_residual_l2: rl2,
             share: if total > 0.0 { sq[j] / total } else { f64::NAN },
+            actuator_residual_l2: actuator,
+            mechanics_residual_l2: mechanics,
         });
         let qd = col(&|d| &d.qd);
         let sign: Vec<f64> = qd.iter().map(|v| v.signum()).collect();

@@ -94,6 +94,11 @@ pub struct Gap {
     pub headline_reason: String,
     /// Held-out k-step prediction error before and after.
     pub kstep: KStep,
+    /// Cross-validated k-step error on the fit runs, nominal model, per horizon [rad] (what
+    /// selection compares against).
+    pub fit_kstep_cv_before: Vec<f64>,
+    /// The same with the selected effects.
+    pub fit_kstep_cv_after: Vec<f64>,
     /// L² (eq. 127) over the held-out runs, nominal closed-loop simulation vs measured [rad].
     pub holdout_l2_before: f64,
     /// The same with the selected effects added.
@@ -152,6 +157,9 @@ pub struct Report {
     pub candidates: Vec<Candidate>,
     /// Effect sets the data cannot tell apart from the selected set (empty when they decide).
     pub alternatives: Vec<Alternative>,
+    /// The sensors the re-simulation and prediction give each run's controller, as inferred
+    /// from its samples.
+    pub sensors: Vec<crate::resim::InferredSensors>,
     /// Warnings about the logs and the answer (glitches removed, sensors inferred, URDF
     /// pitfalls the data reveal, what the residual still holds).
     pub notes: Vec<String>,

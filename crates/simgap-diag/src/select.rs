@@ -11,8 +11,11 @@ use nalgebra::{DMatrix, DVector};
 use simgap_core::PARAMS_PER_LINK;
 
 use crate::dataset::FitData;
-use crate::fit::{fit, fit_terms, grams, grams_against, solve, Fit, Problem};
-use crate::terms::{design, Column, Term, TermDesign};
+use std::sync::Arc;
+
+use crate::fit::{contract_parameters, fit, fit_terms, grams, grams_against, Fit, Problem};
+use crate::inertial::InertialPrior;
+use crate::terms::{design, Column, Term, TermDesign, GAIN_RANGE};
 
 /// Thresholds of the selection.
 #[derive(Clone, Debug)]
@@ -76,8 +79,14 @@ pub struct Context<'a> {
     pub data: &'a [FitData],
     /// The problem.
     pub problem: Problem,
-    /// Identifiable inertial directions.
+    /// Identifiable inertial directions (the excited directions of the stacked parameters).
     pub inertial_basis: DMatrix<f64>,
+    /// Prior of the inertial correction (URDF parameters, reach, weight chosen by
+    /// cross-validation).
+    pub prior: Arc<InertialPrior>,
+    /// Per joint, the lowest torque saturation limit the logs allow: the torque the drive is
+    /// seen to deliver (`tau_measured`, when logged) [N·m].
+    pub saturation_floor: Vec<f64>,
     /// Sample period (for the delay grid) [s].
     pub sample_period: f64,
     /// Designs already built, by term (the same grid members recur at every step).
@@ -85,12 +94,81 @@ pub struct Context<'a> {
 }
 
 impl<'a> Context<'a> {
-    /// Builds the context; `scales` are the nominal magnitudes of the stacked inertial
-    /// parameters (see [`parameter_scales`]).
-    pub fn new(data: &'a [FitData], sample_period: f64, scales: &[f64]) -> Context<'a> {
+    /// Builds the context; `prior` holds the model's inertial parameters, their scales and the
+    /// reach of every link (see [`parameter_scales`]).
+    pub fn new(data: &'a [FitData], sample_period: f64, prior: &InertialPrior) -> Context<'a> {
         let problem = Problem::new(data);
-        let inertial_basis = inertial_basis(&problem, data, scales);
-        Context { data, problem, inertial_basis, sample_period, cache: Default::default() }
+        let inertial_basis = inertial_basis(&problem, data, prior);
+        let dof = problem.dof;
+        let saturation_floor = (0..dof)
+            .map(|j| {
+                // the 99.5th percentile of the delivered torque (a glitch sample does not count)
+                let mut v: Vec<f64> = data.iter().flat_map(|d| d.raw.tau_measured.iter().skip(j).step_by(d.dof).map(|x| x.abs())).filter(|x| x.is_finite()).collect();
+                v.sort_by(f64::total_cmp);
+                v.get(((v.len() as f64) * 0.995) as usize).or(v.last()).copied().unwrap_or(0.0)
+            })
+            .collect();
+        let mut prior = prior.clone();
+        prior.identifiable = inertial_basis.ncols();
+        let mut ctx = Context { data, problem, inertial_basis, prior: Arc::new(prior), saturation_floor, sample_period, cache: Default::default() };
+        if ctx.inertial_basis.ncols() > 0 {
+            let w = ctx.choose_prior_weight();
+            let mut prior = (*ctx.prior).clone();
+            prior.weight = w;
+            ctx.prior = Arc::new(prior);
+        }
+        ctx
+    }
+
+    /// The weight of the inertial prior that cross-validates best on the nominal residual (the
+    /// largest within 1 % of the best, so that weakly excited directions stay at the URDF).
+    fn choose_prior_weight(&self) -> f64 {
+        let p = &self.problem;
+        let d = design(&Term::InertialError { prior: self.prior.clone() }, self.data);
+        let gr = grams(p, &[&d]);
+        let scores: Vec<(f64, f64)> = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0]
+            .iter()
+            .map(|&w| {
+                let mut prior = (*self.prior).clone();
+                prior.weight = w;
+                let mut g = gr.clone();
+                g.inertial = g.inertial.map(|(first, _)| (first, Arc::new(prior)));
+                (w, fit(p, &g).cv_mse)
+            })
+            .collect();
+        let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+        if std::env::var_os("SIMGAP_DEBUG_INERTIAL").is_some() {
+            eprintln!("inertial prior weight: cross-validated MSE {scores:?}");
+        }
+        scores.iter().filter(|s| s.1 <= best * 1.01).map(|s| s.0).fold(crate::inertial::DEFAULT_PRIOR_WEIGHT.min(1e-6), f64::max)
+    }
+
+    /// Whether a torque saturation limit is possible: not below the torque the drive is seen to
+    /// deliver, and not below commands whose full torque the motion shows. On the samples the
+    /// limit would clamp, the residual `r` left by the other terms must follow the clamped excess
+    /// `τ − clamp(τ, ±L)`: its least-squares coefficient on it is at least 0.5 (a limit the
+    /// joint's acceleration contradicts has a coefficient near 0).
+    pub fn saturation_plausible(&self, t: &Term, resid: &Column) -> bool {
+        let Term::Saturation { joint, limit } = *t else { return true };
+        if limit < self.saturation_floor.get(joint).copied().unwrap_or(0.0) {
+            return false;
+        }
+        let d = self.design_shared(t);
+        let Some(x) = &d.offset else { return true };
+        let dof = self.problem.dof;
+        let (mut a, mut b) = (0.0, 0.0);
+        for (s, &v) in x.values.iter().enumerate() {
+            if v != 0.0 {
+                a += v * resid.values[s * dof + joint];
+                b += v * v;
+            }
+        }
+        b <= 0.0 || a / b >= 0.5
+    }
+
+    /// The largest commanded torque of joint `j` (a saturation there clamps nothing).
+    fn max_command(&self, j: usize) -> f64 {
+        self.data.iter().flat_map(|d| d.raw.tau.iter().skip(j).step_by(d.dof)).fold(0.0f64, |m, v| m.max(v.abs()))
     }
 
     fn grid(&self, family: &Family) -> Vec<Term> {
@@ -98,8 +176,9 @@ impl<'a> Context<'a> {
             Family::Fixed(ref t) => vec![t.clone()],
             Family::Stribeck(j) => (0..12).map(|i| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i) }).collect(),
             Family::Saturation(j) => {
-                let max = self.data.iter().flat_map(|d| d.raw.tau.iter().skip(j).step_by(d.dof)).fold(0.0f64, |m, v| m.max(v.abs()));
-                (1..=24).map(|i| Term::Saturation { joint: j, limit: max * (0.2 + 0.8 * (1.0 - (i as f64 / 25.0))) }).collect()
+                let max = self.max_command(j);
+                let floor = self.saturation_floor[j];
+                (1..=24).map(|i| Term::Saturation { joint: j, limit: max * (0.2 + 0.8 * (1.0 - (i as f64 / 25.0))) }).filter(|t| matches!(t, Term::Saturation { limit, .. } if *limit >= floor)).collect()
             }
             Family::Cogging(j) => (3..=64).map(|n| Term::Cogging { joint: j, periods: n as f64 }).collect(),
             Family::Delay => {
@@ -114,9 +193,13 @@ impl<'a> Context<'a> {
         match *best {
             Term::Saturation { joint, limit } => {
                 // coarse (±20 % in 2 % steps), then fine (±2 % in 0.2 % steps)
-                let coarse: Vec<Term> = (-10..=10).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.02 * i as f64) }).collect();
+                // (only limits the data allow; the current one is among them)
+                let allowed = |t: &Term| *t == *best || self.saturation_plausible(t, resid);
+                let coarse: Vec<Term> = (-10..=10).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.02 * i as f64) }).filter(allowed).collect();
                 let Term::Saturation { limit, .. } = screen_best(self, &coarse, resid).0 else { unreachable!() };
-                let fine: Vec<Term> = (-10..=10).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.002 * i as f64) }).collect();
+                let at = Term::Saturation { joint, limit };
+                let allowed = |t: &Term| *t == at || self.saturation_plausible(t, resid);
+                let fine: Vec<Term> = (-10..=10).map(|i| Term::Saturation { joint, limit: limit * (1.0 + 0.002 * i as f64) }).filter(allowed).collect();
                 screen_best(self, &fine, resid).0
             }
             Term::Delay { delay } => {
@@ -134,7 +217,15 @@ impl<'a> Context<'a> {
 
     /// The best member of a family against the current residual.
     pub fn best_of(&self, family: &Family, resid: &Column) -> Term {
-        let cands = self.grid(family);
+        let mut cands = self.grid(family);
+        if let Family::Saturation(j) = *family {
+            // limits the logs contradict are not candidates; with none left, a limit that
+            // clamps nothing
+            cands.retain(|t| self.saturation_plausible(t, resid));
+            if cands.is_empty() {
+                return Term::Saturation { joint: j, limit: self.max_command(j).max(self.saturation_floor[j]) };
+            }
+        }
         let (best, _) = screen_best(self, &cands, resid);
         self.refine(&best, resid)
     }
@@ -154,10 +245,20 @@ impl<'a> Context<'a> {
         let p = &self.problem;
         let (th, _) = screen_fit(p, &crate::terms::payload_linear_design(self.data), resid);
         let c0 = if th.len() == 4 && th[0].abs() > 1e-9 { [th[1] / th[0], th[2] / th[0], th[3] / th[0]] } else { [0.0; 3] };
-        let c0 = c0.map(|x| if x.is_finite() { x.clamp(-2.0, 2.0) } else { 0.0 });
+        // the centre of mass stays within reach of the last link
+        let reach = self.prior.reach.last().copied().unwrap_or(f64::INFINITY);
+        let within = |c: &[f64; 3]| -> [f64; 3] {
+            let n = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+            if n > reach {
+                c.map(|x| x * reach / n)
+            } else {
+                *c
+            }
+        };
+        let c0 = within(&c0.map(|x| if x.is_finite() { x } else { 0.0 }));
         let sse = |c: &[f64; 3]| -> f64 {
             let mut ds = rest.to_vec();
-            ds.push(TermDesign { cols: vec![crate::terms::payload_column(self.data, *c)], offset: None });
+            ds.push(design(&Term::Payload { com: within(c) }, self.data));
             let refs: Vec<&TermDesign> = ds.iter().collect();
             let gr = grams(p, &refs);
             let (mut g, mut cc, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
@@ -166,10 +267,10 @@ impl<'a> Context<'a> {
                 cc += &gr.c[b];
                 s += gr.s[b];
             }
-            let (t, _) = solve(&g, &cc);
+            let (t, _) = gr.solve(&g, &cc);
             s - 2.0 * t.dot(&cc) + t.dot(&(&g * &t))
         };
-        Term::Payload { com: nelder_mead(sse, c0, 0.02, 60) }
+        Term::Payload { com: within(&nelder_mead(sse, c0, 0.02, 60)) }
     }
 
     /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
@@ -179,10 +280,7 @@ impl<'a> Context<'a> {
     }
 
     fn design_shared(&self, t: &Term) -> std::sync::Arc<TermDesign> {
-        if matches!(t, Term::InertialError { .. }) {
-            return std::sync::Arc::new(design(t, self.data));
-        }
-        let key = format!("{t:?}");
+        let key = if matches!(t, Term::InertialError { .. }) { "inertial_error".to_string() } else { format!("{t:?}") };
         if let Some(d) = self.cache.lock().expect("design cache").get(&key) {
             return d.clone();
         }
@@ -191,9 +289,10 @@ impl<'a> Context<'a> {
         d
     }
 
-    /// The inertial-error term over the identifiable directions.
+    /// The inertial-error term: physically consistent corrections of every link, regularised
+    /// toward the URDF.
     pub fn inertial_term(&self) -> Term {
-        Term::InertialError { basis: self.inertial_basis.clone() }
+        Term::InertialError { prior: self.prior.clone() }
     }
 }
 
@@ -249,18 +348,11 @@ fn nelder_mead(f: impl Fn(&[f64; 3]) -> f64, x0: [f64; 3], step: f64, iters: usi
 /// the first moments and `m̄ ℓ²` for the rotational inertia, with `m̄` the link mass (at least
 /// 1 % of the average) and `ℓ = 0.1 m`. Fitting in these units makes the minimum-norm
 /// correction spread over the links as their nominal parameters do, which keeps it physical.
-pub fn parameter_scales(model: &simgap_core::Model) -> Vec<f64> {
-    let n = model.dof();
-    let avg = model.total_mass() / n as f64;
-    let l = 0.1;
-    model
-        .joints()
-        .iter()
-        .flat_map(|j| {
-            let m = j.inertia.mass.max(0.01 * avg).max(1e-6);
-            [m, m * l, m * l, m * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l]
-        })
-        .collect()
+///
+/// Returned inside the [`InertialPrior`] of the model (which dereferences to the scales), with
+/// the URDF parameters and the reach of every link.
+pub fn parameter_scales(model: &simgap_core::Model) -> InertialPrior {
+    InertialPrior::new(model)
 }
 
 fn inertial_basis(p: &Problem, data: &[FitData], scales: &[f64]) -> DMatrix<f64> {
@@ -303,7 +395,7 @@ fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64
         c += &gr.c[b];
         s += gr.s[b];
     }
-    let (th, _) = solve(&g, &c);
+    let (th, _) = gr.solve(&g, &c);
     let sse = s - 2.0 * th.dot(&c) + th.dot(&(&g * &th));
     (th, sse)
 }
@@ -314,8 +406,8 @@ fn screen_best(ctx: &Context<'_>, cands: &[Term], resid: &Column) -> (Term, f64)
     for t in cands {
         let d = ctx.design_shared(t);
         let (th, sse) = screen_fit(p, &d, resid);
-        // Stribeck is physical only with a static level above the Coulomb level
-        if matches!(t, Term::Stribeck { .. }) && !(th[1] > th[0] && th[0] > 0.0) {
+        // a Stribeck member without a static level above the Coulomb level is Coulomb friction
+        if matches!(t, Term::Stribeck { .. }) && !(th[1] > 0.0) {
             continue;
         }
         if sse < best.1 {
@@ -403,14 +495,20 @@ fn slot_taken(terms: &[Term], t: &Term) -> bool {
     terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
 }
 
-/// Whether fitted parameters are physical: dissipative friction (b, fc > 0, fs > fc), positive
-/// rotor inertia and payload mass, a gain between 0.2 and 5.
+/// Whether fitted parameters (as the effect states them, see
+/// [`crate::fit::contract_parameters`]) are physical: dissipative friction (b, fc ≥ 0,
+/// fs ≥ fc), non-negative rotor inertia and payload mass, a gain within [`GAIN_RANGE`], and
+/// every corrected link with mass > 0, a positive-definite pseudo-inertia and its centre of
+/// mass within reach. The bounded fits of [`crate::fit`] always give physical parameters; a
+/// parameter at its bound (fc = 0) is physical.
 pub fn physical(term: &Term, theta: &[f64]) -> bool {
+    let tol = 1e-12;
     match term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Armature(_) => theta[0] > 0.0,
-        Term::Stribeck { .. } => theta[1] > theta[0] && theta[0] > 0.0,
-        Term::Gain(_) => (0.2..5.0).contains(&(1.0 - theta[0])),
-        Term::Payload { .. } => theta[0] > 0.0,
+        Term::Viscous(_) | Term::Coulomb(_) | Term::Armature(_) => theta[0] >= -tol,
+        Term::Stribeck { .. } => theta[1] >= theta[0] - tol && theta[0] >= -tol,
+        Term::Gain(_) => (GAIN_RANGE.0 - tol..=GAIN_RANGE.1 + tol).contains(&(1.0 - theta[0])),
+        Term::Payload { .. } => theta[0] >= -tol,
+        Term::InertialError { prior } => prior.is_physical(theta),
         _ => true,
     }
 }
@@ -419,7 +517,7 @@ fn all_physical(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) ->
     let mut c = 0;
     for (t, d) in terms.iter().zip(designs) {
         let k = d.cols.len();
-        if !physical(t, &theta.as_slice()[c..c + k]) {
+        if !physical(t, &contract_parameters(t, &theta.as_slice()[c..c + k])) {
             return false;
         }
         c += k;

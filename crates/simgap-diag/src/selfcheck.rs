@@ -32,6 +32,20 @@ pub struct Scenario {
     pub fit: Vec<Run>,
     /// Held-out logs.
     pub holdout: Vec<Run>,
+    /// `closed_loop` (PD or PD + gravity tracking) or `open_loop` (the same motions replayed
+    /// open loop from the commanded torque, as a sys-id experiment without feedback).
+    pub family: &'static str,
+}
+
+/// Relabels runs as open-loop replays of their commanded torque.
+fn as_replay(runs: &mut [Run]) {
+    for r in runs {
+        if let Some(e) = r.experiment.as_mut() {
+            e.controller = ControllerKind::Replay;
+            e.kp = vec![0.0; e.joints.len()];
+            e.kv = vec![0.0; e.joints.len()];
+        }
+    }
 }
 
 fn rms(run: &Run, m: &[f64], j: usize) -> f64 {
@@ -84,13 +98,15 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
             let m = model.joints()[link].inertia.mass;
             Effect::InertialError { deltas: vec![LinkDelta { joint: link, mass: m * rng.random_range(0.15..0.35) * if rng.random_bool(0.5) { 1.0 } else { -1.0 }, com: [0.0; 3], inertia: [0.0; 6] }] }
         }
-        "time_delay" => Effect::TimeDelay { delay: rng.random_range(2.0..8.0) * 0.0025 },
+        "time_delay" => Effect::TimeDelay { delay: rng.random_range(1..=3) as f64 * 0.0025 },
         _ => Effect::CoriolisStructure,
     }
 }
 
 /// Generates scenario `index` of a self-check seeded with `seed`: 20 % effect-free, 50 % one
-/// effect, 30 % two effects of different kinds.
+/// effect, 30 % two effects of different kinds; a quarter of the scenarios are open-loop
+/// replays (the logs of the closed-loop runs relabelled `replay`: the robot driven by the
+/// recorded torque, no feedback).
 ///
 /// # Errors
 /// Simulator errors (a scenario whose hidden effects make it diverge is redrawn).
@@ -135,8 +151,13 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
         let gen = |s: &RunSpec| generate(&model, Formulation::EulerLagrange, &effects, s, 0.0025, 1_024_000.0);
         let fit: crate::Result<Vec<Run>> = fit_specs.iter().map(gen).collect();
         let hold: crate::Result<Vec<Run>> = hold_specs.iter().map(gen).collect();
-        if let (Ok(fit), Ok(holdout)) = (fit, hold) {
-            return Ok(Scenario { index, model, effects, fit, holdout });
+        let open_loop = rng.random_bool(0.25);
+        if let (Ok(mut fit), Ok(mut holdout)) = (fit, hold) {
+            if open_loop {
+                as_replay(&mut fit);
+                as_replay(&mut holdout);
+            }
+            return Ok(Scenario { index, model, effects, fit, holdout, family: if open_loop { "open_loop" } else { "closed_loop" } });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every draw diverged")))
@@ -232,8 +253,15 @@ pub struct ScenarioScore {
     pub truth: Vec<String>,
     /// Selected pairs.
     pub found: Vec<String>,
+    /// Scenario family (`closed_loop` or `open_loop`).
+    pub family: String,
     /// Exactly the hidden set.
     pub exact: bool,
+    /// Not exact, but the hidden effects are one of the report's `alternatives` (an effect set
+    /// these data cannot tell apart from the selected one).
+    pub in_alternatives: bool,
+    /// Held-out k-step error after / before at the longest horizon.
+    pub kstep_ratio: f64,
     /// Relative parameter errors of correctly found effects.
     pub parameter_errors: Vec<(String, f64)>,
     /// Held-out L² after / before.
@@ -253,16 +281,37 @@ fn label(s: &BTreeSet<(String, Option<String>)>) -> Vec<String> {
 pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
     let sc = match scenario(seed, index) {
         Ok(s) => s,
-        Err(e) => return ScenarioScore { index, robot: String::new(), truth: vec![], found: vec![], exact: false, parameter_errors: vec![], holdout_ratio: f64::NAN, error: Some(e.to_string()) },
+        Err(e) => {
+            return ScenarioScore {
+                index,
+                robot: String::new(),
+                family: String::new(),
+                truth: vec![],
+                found: vec![],
+                exact: false,
+                in_alternatives: false,
+                kstep_ratio: f64::NAN,
+                parameter_errors: vec![],
+                holdout_ratio: f64::NAN,
+                error: Some(e.to_string()),
+            }
+        }
     };
     let truth = truth_set(&sc.model, &sc.effects);
     match diagnose(&sc.model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &DiagnoseOptions::default(), &mut |_| {}) {
         Ok(d) => {
             let found = found_set(&d);
+            let truth_names: BTreeSet<String> = truth.iter().map(|t| t.0.clone()).collect();
+            let in_alternatives = found != truth && !truth_names.is_empty() && d.report.alternatives.iter().any(|a| a.effects.iter().cloned().collect::<BTreeSet<String>>() == truth_names);
+            let k = &d.report.gap.kstep;
+            let last = k.horizons_s.len().saturating_sub(1);
             ScenarioScore {
                 index,
                 robot: sc.model.name().into(),
+                family: sc.family.into(),
                 exact: found == truth,
+                in_alternatives,
+                kstep_ratio: k.after.get(last).zip(k.before.get(last)).map_or(f64::NAN, |(a, b)| a / b),
                 parameter_errors: parameter_errors(&sc.model, &sc.effects, &d),
                 holdout_ratio: d.report.gap.ratio,
                 truth: label(&truth),
@@ -270,15 +319,31 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
                 error: None,
             }
         }
-        Err(e) => ScenarioScore { index, robot: sc.model.name().into(), truth: label(&truth), found: vec![], exact: false, parameter_errors: vec![], holdout_ratio: f64::NAN, error: Some(e.to_string()) },
+        Err(e) => ScenarioScore {
+            index,
+            robot: sc.model.name().into(),
+            family: sc.family.into(),
+            truth: label(&truth),
+            found: vec![],
+            exact: false,
+            in_alternatives: false,
+            kstep_ratio: f64::NAN,
+            parameter_errors: vec![],
+            holdout_ratio: f64::NAN,
+            error: Some(e.to_string()),
+        },
     }
 }
 
 /// Aggregate of a self-check.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Summary {
-    /// Scenarios per number of hidden effects: (count, exactly right).
-    pub by_count: BTreeMap<usize, (usize, usize)>,
+    /// Scenarios per number of hidden effects: (count, exactly right, right up to an
+    /// alternative the data cannot tell apart).
+    pub by_count: BTreeMap<usize, (usize, usize, usize)>,
+    /// Per family: (scenarios, right up to alternatives, median held-out k-step after/before at
+    /// the longest horizon over scenarios with hidden effects).
+    pub by_family: BTreeMap<String, (usize, usize, f64)>,
     /// Confusion counts: true effect (or `none`) → selected effect (or `nothing`) → count.
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
     /// Median relative parameter error over correctly found effects.
@@ -305,7 +370,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Aggregates scenario scores.
 pub fn summarise(scores: &[ScenarioScore]) -> Summary {
-    let mut by_count: BTreeMap<usize, (usize, usize)> = BTreeMap::new();
+    let mut by_count: BTreeMap<usize, (usize, usize, usize)> = BTreeMap::new();
+    let mut by_family: BTreeMap<String, (usize, usize, Vec<f64>)> = BTreeMap::new();
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
     let mut perr = Vec::new();
     let mut ratios = Vec::new();
@@ -318,10 +384,21 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
         }
         let true_effects: BTreeSet<String> = s.truth.iter().map(|x| base(x)).collect();
         let found_effects: BTreeSet<String> = s.found.iter().map(|x| base(x)).collect();
-        let e = by_count.entry(true_effects.len()).or_insert((0, 0));
+        let e = by_count.entry(true_effects.len()).or_insert((0, 0, 0));
         e.0 += 1;
         if s.exact {
             e.1 += 1;
+        }
+        if s.exact || s.in_alternatives {
+            e.2 += 1;
+        }
+        let f = by_family.entry(s.family.clone()).or_insert((0, 0, Vec::new()));
+        f.0 += 1;
+        if s.exact || s.in_alternatives {
+            f.1 += 1;
+        }
+        if !true_effects.is_empty() {
+            f.2.push(s.kstep_ratio);
         }
         let rows: Vec<String> = if true_effects.is_empty() { vec!["none".into()] } else { true_effects.iter().cloned().collect() };
         let cols: Vec<String> = if found_effects.is_empty() { vec!["nothing".into()] } else { found_effects.iter().cloned().collect() };
@@ -335,5 +412,6 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
             ratios.push(s.holdout_ratio);
         }
     }
-    Summary { by_count, confusion, median_parameter_error: median(perr), median_holdout_ratio: median(ratios), failures }
+    let by_family = by_family.into_iter().map(|(k, (n, right, r))| (k, (n, right, median(r)))).collect();
+    Summary { by_count, by_family, confusion, median_parameter_error: median(perr), median_holdout_ratio: median(ratios), failures }
 }

@@ -1,5 +1,6 @@
 //! Candidate terms: each unmodelled effect of BRIEF §3.2, as columns of a linear model of the
-//! nominal residual `r = τ_cmd − (H q̈ + C q̇ + g)`.
+//! nominal residual `r = τ_cmd − (H q̈ + C q̇ + g)`, each with the bounds physics puts on its
+//! parameters (b, fc, fs − fc, ia, payload mass ≥ 0; a gain within [`GAIN_RANGE`]).
 //!
 //! With the effect present, the robot obeys `(H + diag(ia)) q̈ + C q̇ + g = τ_applied + τ_eff`, so
 //!
@@ -12,13 +13,16 @@
 //! time_delay     r   ∋  τ(t) − τ(t − d)                 (fixed coefficient, d searched)
 //! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
-//! inertial_error r   ∋  Y Δπ                            (identifiable directions only)
+//! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
 
-use nalgebra::{DMatrix, Vector3};
+use std::sync::Arc;
+
+use nalgebra::Vector3;
 use simgap_core::PARAMS_PER_LINK;
 
 use crate::dataset::FitData;
+use crate::inertial::InertialPrior;
 
 /// Width [rad/s] of the tanh that smooths sign(q̇) in fitting and in simulation.
 pub const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
@@ -70,11 +74,12 @@ pub enum Term {
         /// Centre of mass [m], last link frame.
         com: [f64; 3],
     },
-    /// Errors of the inertial parameters along identifiable directions (columns of `basis`,
-    /// `10 dof × r`).
+    /// Corrections of every link's inertial parameters, physically consistent and regularised
+    /// toward the URDF (see [`crate::inertial`]); its parameters are the stacked corrections
+    /// Δπ in units of `prior.scales`.
     InertialError {
-        /// Identifiable directions in the stacked parameter space.
-        basis: DMatrix<f64>,
+        /// URDF parameters, scales, reach of every link and prior weight.
+        prior: Arc<InertialPrior>,
     },
 }
 
@@ -146,13 +151,41 @@ impl Column {
 }
 
 /// The columns of a term: free columns (one per fitted parameter) and a fixed offset
-/// (coefficient 1) subtracted from the residual.
+/// (coefficient 1) subtracted from the residual, with the physical constraints on the
+/// parameters.
 #[derive(Clone, Debug, Default)]
 pub struct TermDesign {
     /// Free columns.
     pub cols: Vec<Column>,
     /// Fixed part.
     pub offset: Option<Column>,
+    /// Lower bound of each column's coefficient (empty: none).
+    pub lo: Vec<f64>,
+    /// Upper bound of each column's coefficient (empty: none).
+    pub hi: Vec<f64>,
+    /// The columns are a physically consistent inertial correction with this prior.
+    pub inertial: Option<Arc<InertialPrior>>,
+}
+
+/// Plausible range of a torque gain `k` (fitted as `1 − k`).
+pub const GAIN_RANGE: (f64, f64) = (0.2, 5.0);
+
+impl TermDesign {
+    /// Columns without constraints.
+    pub fn free(cols: Vec<Column>) -> TermDesign {
+        TermDesign { cols, ..Default::default() }
+    }
+
+    /// Columns whose coefficients are at least `lo` each.
+    fn at_least(cols: Vec<Column>, lo: f64) -> TermDesign {
+        let k = cols.len();
+        TermDesign { cols, lo: vec![lo; k], hi: vec![f64::INFINITY; k], ..Default::default() }
+    }
+
+    /// A fixed offset and no parameter.
+    fn fixed(offset: Column) -> TermDesign {
+        TermDesign { offset: Some(offset), ..Default::default() }
+    }
 }
 
 /// Concatenation of a per-joint signal over runs.
@@ -205,7 +238,7 @@ pub fn payload_linear_design(data: &[FitData]) -> TermDesign {
             Column { joint: None, values: v }
         })
         .collect();
-    TermDesign { cols, offset: None }
+    TermDesign::free(cols)
 }
 
 /// The design of a term over all runs.
@@ -213,19 +246,17 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
     let dof = data[0].dof;
     let tanh = |x: f64| (x / COULOMB_WIDTH).tanh();
     match *term {
-        Term::Viscous(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.qd[i])], offset: None },
-        Term::Coulomb(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| tanh(d.qd[i]))], offset: None },
+        Term::Viscous(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qd[i])], 0.0),
+        Term::Coulomb(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| tanh(d.qd[i]))], 0.0),
         Term::Stribeck { joint, vs } => {
+            // fc tanh + (fs − fc) e tanh, with fc ≥ 0 and fs − fc ≥ 0
             let e = |v: f64| (-(v / vs).powi(2)).exp();
-            TermDesign {
-                cols: vec![per_joint(data, joint, |d, i| (1.0 - e(d.qd[i])) * tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))],
-                offset: None,
-            }
+            TermDesign::at_least(vec![per_joint(data, joint, |d, i| tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))], 0.0)
         }
-        Term::Armature(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.qdd[i])], offset: None },
-        Term::Gain(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.tau[i])], offset: None },
-        Term::Offset(j) => TermDesign { cols: vec![per_joint(data, j, |_, _| -1.0)], offset: None },
-        Term::Cogging { joint, periods } => TermDesign { cols: vec![per_joint(data, joint, |d, i| (periods * d.q[i]).sin())], offset: None },
+        Term::Armature(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qdd[i])], 0.0),
+        Term::Gain(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.tau[i])], lo: vec![1.0 - GAIN_RANGE.1], hi: vec![1.0 - GAIN_RANGE.0], ..Default::default() },
+        Term::Offset(j) => TermDesign::free(vec![per_joint(data, j, |_, _| -1.0)]),
+        Term::Cogging { joint, periods } => TermDesign::free(vec![per_joint(data, joint, |d, i| (periods * d.q[i]).sin())]),
         Term::Saturation { joint, limit } => {
             let mut v = Vec::new();
             for d in data {
@@ -235,7 +266,7 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
                 });
                 v.extend((0..d.len()).map(|s| m[s * dof + joint]));
             }
-            TermDesign { cols: vec![], offset: Some(Column { joint: Some(joint), values: v }) }
+            TermDesign::fixed(Column { joint: Some(joint), values: v })
         }
         Term::Delay { delay } => {
             let mut v = Vec::new();
@@ -248,27 +279,28 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
                 });
                 v.extend(m);
             }
-            TermDesign { cols: vec![], offset: Some(Column { joint: None, values: v }) }
+            TermDesign::fixed(Column { joint: None, values: v })
         }
         Term::CoriolisStructure => {
             let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
-            TermDesign { cols: vec![], offset: Some(Column { joint: None, values: v }) }
+            TermDesign::fixed(Column { joint: None, values: v })
         }
-        Term::Payload { com } => TermDesign { cols: vec![payload_column(data, com)], offset: None },
-        Term::InertialError { ref basis } => {
+        Term::Payload { com } => TermDesign::at_least(vec![payload_column(data, com)], 0.0),
+        Term::InertialError { ref prior } => {
+            // every stacked parameter, in units of its scale
             let width = PARAMS_PER_LINK * dof;
-            let mut cols: Vec<Column> = (0..basis.ncols()).map(|_| Column { joint: None, values: Vec::new() }).collect();
+            let mut cols: Vec<Column> = (0..width).map(|_| Column { joint: None, values: Vec::new() }).collect();
             for d in data {
                 for s in 0..d.len() {
                     for j in 0..dof {
                         let row = &d.regressor[(s * dof + j) * width..(s * dof + j + 1) * width];
-                        for (c, col) in cols.iter_mut().enumerate() {
-                            col.values.push((0..width).map(|p| row[p] * basis[(p, c)]).sum());
+                        for (p, col) in cols.iter_mut().enumerate() {
+                            col.values.push(row[p] * prior.scales[p]);
                         }
                     }
                 }
             }
-            TermDesign { cols, offset: None }
+            TermDesign { cols, inertial: Some(prior.clone()), ..Default::default() }
         }
     }
 }

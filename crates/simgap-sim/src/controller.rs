@@ -15,6 +15,13 @@ pub trait Controller {
     /// Writes the commanded torque τ_cmd [N·m or N] into `out`.
     fn torque(&mut self, t: f64, q_meas: &[f64], qd_meas: &[f64], q_ref: &[f64], qd_ref: &[f64], out: &mut [f64]);
 
+    /// Whether the reference's feed-forward torque is added to this controller's command:
+    /// true for feedback controllers, false for a replay (its logged effort already holds
+    /// everything that was commanded).
+    fn adds_feed_forward(&self) -> bool {
+        true
+    }
+
     /// The `simgap.experiment` metadata describing this controller, for the sink.
     ///
     /// The default describes a replay (no gains).
@@ -33,7 +40,8 @@ impl Controller for ZeroTorque {
     }
 }
 
-/// PD control: `τ = Kp (q_ref − q) + Kv (q̇_ref − q̇)`, diagonal gains in model order.
+/// PD control: `τ = Kp (q_ref − q) + Kv (q̇_ref − q̇)`, diagonal gains in model order (the
+/// simulator adds the reference's feed-forward torque).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pd {
     /// Proportional gains [N·m/rad].
@@ -122,6 +130,10 @@ impl Replay {
 }
 
 impl Controller for Replay {
+    fn adds_feed_forward(&self) -> bool {
+        false
+    }
+
     fn torque(&mut self, t: f64, _q: &[f64], _qd: &[f64], _q_ref: &[f64], _qd_ref: &[f64], out: &mut [f64]) {
         let n = out.len();
         let tol = self.tol;

@@ -1,14 +1,12 @@
-//! Closed-loop simulation of serial manipulators sampled like a real controller, logs in ROS 2
-//! MCAP and CSV, and the L² index.
+//! Closed-loop simulation of serial manipulators sampled like a real controller, the run type
+//! every log reader fills, and the L² index. Reading and writing log files is the job of the
+//! `simgap-log` crate: the simulator and its tests never touch a file format.
 
 pub mod controller;
-pub mod csv_log;
 pub mod effects;
 pub mod error;
 pub mod integrate;
 pub mod l2;
-pub mod log;
-pub mod mcap_log;
 pub mod plant;
 pub mod reference;
 pub mod sensor;
@@ -17,11 +15,11 @@ pub mod run;
 pub mod sink;
 
 pub use error::{Error, Result};
-pub use run::{ControllerKind, Experiment, Run, Sample};
+pub use run::{
+    central_difference, experiment_from_map, experiment_to_map, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind,
+    Experiment, Run, Sample,
+};
 pub use sink::{MemorySink, RunEnd, Sink};
-
-pub use self::log::{read_log, validate_run, write_log};
-pub use mcap_log::{read_mcap, McapSink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, ZeroTorque};
 pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH, EFFECT_NAMES};

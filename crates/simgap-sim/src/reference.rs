@@ -10,6 +10,12 @@ use crate::run::Run;
 pub trait Reference {
     /// Writes q_ref(t) and q̇_ref(t).
     fn eval(&self, t: f64, q_ref: &mut [f64], qd_ref: &mut [f64]);
+
+    /// Writes the feed-forward torque τ_ff(t) [N·m or N] a feedback controller adds to its
+    /// command (computed torque, a trajectory optimiser's torque). Default: zero.
+    fn feed_forward(&self, _t: f64, tau_ff: &mut [f64]) {
+        tau_ff.fill(0.0);
+    }
 }
 
 /// A constant set point (a step at the start of the run); q̇_ref = 0.
@@ -78,7 +84,9 @@ impl Reference for Fourier {
 }
 
 /// A sampled reference: q_ref linearly interpolated between samples (held constant outside
-/// the sampled span), q̇_ref interpolated likewise, or zero when `qd` is empty.
+/// the sampled span), q̇_ref interpolated likewise, or zero when `qd` is empty; the
+/// feed-forward torque held from its last sample at or before `t` (a controller's sampled
+/// command), or zero when `tau_ff` is empty.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sampled {
     /// Sample times [s], increasing.
@@ -87,6 +95,8 @@ pub struct Sampled {
     pub q: Vec<f64>,
     /// Velocities, row-major, or empty for zero.
     pub qd: Vec<f64>,
+    /// Feed-forward torques, row-major, or empty for zero.
+    pub tau_ff: Vec<f64>,
 }
 
 impl Sampled {
@@ -118,6 +128,19 @@ impl Reference for Sampled {
             self.interpolate(&self.qd, t, qd_ref);
         }
     }
+
+    fn feed_forward(&self, t: f64, tau_ff: &mut [f64]) {
+        let n = tau_ff.len();
+        if self.tau_ff.is_empty() {
+            tau_ff.fill(0.0);
+            return;
+        }
+        // the last sample at or before t, within half a spacing of timestamp jitter
+        let len = self.t.len();
+        let tol = if len > 1 { 0.5 * (self.t[len - 1] - self.t[0]) / (len - 1) as f64 } else { 0.0 };
+        let k = self.t.partition_point(|&tk| tk <= t + tol).saturating_sub(1);
+        tau_ff.copy_from_slice(&self.tau_ff[k * n..(k + 1) * n]);
+    }
 }
 
 /// The reference of a logged run, assuming the run's joint order is the model's (use
@@ -130,7 +153,7 @@ pub fn reference_from_run(run: &Run) -> Box<dyn Reference> {
     assert!(!run.is_empty(), "reference_from_run: the run has no sample");
     let q = if run.q_ref.is_empty() { run.q.clone() } else { run.q_ref.clone() };
     let qd = if run.q_ref.is_empty() { Vec::new() } else { run.qd_ref.clone() };
-    Box::new(Sampled { t: run.t.clone(), q, qd })
+    Box::new(Sampled { t: run.t.clone(), q, qd, tau_ff: run.tau_ff.clone() })
 }
 
 /// The reference of a logged run in the model's joint order (joints matched by name).
@@ -157,5 +180,5 @@ pub fn reference_from_run_for(run: &Run, model: &Model) -> Result<Box<dyn Refere
         out
     };
     let (q, qd) = if run.q_ref.is_empty() { (reorder(&run.q), Vec::new()) } else { (reorder(&run.q_ref), reorder(&run.qd_ref)) };
-    Ok(Box::new(Sampled { t: run.t.clone(), q, qd }))
+    Ok(Box::new(Sampled { t: run.t.clone(), q, qd, tau_ff: reorder(&run.tau_ff) }))
 }

@@ -1,6 +1,20 @@
 //! A run: what a robot or a simulation did, as columnar arrays, and the experiment behind it.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// Metadata key of the controller kind.
+pub const KEY_CONTROLLER: &str = "controller";
+/// Metadata key of the joint names giving the order of the gains.
+pub const KEY_JOINTS: &str = "joints";
+/// Metadata key of the proportional gains.
+pub const KEY_KP: &str = "kp";
+/// Metadata key of the derivative gains.
+pub const KEY_KV: &str = "kv";
+/// Metadata key of the controller sample period [s].
+pub const KEY_SAMPLE_PERIOD: &str = "sample_period";
 
 /// The controller of an experiment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -159,4 +173,285 @@ pub struct Sample<'a> {
     pub q_ref: &'a [f64],
     /// Reference velocities.
     pub qd_ref: &'a [f64],
+}
+
+// ---------------------------------------------------------------------------------------------
+// checks, joint mapping and resampling shared by every reader of runs
+
+/// Checks a run: unique non-empty joint names, finite values, strictly increasing time,
+/// matrices of `len() × dof()` values (`tau`, `q_ref`, `qd_ref`, `tau_ff`, `tau_measured` may
+/// also be empty, `qd_ref` only with a `q_ref`), and an experiment whose gains match its joints, which must be joints
+/// of the run.
+///
+/// # Errors
+/// [`Error::Log`] with `run.source` as the path, saying what is wrong and where.
+pub fn validate_run(run: &Run) -> Result<()> {
+    let err = |m: String| log_error(Path::new(&run.source), m);
+    let n = run.len();
+    let dof = run.dof();
+    // joint names
+    let mut seen = HashSet::new();
+    for j in &run.joints {
+        if j.is_empty() {
+            return Err(err("a joint has an empty name".into()));
+        }
+        if !seen.insert(j.as_str()) {
+            return Err(err(format!("joint '{j}' appears twice")));
+        }
+    }
+    // time: finite and strictly increasing
+    for (k, &t) in run.t.iter().enumerate() {
+        if !t.is_finite() {
+            return Err(err(format!("time of sample {k} is {t}")));
+        }
+        if k > 0 && t <= run.t[k - 1] {
+            return Err(err(format!(
+                "time is not strictly increasing: sample {k} at t = {t} s follows t = {} s",
+                run.t[k - 1]
+            )));
+        }
+    }
+    // matrix sizes and finite values
+    let matrices: [(&str, &[f64], bool); 7] = [
+        ("q", &run.q, false),
+        ("qd", &run.qd, false),
+        ("tau", &run.tau, true),
+        ("q_ref", &run.q_ref, true),
+        ("qd_ref", &run.qd_ref, true),
+        ("tau_ff", &run.tau_ff, true),
+        ("tau_measured", &run.tau_measured, true),
+    ];
+    for (name, m, may_be_empty) in matrices {
+        if m.is_empty() && (may_be_empty || n == 0) {
+            continue;
+        }
+        if m.len() != n * dof {
+            return Err(err(format!("{name} has {} values, expected {n} samples × {dof} joints = {}", m.len(), n * dof)));
+        }
+        if let Some(i) = m.iter().position(|x| !x.is_finite()) {
+            return Err(err(format!(
+                "{name} of joint '{}' is {} at t = {} s (sample {})",
+                run.joints[i % dof],
+                m[i],
+                run.t[i / dof],
+                i / dof
+            )));
+        }
+    }
+    if !run.qd_ref.is_empty() && run.q_ref.is_empty() {
+        return Err(err("qd_ref is given without q_ref".into()));
+    }
+    // experiment
+    if let Some(e) = &run.experiment {
+        check_experiment(e).map_err(err)?;
+        if let Some(j) = e.joints.iter().find(|j| !run.joints.contains(j)) {
+            return Err(err(format!("the experiment names joint '{j}', which is not in the run (joints: {})", run.joints.join(", "))));
+        }
+    }
+    Ok(())
+}
+
+/// Returns the run with its joints in `joints` order (a model's order).
+///
+/// With `drop_extra`, joints of the run that are not in `joints` are dropped (e.g. a gripper
+/// finger in a bag of an arm); without, they are an error.
+///
+/// # Errors
+/// [`Error::JointMismatch`] naming the first joint of `joints` missing from the run, or (without
+/// `drop_extra`) the first joint of the run not in `joints`.
+pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<Run> {
+    let mismatch = |joint: &str, problem: &str| Error::JointMismatch {
+        source_name: run.source.clone(),
+        joint: joint.to_string(),
+        problem: problem.to_string(),
+    };
+    let mut index = Vec::with_capacity(joints.len());
+    for j in joints {
+        match run.joints.iter().position(|r| r == j) {
+            Some(i) => index.push(i),
+            None => return Err(mismatch(j, &format!("is in the model but not in the log (log joints: {})", run.joints.join(", ")))),
+        }
+    }
+    if !drop_extra {
+        if let Some(extra) = run.joints.iter().find(|r| !joints.contains(r)) {
+            return Err(mismatch(extra, &format!("is in the log but not in the model (model joints: {})", joints.join(", "))));
+        }
+    }
+    let pick = |m: &[f64]| -> Vec<f64> {
+        if m.is_empty() {
+            return Vec::new();
+        }
+        let dof = run.dof();
+        let mut out = Vec::with_capacity(run.len() * index.len());
+        for row in m.chunks_exact(dof) {
+            out.extend(index.iter().map(|&i| row[i]));
+        }
+        out
+    };
+    Ok(Run {
+        joints: joints.to_vec(),
+        t: run.t.clone(),
+        q: pick(&run.q),
+        qd: pick(&run.qd),
+        tau: pick(&run.tau),
+        q_ref: pick(&run.q_ref),
+        qd_ref: pick(&run.qd_ref),
+        tau_ff: pick(&run.tau_ff),
+        tau_measured: pick(&run.tau_measured),
+        start_ns: run.start_ns,
+        experiment: run.experiment.clone(),
+        source: run.source.clone(),
+    })
+}
+
+/// The `simgap.experiment` string map of an experiment. Numbers are written in
+/// Rust's shortest round-trip form, so [`experiment_from_map`] gives back the same values.
+/// Entries of `extra` with a reserved key are left out.
+pub fn experiment_to_map(e: &Experiment) -> BTreeMap<String, String> {
+    let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
+    let mut map: BTreeMap<String, String> = e
+        .extra
+        .iter()
+        .filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str()))
+        .map(|(k, v)| (k.clone(), v.clone()))
+        .collect();
+    map.insert(KEY_CONTROLLER.into(), e.controller.as_str().into());
+    map.insert(KEY_JOINTS.into(), e.joints.join(","));
+    map.insert(KEY_KP.into(), join(&e.kp));
+    map.insert(KEY_KV.into(), join(&e.kv));
+    map.insert(KEY_SAMPLE_PERIOD.into(), format!("{}", e.sample_period));
+    map
+}
+
+/// Parses a `simgap.experiment` string map. Unknown keys go to `extra`.
+///
+/// # Errors
+/// A message saying which key is missing or malformed (the caller adds the file).
+pub fn experiment_from_map(map: &BTreeMap<String, String>) -> std::result::Result<Experiment, String> {
+    let get = |k: &str| map.get(k).ok_or_else(|| format!("key '{k}' is missing"));
+    let numbers = |k: &str| -> std::result::Result<Vec<f64>, String> {
+        let s = get(k)?;
+        if s.trim().is_empty() {
+            return Ok(Vec::new());
+        }
+        s.split(',')
+            .map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim())))
+            .collect()
+    };
+    let controller: ControllerKind = get(KEY_CONTROLLER)?.parse().map_err(|m| format!("key '{KEY_CONTROLLER}': {m}"))?;
+    let joints_s = get(KEY_JOINTS)?;
+    let joints: Vec<String> =
+        if joints_s.trim().is_empty() { Vec::new() } else { joints_s.split(',').map(|s| s.trim().to_string()).collect() };
+    let kp = numbers(KEY_KP)?;
+    let kv = numbers(KEY_KV)?;
+    let sp = get(KEY_SAMPLE_PERIOD)?;
+    let sample_period = sp.trim().parse::<f64>().map_err(|_| format!("key '{KEY_SAMPLE_PERIOD}': '{sp}' is not a number"))?;
+    let extra = map
+        .iter()
+        .filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str()))
+        .map(|(k, v)| (k.clone(), v.clone()))
+        .collect();
+    let e = Experiment { controller, joints, kp, kv, sample_period, extra };
+    check_experiment(&e)?;
+    Ok(e)
+}
+
+/// Checks an experiment on its own: gains aligned with joints, finite, positive sample period.
+fn check_experiment(e: &Experiment) -> std::result::Result<(), String> {
+    if e.joints.iter().any(|j| j.is_empty()) {
+        return Err(format!("'{KEY_JOINTS}' has an empty joint name ('{}')", e.joints.join(",")));
+    }
+    if let Some(j) = e.joints.iter().find(|j| j.contains(',')) {
+        return Err(format!("joint name '{j}' contains a comma"));
+    }
+    for (k, v) in [(KEY_KP, &e.kp), (KEY_KV, &e.kv)] {
+        if v.len() != e.joints.len() {
+            return Err(format!("'{k}' has {} gains for {} joints ({})", v.len(), e.joints.len(), e.joints.join(",")));
+        }
+        if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+            return Err(format!("'{k}' has a gain {x}"));
+        }
+    }
+    if !(e.sample_period.is_finite() && e.sample_period > 0.0) {
+        return Err(format!("'{KEY_SAMPLE_PERIOD}' must be a positive number of seconds, got {}", e.sample_period));
+    }
+    Ok(())
+}
+
+/// Velocities by central differences of positions (one-sided at the ends), for logs without
+/// measured velocities. `q` is row-major `t.len() × dof`; fewer than two samples give zeros.
+pub fn central_difference(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
+    let n = t.len();
+    let mut qd = vec![0.0; n * dof];
+    if n < 2 {
+        return qd;
+    }
+    for k in 0..n {
+        let (a, b) = if k == 0 {
+            (0, 1)
+        } else if k == n - 1 {
+            (n - 2, n - 1)
+        } else {
+            (k - 1, k + 1)
+        };
+        let dt = t[b] - t[a];
+        for j in 0..dof {
+            qd[k * dof + j] = (q[b * dof + j] - q[a * dof + j]) / dt;
+        }
+    }
+    qd
+}
+
+/// Linear interpolation of the row-major matrix `m` (samples at `ts`, increasing) at the times
+/// `t` (increasing), held constant outside `ts`. For references and measured torques logged at
+/// other times than the states.
+pub fn interpolate_rows(ts: &[f64], m: &[f64], dof: usize, t: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(t.len() * dof);
+    let mut i = 0;
+    for &x in t {
+        if ts.is_empty() {
+            out.extend(std::iter::repeat(0.0).take(dof));
+            continue;
+        }
+        while i + 1 < ts.len() && ts[i + 1] <= x {
+            i += 1;
+        }
+        if x <= ts[0] {
+            out.extend_from_slice(&m[..dof]);
+        } else if i + 1 >= ts.len() {
+            out.extend_from_slice(&m[(ts.len() - 1) * dof..ts.len() * dof]);
+        } else {
+            let s = (x - ts[i]) / (ts[i + 1] - ts[i]);
+            for j in 0..dof {
+                let a = m[i * dof + j];
+                let b = m[(i + 1) * dof + j];
+                out.push(a + s * (b - a));
+            }
+        }
+    }
+    out
+}
+
+/// An [`Error::Log`] for `path`.
+fn log_error(path: &Path, message: impl Into<String>) -> Error {
+    Error::Log { path: PathBuf::from(path), message: message.into() }
+}
+
+/// Zero-order hold of the row-major matrix `m` (samples at `ts`, increasing) at the times `t`
+/// (increasing): the row of the last `ts` at or before each time, the first row before `ts`
+/// starts. For commands, which stay in force until the next one.
+pub fn hold_rows(ts: &[f64], m: &[f64], dof: usize, t: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(t.len() * dof);
+    let mut i = 0;
+    for &x in t {
+        if ts.is_empty() {
+            out.extend(std::iter::repeat(0.0).take(dof));
+            continue;
+        }
+        while i + 1 < ts.len() && ts[i + 1] <= x {
+            i += 1;
+        }
+        out.extend_from_slice(&m[i * dof..(i + 1) * dof]);
+    }
+    out
 }

@@ -90,6 +90,14 @@ impl Sensor {
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }
 
+    /// Restarts the sensors as if `q_meas_prev` had been measured one sample before (the
+    /// backward-difference velocity then continues from it), e.g. to restart a prediction from
+    /// a logged state.
+    pub fn restart(&mut self, q_meas_prev: &[f64]) {
+        self.prev.copy_from_slice(q_meas_prev);
+        self.has_prev = true;
+    }
+
     /// Measures the true state `(q, qd)` into `(q_meas, qd_meas)`. Call once per sample, in
     /// order.
     pub fn measure(&mut self, q: &[f64], qd: &[f64], q_meas: &mut [f64], qd_meas: &mut [f64]) {

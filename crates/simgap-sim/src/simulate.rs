@@ -4,7 +4,8 @@
 //! 1. the state is checked (non-finite or `|q̇| > divergence_bound` ends the run as
 //!    [`RunEnd::Diverged`] before anything non-finite is recorded);
 //! 2. the sensors measure `(q, q̇)` ([`SensorParams`]);
-//! 3. the reference gives `(q_ref, q̇_ref)` and the controller the command `τ_cmd`;
+//! 3. the reference gives `(q_ref, q̇_ref)` and the controller the command `τ_cmd` (plus the
+//!    reference's feed-forward torque for a feedback controller);
 //! 4. the sample `(t_k, q_meas, q̇_meas, τ_cmd, q_ref, q̇_ref)` goes to the sink (the logged
 //!    effort is the commanded torque);
 //! 5. the actuators turn the (delayed) command into `τ_applied`
@@ -192,6 +193,8 @@ fn step_loop(
     let (mut q_meas, mut qd_meas) = (vec![0.0; n], vec![0.0; n]);
     let (mut q_ref, mut qd_ref) = (vec![0.0; n], vec![0.0; n]);
     let (mut tau_cmd, mut tau_delayed, mut tau_app) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut tau_ff = vec![0.0; n];
+    let adds_ff = controller.adds_feed_forward();
     let mut pws = plant.workspace();
     let mut rk4 = Rk4::new(2 * n);
     let mut dopri = match params.integrator {
@@ -227,6 +230,12 @@ fn step_loop(
         sensor.measure(q, qd, &mut q_meas, &mut qd_meas);
         reference.eval(t, &mut q_ref, &mut qd_ref);
         controller.torque(t, &q_meas, &qd_meas, &q_ref, &qd_ref, &mut tau_cmd);
+        if adds_ff {
+            reference.feed_forward(t, &mut tau_ff);
+            for i in 0..n {
+                tau_cmd[i] += tau_ff[i];
+            }
+        }
         if let Some(j) = (0..n).find(|&j| !tau_cmd[j].is_finite() || !q_meas[j].is_finite() || !qd_meas[j].is_finite()) {
             return Ok(RunEnd::Diverged { t, joint: names[j].clone() });
         }

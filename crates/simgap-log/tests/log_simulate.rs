@@ -3,7 +3,7 @@
 
 use simgap_core::robots::paper_arm;
 use simgap_core::{Formulation, Model};
-use simgap_sim::mcap_log::{read_mcap, McapSink};
+use simgap_log::{read_log, LogOptions, McapSink};
 use simgap_sim::{simulate, MemorySink, Pd, Plant, Run, RunEnd, SensorParams, SimParams, Step};
 
 fn tmp(name: &str) -> std::path::PathBuf {
@@ -34,7 +34,7 @@ fn simulated_run_logged_to_mcap_reads_back_as_the_memory_run() {
     let end = simulate(&plant, &mut pd(), &step, &params, &mut sink, None).unwrap();
     assert_eq!(end, RunEnd::Completed);
     drop(sink);
-    let run = read_mcap(&path).unwrap();
+    let run = read_log(&path, &LogOptions::default()).unwrap();
     assert!(run.len() > 100);
     assert_same_run(&memory.into_run(), &run);
 }
@@ -51,7 +51,7 @@ fn diverged_simulation_leaves_a_readable_mcap() {
     let end = simulate(&plant, &mut pd, &Step { target: paper_arm::Q_DESIRED.to_vec() }, &params, &mut sink, None).unwrap();
     assert!(matches!(end, RunEnd::Diverged { .. }), "{end:?}");
     drop(sink);
-    let run = read_mcap(&path).unwrap();
+    let run = read_log(&path, &LogOptions::default()).unwrap();
     assert!(!run.is_empty());
     let bytes = std::fs::read(&path).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();

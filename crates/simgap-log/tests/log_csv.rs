@@ -4,12 +4,18 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use simgap_sim::csv_log::{
-    detect_mapping, read_csv, read_experiment_file, read_header, sidecar_path, write_csv, CsvMapping,
-    DFKI_DOUBLE_PENDULUM_JOINTS, DFKI_SIMPLE_PENDULUM_JOINT,
-};
-use simgap_sim::log::{read_log, read_log_for, validate_run, write_log};
-use simgap_sim::{ControllerKind, Error, Experiment, Run};
+use simgap_log::csv::{detect_mapping, read_csv, read_header, write_csv, CsvMapping, DFKI_DOUBLE_PENDULUM_JOINTS, DFKI_SIMPLE_PENDULUM_JOINT};
+use simgap_log::experiment::{read_experiment_file, sidecar_path};
+use simgap_log::{write_log, Error, LogOptions};
+use simgap_sim::{validate_run, ControllerKind, Experiment, Run};
+
+fn read_log(path: &Path) -> simgap_log::Result<Run> {
+    simgap_log::read_log(path, &LogOptions::default())
+}
+
+fn read_log_for(path: &Path, joints: &[String]) -> simgap_log::Result<Run> {
+    simgap_log::read_log_for(path, joints, false, &LogOptions::default())
+}
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("simgap-log-csv-{}", std::process::id()));
@@ -32,7 +38,7 @@ fn names(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
-fn assert_error_names<T: std::fmt::Debug>(result: simgap_sim::Result<T>, path: &Path, needle: &str) {
+fn assert_error_names<T: std::fmt::Debug>(result: simgap_log::Result<T>, path: &Path, needle: &str) {
     let m = result.expect_err("expected an error").to_string();
     assert!(m.contains(&path.display().to_string()), "error '{m}' does not name {}", path.display());
     assert!(m.contains(needle), "error '{m}' does not say '{needle}'");
@@ -74,7 +80,7 @@ fn dfki_double_pendulum_records_load_unedited() {
     let swapped = read_log_for(&path, &names(&["Joint2", "Joint1"])).unwrap();
     assert_eq!(swapped.row(&swapped.q, 100), &[run.row(&run.q, 100)[1], run.row(&run.q, 100)[0]]);
     match read_log_for(&path, &names(&["shoulder", "elbow"])) {
-        Err(Error::JointMismatch { joint, .. }) => assert_eq!(joint, "shoulder"),
+        Err(Error::Run(simgap_sim::Error::JointMismatch { joint, .. })) => assert_eq!(joint, "shoulder"),
         other => panic!("expected JointMismatch, got {other:?}"),
     }
 }
@@ -181,8 +187,10 @@ fn csv_and_mcap_carry_the_same_run() {
     assert_eq!(a.q, b.q);
     assert_eq!(a.tau, b.tau);
     assert_eq!(a.experiment, b.experiment);
+    // MCAP runs count time from their first stamp, which they keep as `start_ns`
+    assert_eq!(b.start_ns, Some(5_000_000_000));
     for (x, y) in a.t.iter().zip(&b.t) {
-        assert!((x - y).abs() < 1e-9);
+        assert!((x - 5.0 - y).abs() < 1e-9);
     }
 }
 

@@ -9,18 +9,21 @@
 //! ([`CsvMapping::generic`]), which [`write_csv`] writes. Files whose name ends in `.gz` (or that
 //! start with the gzip magic bytes) are decompressed transparently.
 //!
-//! The experiment of a CSV log lives in a sidecar file ([`sidecar_path`],
-//! [`read_experiment_file`]): JSON or `key = value` lines with the keys of the
-//! `simgap.experiment` metadata.
+//! The experiment of a CSV log lives in a sidecar file
+//! ([`sidecar_path`](crate::experiment::sidecar_path)): JSON or `key = value` lines with the
+//! keys of the `simgap.experiment` metadata.
+//!
+//! Times are seconds in the file. A file whose first time looks like an absolute epoch time
+//! (after 1 Jan 2000) gives a run with `start_ns` set and `t` since that start.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use crate::error::{Error, Result};
-use crate::log::{central_difference, experiment_from_map, experiment_to_map, log_error, validate_run, write_error};
-use crate::run::{Experiment, Run};
+use simgap_sim::{central_difference, Run};
+
+use crate::error::{check_run, read_error as log_error, write_error, Result};
 
 /// Joint names of the DFKI double pendulum URDFs (`system_identification/identified_parameters/
 /// */*/{acrobot,pendubot}.urdf`): the shoulder (motor 1) and the elbow (motor 2).
@@ -45,6 +48,10 @@ pub struct CsvMapping {
     pub position_ref: Vec<(String, String)>,
     /// Reference velocities (empty: zero).
     pub velocity_ref: Vec<(String, String)>,
+    /// Feed-forward torques (empty: zero).
+    pub effort_ff: Vec<(String, String)>,
+    /// Torques the drives report (empty: none).
+    pub effort_measured: Vec<(String, String)>,
     /// When true, a file without the reference columns reads without a reference instead of
     /// failing (the DFKI presets: system-identification runs have no reference).
     pub optional_reference: bool,
@@ -60,6 +67,8 @@ impl CsvMapping {
             effort: Vec::new(),
             position_ref: Vec::new(),
             velocity_ref: Vec::new(),
+            effort_ff: Vec::new(),
+            effort_measured: Vec::new(),
             optional_reference: false,
         }
     }
@@ -151,6 +160,8 @@ impl CsvMapping {
             effort: cols(effort),
             position_ref: cols(position_ref),
             velocity_ref: cols(velocity_ref),
+            effort_ff: Vec::new(),
+            effort_measured: Vec::new(),
             optional_reference: false,
         }
     }
@@ -159,6 +170,20 @@ impl CsvMapping {
     /// `q_ref_<j>`, `qd_ref_<j>` (the reference optional).
     pub fn generic(joints: &[&str]) -> CsvMapping {
         Self::from_prefixes("time", joints, "q_", Some("qd_"), Some("tau_"), Some("q_ref_"), Some("qd_ref_")).optional_reference(true)
+    }
+
+    /// Adds the feed-forward torque column of a joint.
+    #[must_use]
+    pub fn effort_ff(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.effort_ff.push((joint.into(), column.into()));
+        self
+    }
+
+    /// Adds the measured (drive-reported) torque column of a joint.
+    #[must_use]
+    pub fn effort_measured(mut self, joint: &str, column: &str) -> CsvMapping {
+        self.effort_measured.push((joint.into(), column.into()));
+        self
     }
 
     /// DFKI double pendulum records in the documented layout
@@ -214,7 +239,15 @@ impl CsvMapping {
         let old = self.joints();
         assert_eq!(old.len(), names.len(), "one new name per joint");
         let rename: HashMap<String, String> = old.into_iter().zip(names.iter().map(|s| s.to_string())).collect();
-        for list in [&mut self.position, &mut self.velocity, &mut self.effort, &mut self.position_ref, &mut self.velocity_ref] {
+        for list in [
+            &mut self.position,
+            &mut self.velocity,
+            &mut self.effort,
+            &mut self.position_ref,
+            &mut self.velocity_ref,
+            &mut self.effort_ff,
+            &mut self.effort_measured,
+        ] {
             for (j, _) in list.iter_mut() {
                 if let Some(n) = rename.get(j) {
                     *j = n.clone();
@@ -247,8 +280,7 @@ pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
     }
     // a quantity is mapped when any of its columns is there (missing ones then fail clearly)
     let any = |p: &str| joints.iter().any(|j| has(&format!("{p}{j}")));
-    Some(
-        CsvMapping::from_prefixes(
+    let mut mapping = CsvMapping::from_prefixes(
             "time",
             &joints,
             "q_",
@@ -257,8 +289,16 @@ pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
             any("q_ref_").then_some("q_ref_"),
             any("qd_ref_").then_some("qd_ref_"),
         )
-        .optional_reference(false),
-    )
+        .optional_reference(false);
+    for j in &joints {
+        if any("tau_ff_") {
+            mapping = mapping.effort_ff(j, &format!("tau_ff_{j}"));
+        }
+        if any("tau_measured_") {
+            mapping = mapping.effort_measured(j, &format!("tau_measured_{j}"));
+        }
+    }
+    Some(mapping)
 }
 
 /// Opens a possibly gzip-compressed file.
@@ -280,7 +320,7 @@ fn csv_reader(path: &Path) -> Result<csv::Reader<Box<dyn Read>>> {
 /// The header of a CSV file (gzip handled).
 ///
 /// # Errors
-/// [`Error::Log`] when the file cannot be read or has no header.
+/// [`Error::Read`](crate::Error::Read) when the file cannot be read or has no header.
 pub fn read_header(path: &Path) -> Result<Vec<String>> {
     let mut r = csv_reader(path)?;
     let h = r.headers().map_err(|e| log_error(path, format!("cannot read the CSV header: {e}")))?;
@@ -290,7 +330,7 @@ pub fn read_header(path: &Path) -> Result<Vec<String>> {
 /// Reads a CSV log with a column mapping.
 ///
 /// # Errors
-/// [`Error::Log`] naming the file and the problem: a mapped column missing from the header, a
+/// [`Error::Read`](crate::Error::Read) naming the file and the problem: a mapped column missing from the header, a
 /// cell that is not a number (with its line), joints mapped inconsistently, non-finite values,
 /// time not strictly increasing.
 pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
@@ -331,7 +371,9 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
     } else {
         (columns_of(&mapping.position_ref, "reference position")?, columns_of(&mapping.velocity_ref, "reference velocity")?)
     };
-    for list in [&mapping.velocity, &mapping.effort, &mapping.position_ref, &mapping.velocity_ref] {
+    let ff_cols = columns_of(&mapping.effort_ff, "feed-forward effort")?;
+    let measured_cols = columns_of(&mapping.effort_measured, "measured effort")?;
+    for list in [&mapping.velocity, &mapping.effort, &mapping.position_ref, &mapping.velocity_ref, &mapping.effort_ff, &mapping.effort_measured] {
         if let Some((j, _)) = list.iter().find(|(j, _)| !joints.contains(j)) {
             return Err(err(format!("the column mapping names joint '{j}', which has no position column")));
         }
@@ -342,6 +384,7 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
     let mut run = Run::new(joints);
     run.source = path.display().to_string();
     let mut record = csv::StringRecord::new();
+    let mut t_ns: Vec<Option<i64>> = Vec::new();
     loop {
         match reader.read_record(&mut record) {
             Ok(true) => {}
@@ -354,12 +397,15 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
             s.parse::<f64>().map_err(|_| err(format!("line {line}, column '{}': '{s}' is not a number", header[i])))
         };
         run.t.push(value(t_col)?);
+        t_ns.push(record.get(t_col).and_then(decimal_ns));
         for (cols, out) in [
             (&q_cols, &mut run.q),
             (&qd_cols, &mut run.qd),
             (&tau_cols, &mut run.tau),
             (&qr_cols, &mut run.q_ref),
             (&qdr_cols, &mut run.qd_ref),
+            (&ff_cols, &mut run.tau_ff),
+            (&measured_cols, &mut run.tau_measured),
         ] {
             for &c in cols.iter() {
                 out.push(value(c)?);
@@ -369,6 +415,7 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
     if run.is_empty() {
         return Err(err("no data rows".into()));
     }
+    absolute_to_relative(&mut run, &t_ns);
     if qd_cols.is_empty() {
         if let Some(i) = run.t.iter().position(|t| !t.is_finite()) {
             return Err(err(format!("time of sample {i} is {}", run.t[i])));
@@ -376,18 +423,78 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
         run.qd = central_difference(&run.t, &run.q, dof);
         run.source.push_str(" (velocity by central difference of position: the log has none)");
     }
-    validate_run(&run).map_err(|e| match e {
-        Error::Log { message, .. } => err(message),
-        other => other,
-    })?;
+    check_run(&run, path)?;
     Ok(run)
 }
 
+/// Epoch times after 1 Jan 2000 [s]: a CSV time column this large is absolute.
+const EPOCH_2000_S: f64 = 946_684_800.0;
+
+/// Turns absolute epoch times into `start_ns` and time since the start, exactly to the
+/// nanosecond when the cells are plain decimals (`t_ns`), else to what f64 seconds hold.
+fn absolute_to_relative(run: &mut Run, t_ns: &[Option<i64>]) {
+    let Some(&t0) = run.t.first() else { return };
+    if !(t0.is_finite() && t0 > EPOCH_2000_S && t0 < 1e11) {
+        return;
+    }
+    match t_ns.iter().copied().collect::<Option<Vec<i64>>>() {
+        Some(ns) => {
+            let start = ns[0];
+            for (t, n) in run.t.iter_mut().zip(&ns) {
+                *t = (n - start) as f64 * 1e-9;
+            }
+            run.start_ns = Some(start);
+        }
+        None => {
+            let start_ns = (t0 * 1e6).round() as i64 * 1000;
+            let start_s = start_ns as f64 * 1e-9;
+            for t in &mut run.t {
+                *t -= start_s;
+            }
+            run.start_ns = Some(start_ns);
+        }
+    }
+}
+
+/// A plain decimal number of seconds (`123.456`, no exponent) as exact nanoseconds (digits
+/// past the ninth decimal are cut).
+fn decimal_ns(s: &str) -> Option<i64> {
+    let (neg, s) = match s.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, s),
+    };
+    let (int, frac) = s.split_once('.').unwrap_or((s, ""));
+    if int.is_empty() || int.len() > 11 || !int.bytes().all(|b| b.is_ascii_digit()) || !frac.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let mut ns: i64 = int.parse::<i64>().ok()? * 1_000_000_000;
+    let mut scale = 100_000_000;
+    for b in frac.bytes().take(9) {
+        ns += i64::from(b - b'0') * scale;
+        scale /= 10;
+    }
+    Some(if neg { -ns } else { ns })
+}
+
+/// The time cell of sample `k`: seconds since the run's start, or the absolute time written
+/// exactly from nanoseconds when the run has `start_ns`.
+fn time_cell(run: &Run, k: usize) -> String {
+    match run.start_ns {
+        Some(start) => {
+            let ns = start + (run.t[k] * 1e9).round() as i64;
+            let (s, frac) = (ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000));
+            format!("{s}.{frac:09}")
+        }
+        None => format!("{}", run.t[k]),
+    }
+}
+
 /// Reads a CSV log whose mapping is detected from the header ([`detect_mapping`]), with the
-/// experiment of its sidecar file when there is one ([`sidecar_path`]).
+/// experiment of its sidecar file when there is one
+/// ([`sidecar_path`](crate::experiment::sidecar_path)).
 ///
 /// # Errors
-/// As [`read_csv`], and [`Error::Log`] when the header matches no known layout or the sidecar
+/// As [`read_csv`], and [`Error::Read`](crate::Error::Read) when the header matches no known layout or the sidecar
 /// is malformed.
 pub fn read_csv_auto(path: &Path) -> Result<Run> {
     let header = read_header(path)?;
@@ -402,22 +509,20 @@ pub fn read_csv_auto(path: &Path) -> Result<Run> {
         )
     })?;
     let mut run = read_csv(path, &mapping)?;
-    for sidecar in sidecar_candidates(path) {
-        if sidecar.exists() {
-            run.experiment = Some(read_experiment_file(&sidecar)?);
-            validate_run(&run)?;
-            break;
-        }
+    if let Some(e) = crate::experiment::read_sidecar(path)? {
+        run.experiment = Some(e);
+        check_run(&run, path)?;
     }
     Ok(run)
 }
 
 /// Writes a run as CSV in the generic convention (gzip-compressed when the name ends in
 /// `.gz`). Numbers are written in shortest round-trip form, so reading gives back the same
-/// values. The experiment is not written (see [`write_experiment_file`]).
+/// values. Absolute runs (`start_ns` set) get absolute times in the file. The experiment is
+/// not written (see [`write_experiment_file`](crate::experiment::write_experiment_file)).
 ///
 /// # Errors
-/// [`Error::Write`] when the file cannot be written or a joint name contains a comma.
+/// [`Error::Write`](crate::Error::Write) when the file cannot be written or a joint name contains a comma.
 pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
     let werr = |e: &dyn std::fmt::Display| write_error(path, e);
     if let Some(j) = run.joints.iter().find(|j| j.contains(',') || j.contains('"')) {
@@ -433,8 +538,16 @@ pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
     let mut w = csv::WriterBuilder::new().from_writer(out);
     let dof = run.dof();
     // header
-    let blocks: Vec<(&str, &[f64])> = [("q_", &run.q[..]), ("qd_", &run.qd[..]), ("tau_", &run.tau[..]), ("q_ref_", &run.q_ref[..]), ("qd_ref_", &run.qd_ref[..])]
-        .into_iter()
+    let blocks: Vec<(&str, &[f64])> = [
+        ("q_", &run.q[..]),
+        ("qd_", &run.qd[..]),
+        ("tau_", &run.tau[..]),
+        ("q_ref_", &run.q_ref[..]),
+        ("qd_ref_", &run.qd_ref[..]),
+        ("tau_ff_", &run.tau_ff[..]),
+        ("tau_measured_", &run.tau_measured[..]),
+    ]
+    .into_iter()
         .filter(|(_, m)| !m.is_empty())
         .collect();
     let mut header = vec!["time".to_string()];
@@ -446,7 +559,7 @@ pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
     let mut row: Vec<String> = Vec::with_capacity(header.len());
     for k in 0..run.len() {
         row.clear();
-        row.push(format!("{}", run.t[k]));
+        row.push(time_cell(run, k));
         for (_, m) in &blocks {
             row.extend(m[k * dof..(k + 1) * dof].iter().map(|x| format!("{x}")));
         }
@@ -463,76 +576,3 @@ fn finish_writer(mut out: Box<dyn Write>) -> std::io::Result<()> {
     Ok(())
 }
 
-/// The sidecar experiment file of a CSV log: `run.csv` and `run.csv.gz` → `run.experiment.json`.
-pub fn sidecar_path(csv_path: &Path) -> PathBuf {
-    sidecar_candidates(csv_path).swap_remove(0)
-}
-
-/// Sidecar files looked for, in order: `<stem>.experiment.json`, `<stem>.experiment`.
-fn sidecar_candidates(csv_path: &Path) -> Vec<PathBuf> {
-    let name = csv_path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
-    let lower = name.to_lowercase();
-    let stem_len = if lower.ends_with(".csv.gz") {
-        name.len() - 7
-    } else if lower.ends_with(".csv") {
-        name.len() - 4
-    } else {
-        name.len()
-    };
-    let stem = &name[..stem_len];
-    vec![csv_path.with_file_name(format!("{stem}.experiment.json")), csv_path.with_file_name(format!("{stem}.experiment"))]
-}
-
-/// Reads an experiment file: a JSON object or `key = value` lines (`#` comments), with the keys
-/// of the `simgap.experiment` metadata (`controller`, `joints`, `kp`, `kv`, `sample_period`;
-/// others kept in `extra`). In JSON, lists may be arrays or comma-separated strings.
-///
-/// # Errors
-/// [`Error::Log`] naming the file: unreadable, not JSON / `key = value`, a missing or malformed
-/// key.
-pub fn read_experiment_file(path: &Path) -> Result<Experiment> {
-    let err = |m: String| log_error(path, m);
-    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
-    let mut map = BTreeMap::new();
-    if text.trim_start().starts_with('{') {
-        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| err(format!("not valid JSON: {e}")))?;
-        let obj = value.as_object().ok_or_else(|| err("expected a JSON object".into()))?;
-        for (k, v) in obj {
-            let s = match v {
-                serde_json::Value::String(s) => s.clone(),
-                serde_json::Value::Number(n) => n.to_string(),
-                serde_json::Value::Array(items) => items
-                    .iter()
-                    .map(|x| match x {
-                        serde_json::Value::String(s) => Ok(s.clone()),
-                        serde_json::Value::Number(n) => Ok(n.to_string()),
-                        other => Err(err(format!("key '{k}': unexpected list item {other}"))),
-                    })
-                    .collect::<Result<Vec<_>>>()?
-                    .join(","),
-                other => return Err(err(format!("key '{k}': expected a string, number or list, got {other}"))),
-            };
-            map.insert(k.clone(), s);
-        }
-    } else {
-        for (i, line) in text.lines().enumerate() {
-            let line = line.trim();
-            if line.is_empty() || line.starts_with('#') {
-                continue;
-            }
-            let (k, v) = line.split_once('=').ok_or_else(|| err(format!("line {}: expected 'key = value', got '{line}'", i + 1)))?;
-            map.insert(k.trim().to_string(), v.trim().to_string());
-        }
-    }
-    experiment_from_map(&map).map_err(|m| err(format!("malformed experiment: {m}")))
-}
-
-/// Writes an experiment file as a JSON object of strings (the `simgap.experiment` map).
-///
-/// # Errors
-/// [`Error::Write`] when the file cannot be written.
-pub fn write_experiment_file(experiment: &Experiment, path: &Path) -> Result<()> {
-    let map = experiment_to_map(experiment);
-    let text = serde_json::to_string_pretty(&map).map_err(|e| write_error(path, e))?;
-    std::fs::write(path, text + "\n").map_err(|e| write_error(path, e))
-}

@@ -5,12 +5,24 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use mcap::records::{MessageHeader, Metadata};
-use simgap_sim::log::{read_log, reorder_joints, validate_run, write_log};
-use simgap_sim::mcap_log::{
-    read_mcap, read_mcap_for, JointState, McapSink, EXPERIMENT_METADATA, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC,
-    JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, RUN_END_METADATA, RUN_END_TOPIC,
+use simgap_log::mcap::{
+    JointState, McapSink, EXPERIMENT_METADATA, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA,
+    RUN_END_METADATA,
 };
-use simgap_sim::{ControllerKind, Error, Experiment, MemorySink, Run, RunEnd, Sample, Sink};
+use simgap_log::{read_log_for, write_log, Compression, Error, LogOptions, SinkOptions};
+use simgap_sim::{reorder_joints, validate_run, ControllerKind, Experiment, MemorySink, Run, RunEnd, Sample, Sink};
+
+fn read_mcap(path: &Path) -> simgap_log::Result<Run> {
+    simgap_log::read_log(path, &LogOptions::default())
+}
+
+fn read_log(path: &Path) -> simgap_log::Result<Run> {
+    simgap_log::read_log(path, &LogOptions::default())
+}
+
+fn read_mcap_for(path: &Path, joints: &[String]) -> simgap_log::Result<Run> {
+    read_log_for(path, joints, false, &LogOptions::default())
+}
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("simgap-log-mcap-{}", std::process::id()));
@@ -37,8 +49,9 @@ fn experiment() -> Experiment {
 fn sample_run(n: usize) -> Run {
     let joints = names(&["shoulder", "elbow", "wrist"]);
     let mut run = Run::new(joints);
+    run.start_ns = Some(1_700_000_000_123_456_789);
     for k in 0..n {
-        let t = 1_700_000_000.0 + k as f64 * 0.0025;
+        let t = k as f64 * 0.0025;
         run.t.push(t);
         for j in 0..3 {
             let x = k as f64 * 0.01 + j as f64;
@@ -72,7 +85,7 @@ fn message_text(e: &Error) -> String {
     e.to_string()
 }
 
-fn assert_error_names(result: simgap_sim::Result<Run>, path: &Path, needle: &str) {
+fn assert_error_names(result: simgap_log::Result<Run>, path: &Path, needle: &str) {
     let e = result.expect_err("expected an error");
     let m = message_text(&e);
     assert!(m.contains(&path.display().to_string()), "error '{m}' does not name the file {}", path.display());
@@ -243,7 +256,8 @@ fn drive(sink: &mut dyn Sink, run: &Run) {
     }
 }
 
-fn run_end_of(path: &Path) -> (BTreeMap<String, String>, serde_json::Value) {
+/// The run-end metadata record, and the topics of the file (every one a CDR JointState).
+fn run_end_of(path: &Path) -> (BTreeMap<String, String>, Vec<String>) {
     let bytes = std::fs::read(path).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().expect("a finished file has a summary");
     let mut meta = None;
@@ -253,12 +267,15 @@ fn run_end_of(path: &Path) -> (BTreeMap<String, String>, serde_json::Value) {
             meta = Some(m.metadata);
         }
     }
-    let message = mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(Result::unwrap)
-        .find(|m| m.channel.topic == RUN_END_TOPIC)
-        .expect("a run-end message");
-    (meta.expect("run-end metadata"), serde_json::from_slice(&message.data).unwrap())
+    let mut topics = Vec::new();
+    for c in summary.channels.values() {
+        assert_eq!(c.message_encoding, "cdr", "{}", c.topic);
+        let s = c.schema.as_ref().expect("a schema");
+        assert_eq!((s.name.as_str(), s.encoding.as_str()), (JOINT_STATE_SCHEMA, "ros2msg"), "{}", c.topic);
+        topics.push(c.topic.clone());
+    }
+    topics.sort();
+    (meta.expect("run-end metadata"), topics)
 }
 
 #[test]
@@ -272,9 +289,9 @@ fn mcap_sink_matches_memory_sink_and_records_the_end() {
     drive(&mut sink, &run);
     sink.finish(&RunEnd::Completed).unwrap();
     assert_same_run(&memory.into_run(), &read_mcap(&path).unwrap());
-    let (meta, json) = run_end_of(&path);
+    let (meta, topics) = run_end_of(&path);
     assert_eq!(meta["status"], "completed");
-    assert_eq!(json["status"], "completed");
+    assert_eq!(topics, vec![JOINT_REFERENCE_TOPIC.to_string(), JOINT_STATES_TOPIC.to_string()], "no channel but the JointStates");
 }
 
 #[test]
@@ -288,10 +305,11 @@ fn diverged_run_leaves_a_readable_mcap() {
     drop(sink);
     let back = read_mcap(&path).unwrap();
     assert_same_run(&run, &back);
-    let (meta, json) = run_end_of(&path);
+    let (meta, _) = run_end_of(&path);
     assert_eq!(meta["status"], "diverged");
     assert_eq!(meta["joint"], "elbow");
-    assert_eq!(json["joint"], "elbow");
+    let warned = simgap_log::read_log_with_warnings(&path, &LogOptions::default()).unwrap().warnings;
+    assert!(warned.iter().any(|w| w.contains("diverged") && w.contains("elbow")), "{warned:?}");
 }
 
 #[test]
@@ -324,10 +342,9 @@ fn sink_dropped_without_finish_still_leaves_a_readable_mcap() {
 fn lz4_zstd_uncompressed_and_unchunked_files_all_read() {
     let run = sample_run(2000);
     let options = [
-        ("zstd", mcap::WriteOptions::new().compression(Some(mcap::Compression::Zstd)).chunk_size(Some(16 * 1024))),
-        ("lz4", mcap::WriteOptions::new().compression(Some(mcap::Compression::Lz4)).chunk_size(Some(16 * 1024))),
-        ("none", mcap::WriteOptions::new().compression(None)),
-        ("unchunked", mcap::WriteOptions::new().use_chunks(false)),
+        ("zstd", SinkOptions { compression: Compression::Zstd, chunk_size: 16 * 1024 }),
+        ("lz4", SinkOptions { compression: Compression::Lz4, chunk_size: 16 * 1024 }),
+        ("none", SinkOptions { compression: Compression::None, chunk_size: 16 * 1024 }),
     ];
     for (name, opts) in options {
         let path = tmp(&format!("compression_{name}.mcap"));
@@ -341,10 +358,21 @@ fn lz4_zstd_uncompressed_and_unchunked_files_all_read() {
         let compressions: Vec<&str> = summary.chunk_indexes.iter().map(|c| c.compression.as_str()).collect();
         match name {
             "zstd" | "lz4" => assert!(compressions.len() > 1 && compressions.iter().all(|c| *c == name), "{name}: {compressions:?}"),
-            "none" => assert!(compressions.iter().all(|c| c.is_empty())),
-            _ => assert!(compressions.is_empty()),
+            _ => assert!(compressions.len() > 1 && compressions.iter().all(|c| c.is_empty())),
         }
         assert_same_run(&run, &read_mcap(&path).unwrap());
+    }
+    // files of other writers: one chunk, or no chunks at all
+    for (name, opts) in [("one_chunk", mcap::WriteOptions::new().compression(None)), ("unchunked", mcap::WriteOptions::new().use_chunks(false))] {
+        let path = tmp(&format!("compression_{name}.mcap"));
+        let mut bag = Bag::new(&path, opts);
+        for k in 0..run.len() {
+            let r = |m: &[f64]| m[k * 3..(k + 1) * 3].to_vec();
+            let msg = JointState { name: run.joints.clone(), position: r(&run.q), velocity: r(&run.qd), effort: r(&run.tau), ..JointState::default() };
+            bag.publish(JOINT_STATES_TOPIC, 0, T0 + k as i64 * DT, 0, msg);
+        }
+        bag.finish();
+        assert_eq!(read_mcap(&path).unwrap().len(), run.len(), "{name}");
     }
 }
 
@@ -378,7 +406,8 @@ fn joints_in_a_different_order_per_message_map_by_name() {
         assert_eq!(run.row(&run.q_ref, k), &[110.0, 100.0, 120.0]);
     }
     assert!(run.qd_ref.is_empty());
-    assert!((run.t[0] - 1_712_345_678.0).abs() < 1e-6, "absolute stamps kept: {}", run.t[0]);
+    assert_eq!(run.start_ns, Some(T0), "absolute start kept to the nanosecond");
+    assert_eq!(run.t[0], 0.0, "t is time since the start");
     assert!((run.duration() - 9.0 * 0.0025).abs() < 1e-6);
 
     // in a model's order
@@ -387,7 +416,7 @@ fn joints_in_a_different_order_per_message_map_by_name() {
     assert_eq!(ordered.row(&ordered.q, 3), &[3.0, 13.0, 23.0]);
     assert_eq!(ordered.row(&ordered.q_ref, 3), &[100.0, 110.0, 120.0]);
     match read_mcap_for(&path, &names(&["a", "b", "c", "d"])) {
-        Err(Error::JointMismatch { joint, source_name, problem }) => {
+        Err(Error::Run(simgap_sim::Error::JointMismatch { joint, source_name, problem })) => {
             assert_eq!(joint, "d");
             assert_eq!(source_name, path.display().to_string());
             assert!(problem.contains("not in the log"), "{problem}");
@@ -395,7 +424,7 @@ fn joints_in_a_different_order_per_message_map_by_name() {
         other => panic!("expected JointMismatch, got {other:?}"),
     }
     match read_mcap_for(&path, &names(&["a", "b"])) {
-        Err(Error::JointMismatch { joint, problem, .. }) => {
+        Err(Error::Run(simgap_sim::Error::JointMismatch { joint, problem, .. })) => {
             assert_eq!(joint, "c");
             assert!(problem.contains("not in the model"), "{problem}");
         }
@@ -470,8 +499,9 @@ fn zero_stamps_fall_back_to_log_time() {
     }
     bag.finish();
     let run = read_mcap(&path).unwrap();
+    assert_eq!(run.start_ns, Some(1_000_000_000));
     for (k, t) in run.t.iter().enumerate() {
-        assert!((t - (1.0 + 0.01 * k as f64)).abs() < 1e-12, "{:?}", run.t);
+        assert!((t - 0.01 * k as f64).abs() < 1e-12, "{:?}", run.t);
     }
     // no velocities in the log: central differences, and the run says so
     assert!(run.qd.iter().all(|v| (v - 100.0).abs() < 1e-9), "{:?}", run.qd);
@@ -536,17 +566,26 @@ fn missing_metadata_gives_no_experiment_and_malformed_metadata_is_an_error() {
 // errors
 
 #[test]
-fn truncated_mcap_is_an_error_naming_the_file() {
+fn truncated_mcap_is_recovered_up_to_its_last_complete_chunk() {
     let path = tmp("whole.mcap");
-    write_log(&sample_run(3000), &path).unwrap();
+    let run = sample_run(3000);
+    simgap_log::mcap::write::write_mcap_with_options(&run, &path, SinkOptions { chunk_size: 16 * 1024, ..SinkOptions::default() }).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let cut = tmp("half.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
-    assert_error_names(read_mcap(&cut), &cut, "truncated");
-    assert_error_names(read_log(&cut), &cut, "truncated");
+    let read = simgap_log::read_log_with_warnings(&cut, &LogOptions::default()).unwrap();
+    assert!(read.run.len() > 1000 && read.run.len() < 3000, "{}", read.run.len());
+    assert_eq!(&read.run.q[..], &run.q[..read.run.q.len()], "what is recovered is what was written");
+    let w = read.warnings.join("; ");
+    assert!(w.contains("no summary") && w.contains(&format!("of {}", bytes.len() / 2)) && w.contains("samples over"), "{w}");
+    // without its last 10 bytes (the footer cut): every message is still there
     let cut = tmp("no_footer.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() - 10]).unwrap();
-    assert!(read_mcap(&cut).is_err());
+    assert_eq!(read_mcap(&cut).unwrap().len(), 3000);
+    // cut before any message: an error that says so
+    let cut = tmp("header_only.mcap");
+    std::fs::write(&cut, &bytes[..40]).unwrap();
+    assert_error_names(read_log(&cut), &cut, "truncated");
 }
 
 #[test]
@@ -579,7 +618,7 @@ fn no_joint_states_or_a_wrong_schema_is_an_error() {
             .unwrap();
         w.finish().unwrap();
     }
-    assert_error_names(read_mcap(&path), &path, "wrong schema on /joint_states");
+    assert_error_names(read_mcap(&path), &path, "/joint_states (std_msgs/String) has no joint names");
 }
 
 #[test]

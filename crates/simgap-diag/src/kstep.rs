@@ -1,0 +1,476 @@
+//! k-step-ahead prediction: the "how far" figure that holds on any run.
+//!
+//! A whole-run simulation of an open-loop replay, or of an unstable or chaotic motion (a
+//! double pendulum), measures how fast two trajectories diverge, not how good the model is.
+//! Prediction restarted from the measured state does not have that problem:
+//!
+//! 1. windows start every `stride` seconds at sample `k0` of a run; the model (plant with the
+//!    effects under test) starts from the measured state there (the smoothing
+//!    differentiator's `q̂`, `q̂̇`);
+//! 2. it is driven by the logged torque (open-loop runs, `replay`) or by the logged controller
+//!    (feedback runs: the experiment's gains, the logged reference and feed-forward, the
+//!    sensors inferred from the log), with commands before `k0` taken from the log (they
+//!    matter under a time delay);
+//! 3. the error at each horizon `h` is `q_sim(t_k0 + h) − q_meas(t_k0 + h)`, capped at π per
+//!    joint (a diverged or full-turn prediction counts as half a turn off).
+//!
+//! The figure per horizon is `sqrt(mean over windows of ‖e‖²)` [rad], pooled over runs
+//! (windows weigh alike). The floor is constant-velocity extrapolation `q̂ + q̂̇ h` over the same
+//! windows: a model that does not beat it says nothing about physics.
+
+use rayon::prelude::*;
+use simgap_core::{Formulation, Model};
+use simgap_sim::sensor::Sensor;
+use simgap_sim::{applied_torque, controller_from_experiment, effective_substeps, ControllerKind, Effect, Plant, Run, SensorParams, SimParams};
+
+use crate::differentiate::Smoother;
+use crate::error::Result;
+
+/// Default prediction horizons [s].
+pub const DEFAULT_HORIZONS: [f64; 3] = [0.1, 0.25, 0.5];
+
+/// At most this many windows per held-out run (the stride grows on long runs).
+pub const MAX_WINDOWS_PER_RUN: usize = 200;
+
+/// At most this many windows per fit run, where every candidate set is scored.
+pub const FIT_WINDOWS_PER_RUN: usize = 48;
+
+/// Largest error counted per joint [rad]: half a turn.
+const ERROR_CAP: f64 = std::f64::consts::PI;
+
+/// A run prepared for k-step prediction: smoothed states, windows and the controller set-up.
+#[derive(Clone, Debug)]
+pub struct PredictionRun {
+    /// The model-aligned run.
+    pub run: Run,
+    /// Smoothed positions at every sample (row-major; meaningful on the valid range).
+    pub q_hat: Vec<f64>,
+    /// Smoothed velocities at every sample.
+    pub qd_hat: Vec<f64>,
+    /// Window start samples.
+    pub starts: Vec<usize>,
+    /// Per window, per horizon: the end sample (or `usize::MAX` when past the run).
+    pub ends: Vec<Vec<usize>>,
+    /// Fold of each window (contiguous fifths of the run, numbered from `fold_base`).
+    pub fold: Vec<usize>,
+    /// The sensors of the feedback controller.
+    pub sensor: SensorParams,
+    /// Controller sample period [s] (the median spacing of the stamps when unknown).
+    pub period: f64,
+}
+
+/// Folds per run for cross-validated prediction (matches the torque fit's contiguous folds).
+pub const FOLDS_PER_RUN: usize = crate::fit::BLOCKS_PER_RUN / crate::fit::BLOCKS_PER_FOLD;
+
+impl PredictionRun {
+    /// Prepares `run` (model-aligned) for prediction at `horizons`, smoothing with a window of
+    /// `window` seconds; at most `max_windows` windows, numbered in folds from `fold_base`.
+    pub fn new(run: Run, horizons: &[f64], window: f64, sensor: SensorParams, fold_base: usize, max_windows: usize) -> PredictionRun {
+        let n = run.dof();
+        let smoother = Smoother::new(&run.t, window);
+        let q_hat = smoother.apply(&run.q, n, 0);
+        let qd_hat = smoother.apply(&run.q, n, 1);
+        let valid = smoother.valid();
+        let period = median_spacing(&run.t);
+        let period = run.experiment.as_ref().map(|e| e.sample_period).filter(|p| p.is_finite() && *p > 0.0).unwrap_or(period);
+        let mut starts = Vec::new();
+        let mut ends = Vec::new();
+        let mut fold = Vec::new();
+        if !valid.is_empty() {
+            let stride_t = horizons.iter().cloned().fold(f64::INFINITY, f64::min).max(period);
+            let span = run.t[valid.end - 1] - run.t[valid.start];
+            let stride_t = stride_t.max(span / max_windows.max(1) as f64);
+            let mut next_t = run.t[valid.start];
+            for k in valid.clone() {
+                if run.t[k] + 1e-12 < next_t {
+                    continue;
+                }
+                next_t = run.t[k] + stride_t;
+                let e: Vec<usize> = horizons
+                    .iter()
+                    .map(|&h| {
+                        let target = run.t[k] + h;
+                        let j = run.t.partition_point(|&t| t < target - 0.5 * period);
+                        if j < valid.end && h > 0.0 {
+                            j
+                        } else {
+                            usize::MAX
+                        }
+                    })
+                    .collect();
+                if e.iter().all(|&x| x == usize::MAX) {
+                    break;
+                }
+                // the fold of the window's start, as the torque fit's contiguous folds cut the run
+                fold.push(fold_base + ((k - valid.start) * FOLDS_PER_RUN / valid.len()).min(FOLDS_PER_RUN - 1));
+                starts.push(k);
+                ends.push(e);
+            }
+        }
+        PredictionRun { run, q_hat, qd_hat, starts, ends, fold, sensor, period }
+    }
+
+    /// Number of windows.
+    pub fn windows(&self) -> usize {
+        self.starts.len()
+    }
+}
+
+/// The median spacing of increasing stamps [s] (1 for fewer than two).
+pub fn median_spacing(t: &[f64]) -> f64 {
+    if t.len() < 2 {
+        return 1.0;
+    }
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// Squared errors of a set of windows: per window, per horizon, per joint (`e²`, capped), and
+/// whether the horizon exists for that window.
+#[derive(Clone, Debug, Default)]
+pub struct Errors {
+    /// Horizons.
+    pub horizons: usize,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Squared errors, `[window][horizon][joint]` flattened; NaN where the horizon is past the
+    /// run.
+    pub sq: Vec<f64>,
+}
+
+impl Errors {
+    fn new(windows: usize, horizons: usize, dof: usize) -> Errors {
+        Errors { horizons, dof, sq: vec![f64::NAN; windows * horizons * dof] }
+    }
+
+    /// Number of windows.
+    pub fn windows(&self) -> usize {
+        self.sq.len() / (self.horizons * self.dof).max(1)
+    }
+
+    fn set(&mut self, w: usize, h: usize, j: usize, e: f64) {
+        let e = if e.is_finite() { e.abs().min(ERROR_CAP) } else { ERROR_CAP };
+        self.sq[(w * self.horizons + h) * self.dof + j] = e * e;
+    }
+
+    fn append(&mut self, other: &Errors) {
+        self.sq.extend_from_slice(&other.sq);
+    }
+
+    /// Per horizon, `sqrt(mean over windows of ‖e‖²)` [rad] (NaN without windows).
+    pub fn rms(&self) -> Vec<f64> {
+        (0..self.horizons)
+            .map(|h| {
+                let (mut s, mut c) = (0.0, 0usize);
+                for w in 0..self.windows() {
+                    let row = &self.sq[(w * self.horizons + h) * self.dof..(w * self.horizons + h + 1) * self.dof];
+                    if row[0].is_finite() {
+                        s += row.iter().sum::<f64>();
+                        c += 1;
+                    }
+                }
+                if c == 0 {
+                    f64::NAN
+                } else {
+                    (s / c as f64).sqrt()
+                }
+            })
+            .collect()
+    }
+
+    /// Per joint, per horizon: RMS error [rad], `[joint][horizon]`.
+    pub fn rms_per_joint(&self) -> Vec<Vec<f64>> {
+        (0..self.dof)
+            .map(|j| {
+                (0..self.horizons)
+                    .map(|h| {
+                        let v: Vec<f64> = (0..self.windows()).map(|w| self.sq[(w * self.horizons + h) * self.dof + j]).filter(|x| x.is_finite()).collect();
+                        if v.is_empty() {
+                            f64::NAN
+                        } else {
+                            (v.iter().sum::<f64>() / v.len() as f64).sqrt()
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// Constant-velocity extrapolation errors over the windows of `pr`.
+pub fn floor(pr: &PredictionRun, horizons: &[f64]) -> Errors {
+    let n = pr.run.dof();
+    let mut out = Errors::new(pr.windows(), horizons.len(), n);
+    for (w, (&k0, ends)) in pr.starts.iter().zip(&pr.ends).enumerate() {
+        for (h, &k1) in ends.iter().enumerate() {
+            if k1 == usize::MAX {
+                continue;
+            }
+            let dt = pr.run.t[k1] - pr.run.t[k0];
+            for j in 0..n {
+                let pred = pr.q_hat[k0 * n + j] + pr.qd_hat[k0 * n + j] * dt;
+                out.set(w, h, j, pred - pr.run.q[k1 * n + j]);
+            }
+        }
+    }
+    out
+}
+
+/// Predicts the windows of `pr` selected by `keep(window)` with `model` + `effects` under
+/// `formulation`; the others stay NaN. A plant that cannot be built (a non-physical
+/// correction) predicts nothing: every kept window counts the capped error.
+///
+/// # Errors
+/// Controller set-up errors (gains that do not match the model).
+pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], pr: &PredictionRun, horizons: &[f64], keep: &dyn Fn(usize) -> bool) -> Result<Errors> {
+    let n = pr.run.dof();
+    let mut out = Errors::new(pr.windows(), horizons.len(), n);
+    let plant = match Plant::new(model, formulation, effects) {
+        Ok(p) => p,
+        Err(_) => {
+            for w in (0..pr.windows()).filter(|&w| keep(w)) {
+                for (h, &k1) in pr.ends[w].iter().enumerate() {
+                    if k1 != usize::MAX {
+                        for j in 0..n {
+                            out.set(w, h, j, f64::INFINITY);
+                        }
+                    }
+                }
+            }
+            return Ok(out);
+        }
+    };
+    let run = &pr.run;
+    let exp = run.experiment.as_ref();
+    let feedback = exp.is_some_and(|e| e.controller != ControllerKind::Replay);
+    let mut controller = match (feedback, exp) {
+        (true, Some(e)) => Some(controller_from_experiment(e, model, None)?),
+        _ => None,
+    };
+    let params = SimParams { sample_period: pr.period, q0: pr.q_hat[pr.starts.first().map_or(0, |k| k * n)..].iter().take(n).copied().collect(), ..SimParams::default() };
+    let params = if params.q0.len() == n { params } else { SimParams { q0: Vec::new(), ..params } };
+    let substeps = effective_substeps(&plant, &params);
+    let h_max = pr.period / substeps as f64;
+    let delay = plant.delay();
+    let mut pws = plant.workspace();
+    let mut rk4 = simgap_sim::integrate::Rk4::new(2 * n);
+    let mut sensor = Sensor::new(&pr.sensor, model, pr.period)?;
+    let (mut y, mut q_meas, mut qd_meas) = (vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
+    let (mut cmd, mut delayed, mut applied) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let zeros = vec![0.0; n];
+    // commands of this window (index k − k0), before it the log's
+    let mut history: Vec<f64> = Vec::new();
+    for w in 0..pr.windows() {
+        if !keep(w) {
+            continue;
+        }
+        let k0 = pr.starts[w];
+        let k_end = pr.ends[w].iter().copied().filter(|&k| k != usize::MAX).max().unwrap_or(k0);
+        // restart from the measured (smoothed) state
+        y[..n].copy_from_slice(&pr.q_hat[k0 * n..(k0 + 1) * n]);
+        y[n..].copy_from_slice(&pr.qd_hat[k0 * n..(k0 + 1) * n]);
+        if k0 > 0 {
+            sensor.restart(&run.q[(k0 - 1) * n..k0 * n]);
+        }
+        history.clear();
+        let mut diverged = false;
+        for k in k0..k_end {
+            // the command of sample k: the log's, or the controller's from the simulated state
+            match controller.as_mut() {
+                None => cmd.copy_from_slice(&run.tau[k * n..(k + 1) * n]),
+                Some(c) => {
+                    let (q, qd) = y.split_at(n);
+                    sensor.measure(q, qd, &mut q_meas, &mut qd_meas);
+                    let q_ref = if run.q_ref.is_empty() { &run.q[k * n..(k + 1) * n] } else { &run.q_ref[k * n..(k + 1) * n] };
+                    let qd_ref = if run.qd_ref.is_empty() { &zeros[..] } else { &run.qd_ref[k * n..(k + 1) * n] };
+                    c.torque(run.t[k], &q_meas, &qd_meas, q_ref, qd_ref, &mut cmd);
+                    if !run.tau_ff.is_empty() {
+                        for i in 0..n {
+                            cmd[i] += run.tau_ff[k * n + i];
+                        }
+                    }
+                }
+            }
+            history.extend_from_slice(&cmd);
+            // the delayed command held over the sample, as the simulator forms it
+            if delay > 0.0 {
+                delayed_command(run, &history, k0, k, delay, pr.period, &mut delayed);
+            } else {
+                delayed.copy_from_slice(&cmd);
+            }
+            applied_torque(plant.effects(), &delayed, &mut applied);
+            // integrate over this sample interval with the held torque
+            let dt = run.t[k + 1] - run.t[k];
+            let steps = ((dt / h_max).ceil() as usize).clamp(1, 10_000);
+            let h = dt / steps as f64;
+            let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
+                let (q, qd) = y.split_at(n);
+                let (dq, ddq) = dy.split_at_mut(n);
+                dq.copy_from_slice(qd);
+                plant.acceleration(&mut pws, q, qd, &applied, simgap_sim::DEFAULT_COULOMB_WIDTH, ddq);
+            };
+            for s in 0..steps {
+                rk4.step(&mut f, run.t[k] + s as f64 * h, h, &mut y);
+            }
+            if y.iter().any(|v| !v.is_finite() || v.abs() > 1e6) {
+                diverged = true;
+            }
+            // errors at the horizons that end at sample k + 1
+            for (h, &k1) in pr.ends[w].iter().enumerate() {
+                if k1 == k + 1 {
+                    for j in 0..n {
+                        let e = if diverged { f64::INFINITY } else { y[j] - run.q[k1 * n + j] };
+                        out.set(w, h, j, e);
+                    }
+                }
+            }
+            if diverged {
+                for (h, &k1) in pr.ends[w].iter().enumerate() {
+                    if k1 != usize::MAX && k1 > k + 1 {
+                        for j in 0..n {
+                            out.set(w, h, j, f64::INFINITY);
+                        }
+                    }
+                }
+                break;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The command held over sample `k` after `delay` seconds: with `delay = m T + r`,
+/// `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`; commands before `k0` come from the log, before the
+/// log's start the first logged one (as the simulator does).
+fn delayed_command(run: &Run, history: &[f64], k0: usize, k: usize, delay: f64, period: f64, out: &mut [f64]) {
+    let n = out.len();
+    let ratio = delay / period;
+    let ratio = if (ratio - ratio.round()).abs() < 1e-9 { ratio.round() } else { ratio };
+    let m = ratio.floor() as usize;
+    let r = ratio - m as f64;
+    let at = |i: isize, j: usize| -> f64 {
+        if i >= k0 as isize {
+            history[(i as usize - k0) * n + j]
+        } else {
+            run.tau[(i.max(0) as usize) * n + j]
+        }
+    };
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = (1.0 - r) * at(k as isize - m as isize, j) + r * at(k as isize - m as isize - 1, j);
+    }
+}
+
+/// Predicts every window of every run with one set of effects; returns the pooled errors.
+///
+/// # Errors
+/// As [`predict`].
+pub fn predict_all(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[PredictionRun], horizons: &[f64]) -> Result<(Errors, Vec<Errors>)> {
+    let per: Vec<Errors> = runs.par_iter().map(|pr| predict(model, formulation, effects, pr, horizons, &|_| true)).collect::<Result<_>>()?;
+    let mut all = Errors { horizons: horizons.len(), dof: model.dof(), sq: Vec::new() };
+    for e in &per {
+        all.append(e);
+    }
+    Ok((all, per))
+}
+
+/// The floor over every window of every run: pooled and per run.
+pub fn floor_all(runs: &[PredictionRun], horizons: &[f64], dof: usize) -> (Errors, Vec<Errors>) {
+    let per: Vec<Errors> = runs.iter().map(|pr| floor(pr, horizons)).collect();
+    let mut all = Errors { horizons: horizons.len(), dof, sq: Vec::new() };
+    for e in &per {
+        all.append(e);
+    }
+    (all, per)
+}
+
+/// Cross-validated prediction: fold `f` of the runs is predicted with `effects_of(f)` (effects
+/// fitted without that fold). Pooled errors over all windows.
+///
+/// # Errors
+/// As [`predict`].
+pub fn predict_cv(model: &Model, formulation: Formulation, runs: &[PredictionRun], horizons: &[f64], folds: usize, effects_of: &(dyn Fn(usize) -> Vec<Effect> + Sync)) -> Result<Errors> {
+    let per_fold: Vec<Vec<(usize, Errors)>> = (0..folds)
+        .into_par_iter()
+        .map(|f| {
+            let eff = effects_of(f);
+            runs.iter()
+                .enumerate()
+                .filter(|(_, pr)| pr.fold.contains(&f))
+                .map(|(r, pr)| predict(model, formulation, &eff, pr, horizons, &|w| pr.fold[w] == f).map(|e| (r, e)))
+                .collect::<Result<Vec<_>>>()
+        })
+        .collect::<Result<_>>()?;
+    // merge: each window was predicted in exactly one fold
+    let mut merged: Vec<Errors> = runs.iter().map(|pr| Errors::new(pr.windows(), horizons.len(), model.dof())).collect();
+    for list in per_fold {
+        for (r, e) in list {
+            for (i, v) in e.sq.iter().enumerate() {
+                if v.is_finite() {
+                    merged[r].sq[i] = *v;
+                }
+            }
+        }
+    }
+    let mut all = Errors { horizons: horizons.len(), dof: model.dof(), sq: Vec::new() };
+    for e in &merged {
+        all.append(e);
+    }
+    Ok(all)
+}
+
+/// One number for comparing models by prediction: the geometric mean over horizons of
+/// `rms_h / reference_h` (lower is better; 1 = as good as the reference).
+pub fn score(rms: &[f64], reference: &[f64]) -> f64 {
+    let logs: Vec<f64> = rms.iter().zip(reference).filter(|(a, b)| a.is_finite() && b.is_finite() && **b > 0.0).map(|(a, b)| (a.max(1e-300) / b).ln()).collect();
+    if logs.is_empty() {
+        return f64::INFINITY;
+    }
+    (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+}
+
+/// k-step prediction of logged runs by `model` alone (`before`) and with `effects` (`after`),
+/// with the constant-velocity floor: how well a model predicts logs, without a diagnosis
+/// (e.g. to compare a published identified model with a corrected one on the same runs).
+///
+/// Runs are aligned to the model by joint name, glitches repaired and sensors inferred as in
+/// [`crate::diagnose`]; `window` is the smoothing window [s] of the restart states.
+///
+/// # Errors
+/// [`crate::Error::Log`] for runs that do not match the model, have no experiment or are too
+/// short for a window; controller set-up errors.
+pub fn evaluate(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[Run], horizons: &[f64], window: f64) -> Result<crate::report::KStep> {
+    if let Some(h) = horizons.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+        return Err(crate::Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
+    }
+    let mut prepared = Vec::with_capacity(runs.len());
+    for r in runs {
+        let mut run = crate::dataset::align_run(model, r)?;
+        if run.experiment.is_none() {
+            return Err(crate::Error::Log { log: run.source.clone(), message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into() });
+        }
+        crate::robust::repair_glitches(&mut run);
+        let sensor = crate::resim::infer_sensors(&run).params();
+        let pr = PredictionRun::new(run, horizons, window, sensor, 0, MAX_WINDOWS_PER_RUN);
+        if pr.windows() == 0 {
+            return Err(crate::Error::Log { log: pr.run.source.clone(), message: format!("too short to predict: {:.3} s; expected at least the shortest horizon plus the smoothing window", pr.run.duration()) });
+        }
+        prepared.push(pr);
+    }
+    let (floor_all, floor_runs) = floor_all(&prepared, horizons, model.dof());
+    let (before, before_runs) = predict_all(model, formulation, &[], &prepared, horizons)?;
+    let (after, after_runs) = if effects.is_empty() { (before.clone(), before_runs.clone()) } else { predict_all(model, formulation, effects, &prepared, horizons)? };
+    Ok(crate::report::KStep {
+        horizons_s: horizons.to_vec(),
+        before: before.rms(),
+        after: after.rms(),
+        floor: floor_all.rms(),
+        per_joint_before: before.rms_per_joint(),
+        per_joint_after: after.rms_per_joint(),
+        runs: prepared
+            .iter()
+            .enumerate()
+            .map(|(i, pr)| crate::report::RunKStep { log: pr.run.source.clone(), windows: pr.windows(), before: before_runs[i].rms(), after: after_runs[i].rms(), floor: floor_runs[i].rms() })
+            .collect(),
+    })
+}

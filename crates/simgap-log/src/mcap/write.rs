@@ -1,0 +1,570 @@
+//! Writing runs as ROS 2 MCAP: the [`McapSink`] a simulation writes into as it goes, and
+//! [`write_mcap`] for a whole run.
+//!
+//! The sink encodes each sample's messages (CDR, a few hundred nanoseconds) into a batch and
+//! hands full batches to a writer thread over a bounded channel; the thread owns the MCAP
+//! writer (chunking, compression, indexes, the summary). The simulation loop never waits for
+//! compression or the disk unless the thread falls more than [`QUEUED_BATCHES`] batches behind.
+//! The file is always finished (summary and footer) by [`Sink::finish`], and by `Drop` when
+//! `finish` was never called (a panic or an early return), so it stays readable after a
+//! failed or interrupted run; a process killed outright leaves complete chunks that the reader
+//! recovers by a linear scan.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::thread::JoinHandle;
+
+use mcap::records::{MessageHeader, Metadata};
+use simgap_sim::{experiment_to_map, Experiment, Run, RunEnd, Sample, Sink};
+
+use super::cdr::encode_joint_state_into;
+use super::{
+    CDR_ENCODING, EXPERIMENT_METADATA, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, OFFERED_QOS_PROFILES, ROS2MSG_ENCODING,
+    RUN_END_METADATA,
+};
+use crate::error::{write_error, Result};
+use crate::topics::{JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC};
+
+/// Batches the writer thread may hold before [`Sink::record`] waits for it.
+pub const QUEUED_BATCHES: usize = 8;
+/// Samples per batch handed to the writer thread.
+const BATCH_SAMPLES: usize = 64;
+
+/// Chunk compression of written files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Compression {
+    /// No compression (the fastest to write, about 4x larger).
+    None,
+    /// LZ4 frames.
+    Lz4,
+    /// Zstandard (the default: measured smaller and faster to write than lz4 through the mcap
+    /// writer's streaming compressors).
+    #[default]
+    Zstd,
+}
+
+/// How [`McapSink`] writes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SinkOptions {
+    /// Chunk compression (default zstd).
+    pub compression: Compression,
+    /// Uncompressed bytes per chunk (default 256 KiB: about two seconds of a 400 Hz, 7-joint
+    /// run, the most a killed writer loses).
+    pub chunk_size: u64,
+}
+
+impl Default for SinkOptions {
+    fn default() -> Self {
+        SinkOptions { compression: Compression::Zstd, chunk_size: 256 * 1024 }
+    }
+}
+
+/// The channels the sink writes, in the order of [`TOPICS`].
+const STATES: u8 = 0;
+const REFERENCE: u8 = 1;
+const MEASURED: u8 = 2;
+const TOPICS: [&str; 3] = [JOINT_STATES_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_EFFORT_MEASURED_TOPIC];
+
+/// Encoded messages on their way to the writer thread.
+#[derive(Default)]
+struct Batch {
+    bytes: Vec<u8>,
+    /// (channel, sequence, stamp [ns], end of the message in `bytes`).
+    messages: Vec<(u8, u32, u64, usize)>,
+    samples: usize,
+}
+
+/// What the writer thread is told.
+enum Command {
+    Messages(Batch),
+    Metadata(Metadata),
+}
+
+/// Writes a run as a ROS 2 MCAP file as it goes (see the [module docs](self)).
+///
+/// The end status goes to the `simgap.run_end` metadata record (`status`, `t`, `joint`).
+pub struct McapSink {
+    path: PathBuf,
+    tx: Option<SyncSender<Command>>,
+    recycled: Option<Receiver<Batch>>,
+    thread: Option<JoinHandle<std::result::Result<(), String>>>,
+    joints: Vec<String>,
+    batch: Batch,
+    sequence: u32,
+    start_ns: i64,
+    last_t: Option<f64>,
+    began: bool,
+}
+
+impl std::fmt::Debug for McapSink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapSink").field("path", &self.path).field("joints", &self.joints).field("finished", &self.tx.is_none()).finish()
+    }
+}
+
+/// The writer thread: owns the MCAP writer, writes what it is sent, finishes the file when the
+/// sink hangs up.
+fn writer_thread(path: PathBuf, options: SinkOptions, rx: Receiver<Command>, recycle: SyncSender<Batch>) -> std::result::Result<(), String> {
+    let file = File::create(&path).map_err(|e| e.to_string())?;
+    let compression = match options.compression {
+        Compression::None => None,
+        Compression::Lz4 => Some(mcap::Compression::Lz4),
+        Compression::Zstd => Some(mcap::Compression::Zstd),
+    };
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .library(concat!("simgap-log ", env!("CARGO_PKG_VERSION")))
+        .compression(compression)
+        .compression_threads(0)
+        .chunk_size(Some(options.chunk_size.max(1024)))
+        .create(BufWriter::with_capacity(1 << 16, file))
+        .map_err(|e| e.to_string())?;
+    let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(|e| e.to_string())?;
+    let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), OFFERED_QOS_PROFILES.to_string())].into();
+    let mut channels: [Option<u16>; 3] = [None; 3];
+    for slot in [STATES, REFERENCE] {
+        channels[slot as usize] = Some(w.add_channel(schema, TOPICS[slot as usize], CDR_ENCODING, &qos).map_err(|e| e.to_string())?);
+    }
+    // keep draining on errors, so the sink never blocks; report the first
+    let mut failed: Option<String> = None;
+    for command in rx {
+        if failed.is_some() {
+            continue;
+        }
+        let result = match command {
+            Command::Metadata(m) => w.write_metadata(&m).map_err(|e| e.to_string()),
+            Command::Messages(batch) => {
+                let mut start = 0;
+                let mut result = Ok(());
+                for &(slot, sequence, ns, end) in &batch.messages {
+                    let channel = match channels[slot as usize] {
+                        Some(c) => c,
+                        None => match w.add_channel(schema, TOPICS[slot as usize], CDR_ENCODING, &qos) {
+                            Ok(c) => *channels[slot as usize].insert(c),
+                            Err(e) => {
+                                result = Err(e.to_string());
+                                break;
+                            }
+                        },
+                    };
+                    let header = MessageHeader { channel_id: channel, sequence, log_time: ns, publish_time: ns };
+                    if let Err(e) = w.write_to_known_channel(&header, &batch.bytes[start..end]) {
+                        result = Err(e.to_string());
+                        break;
+                    }
+                    start = end;
+                }
+                let _ = recycle.try_send(batch);
+                result
+            }
+        };
+        if let Err(e) = result {
+            failed = Some(e);
+        }
+    }
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    // the sink hung up: summary, footer, flush
+    w.finish().map_err(|e| e.to_string())?;
+    w.into_inner().flush().map_err(|e| e.to_string())
+}
+
+impl McapSink {
+    /// Creates (truncates) the file at `path`, with [`SinkOptions::default`].
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be created.
+    pub fn create(path: &Path) -> Result<McapSink> {
+        Self::create_with_options(path, SinkOptions::default())
+    }
+
+    /// Creates (truncates) the file at `path` with other options (compression, chunk size).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be created.
+    pub fn create_with_options(path: &Path, options: SinkOptions) -> Result<McapSink> {
+        // fail here, not in the thread, when the file cannot be created
+        File::create(path).map_err(|e| write_error(path, e))?;
+        let (tx, rx) = sync_channel(QUEUED_BATCHES);
+        let (recycle_tx, recycle_rx) = sync_channel(QUEUED_BATCHES + 2);
+        let thread_path = path.to_path_buf();
+        let thread = std::thread::Builder::new()
+            .name("simgap-mcap-writer".into())
+            .spawn(move || writer_thread(thread_path, options, rx, recycle_tx))
+            .map_err(|e| write_error(path, format!("cannot start the writer thread: {e}")))?;
+        Ok(McapSink {
+            path: path.to_path_buf(),
+            tx: Some(tx),
+            recycled: Some(recycle_rx),
+            thread: Some(thread),
+            joints: Vec::new(),
+            batch: Batch::default(),
+            sequence: 0,
+            start_ns: 0,
+            last_t: None,
+            began: false,
+        })
+    }
+
+    /// The file being written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Sets the absolute time of `t = 0` [ns since the Unix epoch] (default 0): stamps are
+    /// `start_ns + t`. Call before the first sample.
+    pub fn set_start_ns(&mut self, start_ns: i64) {
+        self.start_ns = start_ns;
+    }
+
+    /// Like [`Sink::begin`], with an optional experiment (no metadata record without one).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when called twice, after finishing, or when the
+    /// file cannot be written.
+    pub fn begin_with(&mut self, joints: &[String], experiment: Option<&Experiment>) -> Result<()> {
+        if self.began {
+            return Err(write_error(&self.path, "begin called twice"));
+        }
+        if let Some(e) = experiment {
+            self.send(Command::Metadata(Metadata { name: EXPERIMENT_METADATA.into(), metadata: experiment_to_map(e) }))?;
+        }
+        self.joints = joints.to_vec();
+        self.began = true;
+        Ok(())
+    }
+
+    /// Hands a command to the writer thread; when the thread has stopped, its error.
+    fn send(&mut self, command: Command) -> Result<()> {
+        let Some(tx) = &self.tx else { return Err(write_error(&self.path, "write after finish")) };
+        if tx.send(command).is_ok() {
+            return Ok(());
+        }
+        self.tx = None;
+        let e = self.join().err().unwrap_or_else(|| "the writer thread stopped".into());
+        Err(write_error(&self.path, e))
+    }
+
+    fn join(&mut self) -> std::result::Result<(), String> {
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(_)) => Err("the writer thread panicked".into()),
+            None => Ok(()),
+        }
+    }
+
+    /// Sends the current batch (if any) and starts a new one, reusing a returned buffer.
+    fn flush_batch(&mut self) -> Result<()> {
+        if self.batch.messages.is_empty() {
+            return Ok(());
+        }
+        let mut next = self.recycled.as_ref().and_then(|r| r.try_recv().ok()).unwrap_or_default();
+        next.bytes.clear();
+        next.messages.clear();
+        next.samples = 0;
+        let full = std::mem::replace(&mut self.batch, next);
+        self.send(Command::Messages(full))
+    }
+
+    /// Encodes one JointState message into the batch.
+    fn push(&mut self, slot: u8, ns: i64, position: &[f64], velocity: &[f64], effort: &[f64]) {
+        encode_joint_state_into(&mut self.batch.bytes, ns, &self.joints, position, velocity, effort);
+        let end = self.batch.bytes.len();
+        self.batch.messages.push((slot, self.sequence, ns.max(0) as u64, end));
+    }
+
+    /// Records one sample with every channel: measured state and commanded effort
+    /// (`/joint_states`), reference and feed-forward (`/joint_reference`, when `q_ref` is not
+    /// empty), and the drives' torque (`/joint_effort_measured`, when not empty).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) before `begin`, after finishing, for arrays of the
+    /// wrong length, or when the writer thread failed.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_row(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        q_ref: &[f64],
+        qd_ref: &[f64],
+        tau_ff: &[f64],
+        tau_measured: &[f64],
+    ) -> Result<()> {
+        if !self.began {
+            return Err(write_error(&self.path, "record before begin"));
+        }
+        let dof = self.joints.len();
+        for (what, v, may_be_empty) in [
+            ("q", q, false),
+            ("qd", qd, false),
+            ("tau", tau, true),
+            ("q_ref", q_ref, true),
+            ("qd_ref", qd_ref, true),
+            ("tau_ff", tau_ff, true),
+            ("tau_measured", tau_measured, true),
+        ] {
+            if v.len() != dof && !(may_be_empty && v.is_empty()) {
+                return Err(write_error(&self.path, format!("sample at t = {t} s: {what} has {} values for {dof} joints", v.len())));
+            }
+        }
+        let ns = self.start_ns.saturating_add((t * 1e9).round() as i64);
+        self.push(STATES, ns, q, qd, tau);
+        if !q_ref.is_empty() {
+            self.push(REFERENCE, ns, q_ref, qd_ref, tau_ff);
+        }
+        if !tau_measured.is_empty() {
+            self.push(MEASURED, ns, &[], &[], tau_measured);
+        }
+        self.sequence = self.sequence.wrapping_add(1);
+        self.last_t = Some(t);
+        self.batch.samples += 1;
+        if self.batch.samples >= BATCH_SAMPLES {
+            self.flush_batch()?;
+        }
+        Ok(())
+    }
+
+    /// Finishes the file without a [`RunEnd`] status (for logs that are not simulation runs).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be finished.
+    pub fn close(&mut self) -> Result<()> {
+        self.finish_inner(None)
+    }
+
+    fn finish_inner(&mut self, end: Option<&RunEnd>) -> Result<()> {
+        if self.tx.is_none() {
+            return self.join().map_err(|e| write_error(&self.path, e));
+        }
+        let mut result = self.flush_batch();
+        // end status: a metadata record
+        if let (Some(end), true, true) = (end, self.began, result.is_ok()) {
+            let (status, t, joint) = match end {
+                RunEnd::Completed => ("completed", self.last_t, None),
+                RunEnd::Interrupted { t } => ("interrupted", Some(*t), None),
+                RunEnd::Diverged { t, joint } => ("diverged", Some(*t), Some(joint.clone())),
+            };
+            let mut map = BTreeMap::from([("status".to_string(), status.to_string())]);
+            if let Some(t) = t {
+                map.insert("t".into(), format!("{t}"));
+            }
+            if let Some(j) = joint {
+                map.insert("joint".into(), j);
+            }
+            result = self.send(Command::Metadata(Metadata { name: RUN_END_METADATA.into(), metadata: map }));
+        }
+        // hang up: the thread writes the summary and footer
+        self.tx = None;
+        let joined = self.join().map_err(|e| write_error(&self.path, e));
+        result.and(joined)
+    }
+}
+
+impl Sink for McapSink {
+    fn begin(&mut self, joints: &[String], experiment: &Experiment) -> simgap_sim::Result<()> {
+        Ok(self.begin_with(joints, Some(experiment))?)
+    }
+
+    fn record(&mut self, s: &Sample<'_>) -> simgap_sim::Result<()> {
+        Ok(self.record_row(s.t, s.q, s.qd, s.tau, s.q_ref, s.qd_ref, &[], &[])?)
+    }
+
+    fn finish(&mut self, end: &RunEnd) -> simgap_sim::Result<()> {
+        Ok(self.finish_inner(Some(end))?)
+    }
+}
+
+impl Drop for McapSink {
+    fn drop(&mut self) {
+        if self.tx.is_some() {
+            let t = self.last_t.unwrap_or(0.0);
+            let _ = self.finish_inner(Some(&RunEnd::Interrupted { t }));
+        }
+    }
+}
+
+/// Writes a whole run as an MCAP file (zstd chunks; no run-end status). Stamps are
+/// `run.start_ns + t` when the run has a start, else `t`, to the nanosecond, so a log read and
+/// written again keeps its stamps exactly.
+///
+/// # Errors
+/// [`Error::Write`](crate::Error::Write) when the file cannot be written or the run's matrices
+/// have wrong sizes.
+pub fn write_mcap(run: &Run, path: &Path) -> Result<()> {
+    write_mcap_with_options(run, path, SinkOptions::default())
+}
+
+/// [`write_mcap`] with other options.
+///
+/// # Errors
+/// As [`write_mcap`].
+pub fn write_mcap_with_options(run: &Run, path: &Path, options: SinkOptions) -> Result<()> {
+    let mut sink = McapSink::create_with_options(path, options)?;
+    sink.set_start_ns(run.start_ns.unwrap_or(0));
+    sink.begin_with(&run.joints, run.experiment.as_ref())?;
+    let dof = run.dof();
+    let row = |m: &'_ [f64], k: usize| -> std::ops::Range<usize> {
+        if m.is_empty() {
+            0..0
+        } else {
+            k * dof..(k + 1) * dof
+        }
+    };
+    for k in 0..run.len() {
+        sink.record_row(
+            run.t[k],
+            &run.q[row(&run.q, k)],
+            &run.qd[row(&run.qd, k)],
+            &run.tau[row(&run.tau, k)],
+            &run.q_ref[row(&run.q_ref, k)],
+            &run.qd_ref[row(&run.qd_ref, k)],
+            &run.tau_ff[row(&run.tau_ff, k)],
+            &run.tau_measured[row(&run.tau_measured, k)],
+        )?;
+    }
+    sink.close()
+}
+
+/// Topics one run is written on by [`McapWriter::write_run`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunTopics {
+    /// Measured (or simulated) state and commanded effort.
+    pub states: String,
+    /// Reference and feed-forward, when the run has a reference (`None`: not written).
+    pub reference: Option<String>,
+    /// Torque the drives report, when the run has it (`None`: not written).
+    pub measured_effort: Option<String>,
+}
+
+impl Default for RunTopics {
+    fn default() -> Self {
+        RunTopics {
+            states: JOINT_STATES_TOPIC.into(),
+            reference: Some(JOINT_REFERENCE_TOPIC.into()),
+            measured_effort: Some(JOINT_EFFORT_MEASURED_TOPIC.into()),
+        }
+    }
+}
+
+/// A ROS 2 MCAP file holding several runs on topics of the caller's choosing, and metadata
+/// records: e.g. measured, nominal and corrected runs side by side for Foxglove. Every channel is
+/// a CDR `sensor_msgs/msg/JointState`, like everything simgap writes.
+pub struct McapWriter {
+    path: PathBuf,
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    schema: u16,
+    buf: Vec<u8>,
+}
+
+impl std::fmt::Debug for McapWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapWriter").field("path", &self.path).finish()
+    }
+}
+
+impl McapWriter {
+    /// Creates (truncates) the file (lz4 chunks).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be created.
+    pub fn create(path: &Path) -> Result<McapWriter> {
+        let err = |e: &dyn std::fmt::Display| write_error(path, e);
+        let file = File::create(path).map_err(|e| err(&e))?;
+        let mut w = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("simgap-log ", env!("CARGO_PKG_VERSION")))
+            .compression(Some(mcap::Compression::Lz4))
+            .compression_threads(0)
+            .create(BufWriter::new(file))
+            .map_err(|e| err(&e))?;
+        let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(|e| err(&e))?;
+        Ok(McapWriter { path: path.to_path_buf(), writer: Some(w), schema, buf: Vec::new() })
+    }
+
+    fn writer(&mut self) -> Result<&mut mcap::Writer<BufWriter<File>>> {
+        let path = &self.path;
+        self.writer.as_mut().ok_or_else(|| write_error(path, "write after finish"))
+    }
+
+    /// Writes a metadata record.
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be written.
+    pub fn metadata(&mut self, name: &str, map: BTreeMap<String, String>) -> Result<()> {
+        let path = self.path.clone();
+        self.writer()?.write_metadata(&Metadata { name: name.into(), metadata: map }).map_err(|e| write_error(&path, e))
+    }
+
+    /// Writes a run on `topics`, stamped `start_ns + t` to the nanosecond (`start_ns`: the run's
+    /// own, else the one given, else 0).
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be written.
+    pub fn write_run(&mut self, run: &Run, topics: &RunTopics, start_ns: Option<i64>) -> Result<()> {
+        let path = self.path.clone();
+        let err = |e: mcap::McapError| write_error(&path, e);
+        let start = run.start_ns.or(start_ns).unwrap_or(0);
+        let dof = run.dof();
+        let row = |m: &[f64], k: usize| -> std::ops::Range<usize> {
+            if m.len() >= (k + 1) * dof {
+                k * dof..(k + 1) * dof
+            } else {
+                0..0
+            }
+        };
+        let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), OFFERED_QOS_PROFILES.to_string())].into();
+        let schema = self.schema;
+        let mut streams: Vec<(u8, &str)> = vec![(STATES, topics.states.as_str())];
+        if let (Some(t), false) = (&topics.reference, run.q_ref.is_empty()) {
+            streams.push((REFERENCE, t.as_str()));
+        }
+        if let (Some(t), false) = (&topics.measured_effort, run.tau_measured.is_empty()) {
+            streams.push((MEASURED, t.as_str()));
+        }
+        for (kind, topic) in streams {
+            let mut buf = std::mem::take(&mut self.buf);
+            let w = self.writer()?;
+            let channel = w.add_channel(schema, topic, CDR_ENCODING, &qos).map_err(err)?;
+            for k in 0..run.len() {
+                let ns = start.saturating_add((run.t[k] * 1e9).round() as i64);
+                buf.clear();
+                match kind {
+                    STATES => encode_joint_state_into(&mut buf, ns, &run.joints, &run.q[row(&run.q, k)], &run.qd[row(&run.qd, k)], &run.tau[row(&run.tau, k)]),
+                    REFERENCE => encode_joint_state_into(
+                        &mut buf,
+                        ns,
+                        &run.joints,
+                        &run.q_ref[row(&run.q_ref, k)],
+                        &run.qd_ref[row(&run.qd_ref, k)],
+                        &run.tau_ff[row(&run.tau_ff, k)],
+                    ),
+                    _ => encode_joint_state_into(&mut buf, ns, &run.joints, &[], &[], &run.tau_measured[row(&run.tau_measured, k)]),
+                }
+                let time = ns.max(0) as u64;
+                let header = MessageHeader { channel_id: channel, sequence: k as u32, log_time: time, publish_time: time };
+                w.write_to_known_channel(&header, &buf).map_err(err)?;
+            }
+            self.buf = buf;
+        }
+        Ok(())
+    }
+
+    /// Writes the summary and footer, flushes and syncs the file.
+    ///
+    /// # Errors
+    /// [`Error::Write`](crate::Error::Write) when the file cannot be finished.
+    pub fn finish(mut self) -> Result<()> {
+        let path = self.path.clone();
+        let Some(mut w) = self.writer.take() else { return Ok(()) };
+        w.finish().map_err(|e| write_error(&path, e))?;
+        let mut inner = w.into_inner();
+        inner.flush().map_err(|e| write_error(&path, e))?;
+        inner.get_ref().sync_all().map_err(|e| write_error(&path, e))
+    }
+}

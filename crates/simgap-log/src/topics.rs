@@ -1,0 +1,235 @@
+//! Which topic of a bag holds what: the topic map.
+//!
+//! Four roles, each with a default topic:
+//!
+//! | role | default topic | fills |
+//! |---|---|---|
+//! | `states` | `/joint_states` | `t`, `q`, `qd`, and `tau` from its effort |
+//! | `reference` | `/joint_reference` | `q_ref`, `qd_ref`, `tau_ff` (feed-forward) from its effort |
+//! | `effort` | none | `tau` (commanded effort), replacing the effort of `states` |
+//! | `measured_effort` | `/joint_effort_measured` | `tau_measured` |
+//!
+//! Real bags name topics after the robot; a map such as
+//! `states=/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[j1;j2]`
+//! ([`TopicMap::parse`]) points each role at its topic. A message type without joint names
+//! (`std_msgs/msg/Float64MultiArray`) gets them in brackets, `;`-separated, in the order of its
+//! `data`.
+
+use std::fmt;
+
+/// Default topic of the measured joint states.
+pub const JOINT_STATES_TOPIC: &str = "/joint_states";
+/// Default topic of the joint reference.
+pub const JOINT_REFERENCE_TOPIC: &str = "/joint_reference";
+/// Default topic of the torque the drives report.
+pub const JOINT_EFFORT_MEASURED_TOPIC: &str = "/joint_effort_measured";
+
+/// The role a topic plays in a run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Role {
+    /// Measured positions, velocities, and the commanded effort.
+    States,
+    /// Reference positions and velocities, and the feed-forward torque.
+    Reference,
+    /// Commanded effort (when not in the states).
+    Effort,
+    /// Torque the drives report.
+    MeasuredEffort,
+}
+
+impl Role {
+    /// Every role, in map order.
+    pub const ALL: [Role; 4] = [Role::States, Role::Reference, Role::Effort, Role::MeasuredEffort];
+
+    /// The role's key in a topic map: `states`, `reference`, `effort`, `measured_effort`.
+    pub fn key(self) -> &'static str {
+        match self {
+            Role::States => "states",
+            Role::Reference => "reference",
+            Role::Effort => "effort",
+            Role::MeasuredEffort => "measured_effort",
+        }
+    }
+}
+
+/// A topic and, for message types without joint names, the names of its values.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TopicSpec {
+    /// The topic, e.g. `/arm/joint_states`.
+    pub topic: String,
+    /// Joint names of the values, in order, for messages without names (empty otherwise).
+    pub joints: Vec<String>,
+}
+
+impl TopicSpec {
+    /// A topic whose messages name their joints.
+    pub fn new(topic: &str) -> TopicSpec {
+        TopicSpec { topic: topic.to_string(), joints: Vec::new() }
+    }
+
+    /// A topic whose values belong to `joints`, in order.
+    pub fn with_joints(topic: &str, joints: &[&str]) -> TopicSpec {
+        TopicSpec { topic: topic.to_string(), joints: joints.iter().map(|s| s.to_string()).collect() }
+    }
+
+    /// Parses `/topic` or `/topic[j1;j2]`.
+    ///
+    /// # Errors
+    /// A message for an empty topic, an unclosed bracket or an empty joint name.
+    pub fn parse(s: &str) -> Result<TopicSpec, String> {
+        let s = s.trim();
+        let (topic, joints) = match s.split_once('[') {
+            Some((t, rest)) => {
+                let inner = rest.strip_suffix(']').ok_or_else(|| format!("'{s}': expected joint names in brackets, '/topic[j1;j2]'"))?;
+                let joints: Vec<String> = inner.split(';').map(|j| j.trim().to_string()).collect();
+                if joints.iter().any(String::is_empty) {
+                    return Err(format!("'{s}': an empty joint name in the brackets"));
+                }
+                (t.trim(), joints)
+            }
+            None => (s, Vec::new()),
+        };
+        if topic.is_empty() {
+            return Err(format!("'{s}': no topic"));
+        }
+        Ok(TopicSpec { topic: topic.to_string(), joints })
+    }
+}
+
+impl fmt::Display for TopicSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.topic)?;
+        if !self.joints.is_empty() {
+            write!(f, "[{}]", self.joints.join(";"))?;
+        }
+        Ok(())
+    }
+}
+
+/// Which topic plays which [`Role`] (see the [module docs](self)).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TopicMap {
+    /// Measured states (default `/joint_states`).
+    pub states: TopicSpec,
+    /// Reference and feed-forward (default `/joint_reference`).
+    pub reference: TopicSpec,
+    /// Commanded effort, when not in the states (default none).
+    pub effort: Option<TopicSpec>,
+    /// Torque the drives report (default `/joint_effort_measured`).
+    pub measured_effort: TopicSpec,
+}
+
+impl Default for TopicMap {
+    fn default() -> Self {
+        TopicMap {
+            states: TopicSpec::new(JOINT_STATES_TOPIC),
+            reference: TopicSpec::new(JOINT_REFERENCE_TOPIC),
+            effort: None,
+            measured_effort: TopicSpec::new(JOINT_EFFORT_MEASURED_TOPIC),
+        }
+    }
+}
+
+impl TopicMap {
+    /// The defaults with some roles mapped: `states=/a,reference=/b,effort=/c[j1;j2],...`
+    /// (the keys of [`Role::key`]; a role not given keeps its default).
+    ///
+    /// # Errors
+    /// A message naming an unknown role, a role given twice, or a malformed topic.
+    pub fn parse(s: &str) -> Result<TopicMap, String> {
+        let mut map = TopicMap::default();
+        let mut seen = Vec::new();
+        for entry in split_outside_brackets(s) {
+            let entry = entry.trim();
+            if entry.is_empty() {
+                continue;
+            }
+            let (key, value) = entry.split_once('=').ok_or_else(|| format!("'{entry}': expected role=topic"))?;
+            let key = key.trim();
+            if seen.contains(&key.to_string()) {
+                return Err(format!("role '{key}' is given twice"));
+            }
+            seen.push(key.to_string());
+            map.set(key, TopicSpec::parse(value)?)?;
+        }
+        Ok(map)
+    }
+
+    /// Points a role (by its [`Role::key`]) at a topic.
+    ///
+    /// # Errors
+    /// A message for an unknown role.
+    pub fn set(&mut self, role: &str, spec: TopicSpec) -> Result<(), String> {
+        match role {
+            "states" => self.states = spec,
+            "reference" => self.reference = spec,
+            "effort" => self.effort = Some(spec),
+            "measured_effort" => self.measured_effort = spec,
+            other => {
+                return Err(format!("unknown role '{other}': expected states, reference, effort or measured_effort"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The spec of a role, if the role is mapped.
+    pub fn get(&self, role: Role) -> Option<&TopicSpec> {
+        match role {
+            Role::States => Some(&self.states),
+            Role::Reference => Some(&self.reference),
+            Role::Effort => self.effort.as_ref(),
+            Role::MeasuredEffort => Some(&self.measured_effort),
+        }
+    }
+
+    /// The roles a topic plays (one topic may play several, e.g. a controller state that holds
+    /// both the reference and the commanded effort).
+    pub fn roles_of(&self, topic: &str) -> Vec<Role> {
+        Role::ALL.into_iter().filter(|r| self.get(*r).is_some_and(|s| s.topic == topic)).collect()
+    }
+}
+
+impl fmt::Display for TopicMap {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parts: Vec<String> = Role::ALL.iter().filter_map(|r| self.get(*r).map(|s| format!("{}={s}", r.key()))).collect();
+        f.write_str(&parts.join(","))
+    }
+}
+
+/// Splits at commas that are not inside brackets.
+fn split_outside_brackets(s: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let mut depth = 0i32;
+    let mut start = 0;
+    for (i, c) in s.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(&s[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&s[start..]);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn topic_map_parses_roles_and_bracketed_joint_names() {
+        let m = TopicMap::parse("states=/arm/joint_states, effort=/effort_controller/commands[j1;j2],reference=/ctrl/state").unwrap();
+        assert_eq!(m.states.topic, "/arm/joint_states");
+        assert_eq!(m.reference.topic, "/ctrl/state");
+        assert_eq!(m.effort.as_ref().unwrap().joints, vec!["j1".to_string(), "j2".to_string()]);
+        assert_eq!(m.measured_effort.topic, JOINT_EFFORT_MEASURED_TOPIC);
+        assert_eq!(TopicMap::parse(&m.to_string()).unwrap(), m);
+        assert!(TopicMap::parse("state=/x").unwrap_err().contains("unknown role 'state'"));
+        assert!(TopicMap::parse("states=/x,states=/y").unwrap_err().contains("twice"));
+        assert!(TopicMap::parse("effort=/x[a;").is_err());
+    }
+}

@@ -1,0 +1,132 @@
+"""``python -m simgap.fleet DIR --urdf ROBOT.urdf [--scheduler tcp://HOST:PORT] [--out OUT/]``
+
+Diagnoses every robot-day of the folder ``DIR/ROBOT/DAY/…`` on a Dask cluster (a LocalCluster
+of this machine's cores unless ``--scheduler`` names one) with a progress bar, prints the
+flagged robots and writes into ``OUT/``:
+
+- ``fleet.parquet``: one row per robot, day, effect, joint, parameter (``fleet.csv`` when
+  pyarrow is missing),
+- ``tasks.csv``: one row per robot-day (status, error, gap figures, seconds, peak memory),
+- ``drift.csv``, ``outliers.csv``, ``flagged.csv``: the trend tests, the robust z scores and
+  the findings,
+- ``fleet.html``: the fleet report,
+- ``reports/ROBOT/DAY.json``: each robot-day's diagnosis report.
+
+Outputs are written to a temporary folder and moved into ``OUT/`` at the end, so an
+interrupted run (Ctrl-C: exit status 130) leaves them complete or absent. Exit status 0 when
+at least one robot-day was diagnosed, 1 when none was, 2 for bad arguments or an unreachable
+scheduler.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import sys
+import tempfile
+from pathlib import Path
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m simgap.fleet", description="Diagnose every robot of a fleet on every day, on a Dask cluster, and flag drifting and outlying robots.")
+    p.add_argument("folder", type=Path, help="fleet folder laid out as ROBOT/DAY/<logs> (.mcap, .csv, .csv.gz, bag folders)")
+    p.add_argument("--urdf", type=Path, required=True, help="the robots' URDF (a path every worker can read)")
+    p.add_argument("--tip", default=None, help="tip link of the chain (default: the end of the unique chain)")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://scheduler-host:8786 (default: a LocalCluster on this machine)")
+    p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the number of cores)")
+    p.add_argument("--out", type=Path, default=Path("fleet-out"), help="output folder (default: fleet-out)")
+    p.add_argument("--formulation", default="euler_lagrange", choices=["euler_lagrange", "euler-lagrange", "simplified"])
+    p.add_argument("--retries", type=int, default=2, help="re-runs of a task that fails for a reason other than its data (default 2)")
+    p.add_argument("--z-drift", type=float, default=4.0, help="drift: slope / standard error threshold (default 4)")
+    p.add_argument("--min-rate", type=float, default=0.02, help="drift: minimum relative rate per day (default 0.02)")
+    p.add_argument("--z-outlier", type=float, default=4.0, help="outlier: robust z threshold (default 4)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def _write(result, folder: Path, args: argparse.Namespace) -> None:  # type: ignore[no-untyped-def]
+    from . import trends
+    from .report import flagged_robots, write_html
+
+    try:
+        result.to_parquet(folder / "fleet.parquet")
+    except ImportError:
+        print("simgap.fleet: pyarrow is not installed; writing fleet.csv instead of fleet.parquet", file=sys.stderr)
+        result.table.to_csv(folder / "fleet.csv", index=False)
+    result.tasks.to_csv(folder / "tasks.csv", index=False)
+    dr = trends.drift(result.table, z_drift=args.z_drift, min_rate_per_day=args.min_rate)
+    ol = trends.outliers(result.table, z_outlier=args.z_outlier, drift_table=dr)
+    dr.to_csv(folder / "drift.csv", index=False)
+    ol.to_csv(folder / "outliers.csv", index=False)
+    flagged_robots(dr, ol).to_csv(folder / "flagged.csv", index=False)
+    write_html(result, folder / "fleet.html", z_drift=args.z_drift, min_rate_per_day=args.min_rate, z_outlier=args.z_outlier, title=args.folder.resolve().name)
+    for (robot, day), report in result.reports.items():
+        path = folder / "reports" / robot / f"{day}.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(report, indent=1))
+
+
+def _move_into(tmp: Path, out: Path) -> None:
+    """Moves the finished outputs into ``out`` with Ctrl-C held back, so they land whole."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        if not out.exists():
+            os.rename(tmp, out)
+            return
+        for entry in tmp.iterdir():
+            dest = out / entry.name
+            if dest.is_dir() and not dest.is_symlink():
+                shutil.rmtree(dest)
+            os.replace(entry, dest)
+        tmp.rmdir()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from .index import index_from_folder
+    from .report import summary_text
+    from .run import diagnose_fleet
+
+    if not args.urdf.is_file():
+        print(f"simgap.fleet: URDF {args.urdf} not found", file=sys.stderr)
+        return 2
+    try:
+        index = index_from_folder(args.folder)
+    except (FileNotFoundError, ValueError) as err:
+        print(f"simgap.fleet: {err}", file=sys.stderr)
+        return 2
+    out = args.out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    client = None
+    try:
+        if args.scheduler:
+            from distributed import Client
+
+            try:
+                client = Client(args.scheduler, timeout="30s")
+            except (OSError, TimeoutError, ValueError) as err:
+                print(f"simgap.fleet: cannot reach the scheduler {args.scheduler}: {err}", file=sys.stderr)
+                return 2
+        result = diagnose_fleet(index, args.urdf, client, tip=args.tip, formulation=args.formulation, retries=args.retries, progress=not args.no_progress, n_workers=args.workers)
+        print(summary_text(result, z_drift=args.z_drift, min_rate_per_day=args.min_rate, z_outlier=args.z_outlier))
+        _write(result, tmp, args)
+        _move_into(tmp, out)
+        print(f"wrote {out}/ (fleet.parquet, tasks.csv, drift.csv, outliers.csv, flagged.csv, fleet.html, reports/)")
+        return 0 if (result.tasks["status"] == "ok").any() else 1
+    except KeyboardInterrupt:
+        print("\nsimgap.fleet: interrupted; no output written", file=sys.stderr)
+        return 130
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if client is not None:
+            client.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

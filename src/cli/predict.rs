@@ -1,0 +1,78 @@
+//! `simgap predict`: how well a model (with or without effects) predicts logged runs k steps
+//! ahead, restarted from the measured state, against constant-velocity extrapolation.
+//!
+//! This is the figure the diagnosis reports as `gap.kstep`, for any model: e.g. a published
+//! identified model against the URDF plus the effects a diagnosis selected, on the same runs.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use simgap::core::Formulation;
+use simgap::log::{read_log_with_warnings, LogOptions, TopicMap};
+use simgap::sim::Effect;
+
+/// Arguments of `simgap predict`.
+#[derive(clap::Args)]
+pub(crate) struct Args {
+    /// URDF of the robot.
+    #[arg(long)]
+    urdf: PathBuf,
+    /// Tip link of the chain when the tree branches.
+    #[arg(long)]
+    tip: Option<String>,
+    /// A log to predict (MCAP or CSV), repeatable; windows of all logs are pooled.
+    #[arg(long = "log", required = true)]
+    logs: Vec<PathBuf>,
+    /// An effect added to the model, repeatable, e.g. 'viscous_friction:b=0.01,0.02'.
+    #[arg(long)]
+    effect: Vec<String>,
+    /// Formulation of C: euler-lagrange or simplified.
+    #[arg(long, default_value = "euler-lagrange")]
+    formulation: Formulation,
+    /// Prediction horizons [s], comma-separated, each in (0, 60].
+    #[arg(long, default_value = "0.1,0.25,0.5", value_delimiter = ',')]
+    horizon: Vec<f64>,
+    /// Experiment file for logs without `simgap.experiment` metadata or sidecar.
+    #[arg(long)]
+    experiment: Option<PathBuf>,
+    /// Topic map of MCAP logs and bags, e.g. 'states=/arm/joint_states,reference=/arm/ref'.
+    #[arg(long = "topic", value_parser = super::diagnose::parse_topic_map)]
+    topics: Option<TopicMap>,
+    /// Write the figures as JSON here (the layout of a diagnosis report's `gap.kstep`).
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+pub(crate) fn run(args: Args) -> anyhow::Result<()> {
+    let model = super::load_model(Some(&args.urdf), args.tip.as_deref())?;
+    if let Some(h) = args.horizon.iter().find(|h| !(h.is_finite() && **h > 0.0 && **h <= 60.0)) {
+        bail!("--horizon {h}: expected horizons in (0, 60] seconds");
+    }
+    let n = model.dof();
+    let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse(s, n).with_context(|| format!("--effect '{s}'"))).collect::<anyhow::Result<_>>()?;
+    let experiment = args.experiment.as_deref().map(simgap::log::experiment::read_experiment_file).transpose()?;
+    let options = LogOptions { topics: args.topics.clone().unwrap_or_default(), experiment, ..LogOptions::default() };
+    let mut runs = Vec::new();
+    for p in &args.logs {
+        let read = read_log_with_warnings(p, &options)?;
+        for w in &read.warnings {
+            eprintln!("warning: {}: {w}", p.display());
+        }
+        let run = read.run;
+        if run.experiment.is_none() {
+            bail!("{}: no experiment (controller, joints, kp, kv, sample_period); give it with --experiment EXP.json", p.display());
+        }
+        runs.push(run);
+    }
+    let k = simgap::diag::kstep::evaluate(&model, args.formulation, &effects, &runs, &args.horizon, simgap::diag::PrepareOptions::default().window)?;
+    println!("k-step prediction of {} log(s) by '{}'{} ({} windows)", runs.len(), model.name(), if effects.is_empty() { String::new() } else { format!(" with {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")) }, k.runs.iter().map(|r| r.windows).sum::<usize>());
+    println!("  {:>10} {:>14} {:>14} {:>14}", "horizon", "model [rad]", "+effects [rad]", "floor [rad]");
+    for (i, h) in k.horizons_s.iter().enumerate() {
+        println!("  {:>9.3}s {:>14.4e} {:>14.4e} {:>14.4e}", h, k.before[i], k.after[i], k.floor[i]);
+    }
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&k)? + "\n").with_context(|| format!("{}: cannot write", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
