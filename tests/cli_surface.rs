@@ -171,9 +171,11 @@ fn summary_lists_selected_effects_by_rank_with_joints_in_model_order() {
     ranked.sort();
     let section = t.split("SELECTED").nth(1).expect("a SELECTED section");
     let section = section.split("\n\n").next().unwrap();
-    let listed: Vec<&str> = section.lines().skip(1).filter_map(|l| l.split_whitespace().next()).collect();
+    // effect lines start at column 2; an effect's description follows, indented further
+    let effect_lines: Vec<&str> = section.lines().skip(1).filter(|l| l.starts_with("  ") && !l.starts_with("   ")).collect();
+    let listed: Vec<&str> = effect_lines.iter().filter_map(|l| l.split_whitespace().next()).collect();
     assert_eq!(listed, ranked.iter().map(|r| r.1).collect::<Vec<_>>(), "SELECTED in rank order:\n{section}");
-    for line in section.lines().skip(1) {
+    for line in &effect_lines {
         let named: Vec<usize> = joints.iter().enumerate().filter(|(_, j)| line.contains(&format!("\"{j}\""))).map(|(i, _)| i).collect();
         let positions: Vec<usize> = named.iter().map(|&i| line.find(&format!("\"{}\"", joints[i])).unwrap()).collect();
         assert!(positions.windows(2).all(|w| w[0] < w[1]), "joints not in model order: {line}");
