@@ -111,8 +111,11 @@ fn page_has_every_figure_units_and_link_names() {
     assert!(html.contains("N·m·s/rad") && html.contains("time since the log"), "units and time axes");
     assert!(!html.contains("NaN"), "no NaN on the page");
     // no k-step, alternatives or notes: their sections are absent
-    let (_, plain) = demo();
-    let html = render_html_for(plain, Some(model)).unwrap();
+    let mut plain = demo().1.clone();
+    plain.report.gap.kstep = Default::default();
+    plain.report.alternatives.clear();
+    plain.report.notes.clear();
+    let html = render_html_for(&plain, Some(model)).unwrap();
     assert_eq!(count(&html, "<figure class=\"kstep\">") + count(&html, "id=\"alternatives\"") + count(&html, "<ul class=\"notes\""), 0);
 }
 
@@ -142,7 +145,8 @@ fn chromium_renders_the_page_with_every_figure() {
     let out = Command::new(&chrome).args(base).arg(&profile).args(["--dump-dom", &url]).output().unwrap();
     assert!(out.status.success(), "chromium failed: {}", String::from_utf8_lossy(&out.stderr));
     let dom = String::from_utf8_lossy(&out.stdout);
-    let figures = d.holdout.len() * model.dof() + model.dof() + 1;
+    let kstep = usize::from(!d.report.gap.kstep.horizons_s.is_empty());
+    let figures = d.holdout.len() * model.dof() + model.dof() + 1 + kstep;
     assert_eq!(count(&dom, "<figure"), figures, "figures in the rendered page");
     assert_eq!(count(&dom, "<svg"), figures, "one SVG per figure");
     assert_eq!(count(&dom, "id=\"verdict\""), 1);
