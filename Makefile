@@ -7,15 +7,22 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: test rust-test python-test venv python-package demo bench compare-pinocchio clean
+.PHONY: test rust-test python-test browser venv python-package demo bench compare-pinocchio clean
 
 test: rust-test python-test
 
 # Tests build in release: they share the artefacts of the CLI build, and the diagnosis tests
 # simulate and fit real runs (20x slower unoptimised).
-rust-test:
+rust-test: browser
 	cargo build --release --bin simgap
 	SIMGAP_BIN=$(CURDIR)/target/release/simgap cargo test --release --workspace --exclude simgap-python
+
+# Headless Chromium (Debian package `chromium`) for the test that renders the HTML report, when
+# the system can install it; without it that test skips with a message.
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	  (apt-cache show chromium >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1) || \
+	  echo "headless Chromium is not available: the HTML rendering test will skip"
 
 venv: $(VENV)/.requirements-stamp
 

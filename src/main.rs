@@ -16,13 +16,13 @@ struct Cli {
 enum Command {
     /// Diagnose a built-in bench robot with hidden effects, blind, and print the report.
     Demo(cli::demo::Args),
-    /// Print H, C, Ḣ and g as JSON lines (BRIEF §3.4).
+    /// Print H, C, Ḣ and g as JSON lines, one object per state (joints in model order).
     Terms(cli::terms::Args),
     /// Simulate a closed-loop run and write it to MCAP.
     Simulate(cli::simulate::Args),
     /// Reproduce the seed paper's experiment with both formulations.
     Paper(cli::paper::Args),
-    /// Diagnose the sim-to-real gap of a model against logs (BRIEF §3.3).
+    /// Diagnose the sim-to-real gap of a model against logs: where, which effect, how far.
     Diagnose(cli::diagnose::Args),
     /// Diagnose random blind scenarios and score the answers.
     Selfcheck(cli::selfcheck::Args),
@@ -43,6 +43,8 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // after Ctrl-C: 128 + SIGINT, as a shell reports an interrupted program
+        Err(e) if e.is::<cli::Interrupted>() => std::process::ExitCode::from(130),
         Err(e) => {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE

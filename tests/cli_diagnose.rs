@@ -1,4 +1,4 @@
-//! `simgap demo` and `simgap diagnose` as a user runs them: the JSON contract (BRIEF §3.3), the
+//! `simgap demo` and `simgap diagnose` as a user runs them: the JSON contract, the
 //! blind recovery of the demo's hidden effects, and clear errors on bad input.
 //!
 //! The binary is `$SIMGAP_BIN` when set; else `target/release/simgap` when it is newer than

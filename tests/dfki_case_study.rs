@@ -76,7 +76,7 @@ fn dfki_c0_open_loop_diagnosis() {
     assert!(out.status.success(), "simgap diagnose failed");
 
     let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).expect("the report is JSON");
-    // every key of BRIEF §3.3
+    // every key of the report's JSON contract
     assert!(r["selected_effects"].is_array(), "selected_effects");
     let candidates = r["candidates"].as_array().expect("candidates");
     assert!(candidates.len() >= 10, "every effect tried: {}", candidates.len());

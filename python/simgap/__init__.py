@@ -8,6 +8,9 @@ left-hand side. Every :class:`Model` method takes one state, shape ``(dof,)``, o
 shape ``(N, dof)``, of anything array-like, and returns C-ordered float64 numpy arrays (row
 ``i`` of a matrix is equation ``i``). Batches release the GIL, run on all cores, and stop with
 ``KeyboardInterrupt`` on Ctrl-C.
+
+:func:`diagnose` returns a :class:`Report` that notebooks show as the HTML report; the optional
+:mod:`simgap.plot` module (``pip install "simgap[plot]"``, matplotlib) draws its figures.
 """
 
 from simgap._simgap import (
@@ -24,13 +27,13 @@ from simgap._simgap import (
     UrdfError,
     __version__,
     compare,
-    diagnose,
     l2,
     l2_tracking,
     read_log,
     simulate,
     write_log,
 )
+from simgap._diagnose import diagnose
 
 __all__ = [
     "DimensionError",

@@ -1,7 +1,7 @@
 """The simgap extension module (Rust). Import from :mod:`simgap` instead."""
 
 from os import PathLike
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Literal, TypeAlias, final
 
 import numpy as np
@@ -399,14 +399,12 @@ def simulate(
     DimensionError for vectors of the wrong length.
     """
 
-# diagnose(...) is added here once simgap-diag is bound (python/src/diagnosis.rs).
-
 _LogArg: TypeAlias = Run | str | PathLike[str]
 """A run in memory (from ``read_log`` or ``simulate``) or the path of a log to read."""
 
 @final
 class Report:
-    """The result of :func:`diagnose`: the report of BRIEF §3.3, with the runs behind its figures.
+    """The result of :func:`diagnose`: the diagnosis report, with the runs behind its figures.
 
     Every dict attribute is the JSON report parsed afresh (``json.loads(report.to_json())``),
     so ``to_dict()`` has exactly the keys of the CLI's ``--json`` output; ``where`` (a Python
@@ -469,6 +467,13 @@ class Report:
         held-out run) to ``path``, like the CLI's ``--html``. Raises LogError when it cannot."""
     def summary(self) -> str:
         """The terminal summary the CLI prints."""
+    def _repr_html_(self) -> str:
+        """The HTML report as a string: a notebook (Jupyter, VS Code) shows it in place of the repr."""
+    @property
+    def fit_residuals(self) -> list[dict[str, Any]]:
+        """The fit runs as the diagnosis saw them, for plots: one dict per run with ``log`` (its
+        name), ``t`` (N,) [s], and (N, dof) arrays ``q``, ``qd``, ``qdd`` (smoothed) and
+        ``residual``, the nominal torque residual τ_cmd − (H q̈ + C q̇ + g) [N·m]."""
     def __getitem__(self, key: str, /) -> Any:
         """A report key, as in the JSON (``report["where"]``). Raises KeyError."""
     def __contains__(self, key: str, /) -> bool:
@@ -480,6 +485,8 @@ def diagnose(
     holdout: Sequence[_LogArg] | _LogArg,
     *,
     formulation: _Formulation = "euler_lagrange",
+    experiment: Mapping[str, object] | str | PathLike[str] | None = None,
+    progress: Callable[[str, int, int], object] | None = None,
 ) -> Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks
@@ -490,6 +497,13 @@ def diagnose(
     ``read_log`` or ``simulate``) or paths to logs (read like ``read_log``), or a single one.
     Every run must carry its experiment (controller, gains, sample period) to be re-simulated
     in closed loop. ``formulation``: the C of the model under test.
+
+    ``experiment``: the experiment of runs that carry none (a recorded bag, a CSV log without
+    sidecar): a ``simgap.experiment`` metadata dict (``controller``, ``joints``, ``kp``,
+    ``kv``, ``sample_period``, as ``Run.experiment`` gives it) or the path of an experiment
+    JSON file. ``progress``: called on the calling thread as ``progress(stage, done, total)``
+    whenever the diagnosis moves on (at most every 50 ms); an exception from it stops the
+    diagnosis and is raised. ``simgap.diagnose(..., progress=True)`` shows a tqdm bar.
 
     Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
     FitError when there is no fit or held-out run, a log is given as both, or the fit fails;

@@ -1,4 +1,4 @@
-//! `simgap.diagnose` and `simgap.Report`: the Python face of `simgap diagnose` (BRIEF §3.3).
+//! `simgap.diagnose` and `simgap.Report`: the Python face of `simgap diagnose`.
 //!
 //! `diagnose` reads the logs given as paths and runs `simgap_diag::diagnose` on its own thread
 //! while this one, with the GIL released in between, checks for Ctrl-C every 50 ms (as
@@ -14,14 +14,16 @@ use std::any::Any;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 use pyo3::exceptions::{PyKeyError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use simgap_core::{Formulation, Model};
 use simgap_diag::{DiagnoseOptions, Diagnosis, Progress};
-use simgap_sim::Run;
+use simgap_sim::run::experiment_from_map;
+use simgap_sim::{Experiment, Run};
 
 use crate::errors::{from_diag, Kind};
 use crate::model::{formulation, PyModel};
@@ -92,12 +94,19 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// The latest progress report of a diagnosis: stage, steps done, steps in all.
+type Latest = Arc<Mutex<Option<(String, usize, usize)>>>;
+
 /// Everything a diagnosis needs, owned, so that it can run on another thread.
 struct Job {
     model: Arc<Model>,
     formulation: Formulation,
     fit: Vec<Source>,
     holdout: Vec<Source>,
+    /// Given to runs that carry none.
+    experiment: Option<Experiment>,
+    /// Where the worker leaves its latest progress for the Python thread.
+    latest: Latest,
 }
 
 /// The payload that unwinds a diagnosis stopped by Ctrl-C.
@@ -105,7 +114,7 @@ struct Cancelled;
 
 /// How the worker ended.
 enum Outcome {
-    Done(simgap_diag::Result<Diagnosis>),
+    Done(Box<simgap_diag::Result<Diagnosis>>),
     Cancelled,
     Panicked(String),
 }
@@ -121,9 +130,19 @@ impl Job {
                 )));
             }
         }
-        let fit = self.fit.iter().map(Source::load).collect::<simgap_diag::Result<Vec<_>>>()?;
-        let holdout = self.holdout.iter().map(Source::load).collect::<simgap_diag::Result<Vec<_>>>()?;
-        let mut progress = |_: Progress| {
+        let load = |s: &Source| -> simgap_diag::Result<Run> {
+            let mut run = s.load()?;
+            if run.experiment.is_none() {
+                run.experiment = self.experiment.clone();
+            }
+            Ok(run)
+        };
+        let fit = self.fit.iter().map(load).collect::<simgap_diag::Result<Vec<_>>>()?;
+        let holdout = self.holdout.iter().map(load).collect::<simgap_diag::Result<Vec<_>>>()?;
+        let mut progress = |p: Progress| {
+            if let Ok(mut latest) = self.latest.lock() {
+                *latest = Some((p.stage.to_string(), p.done, p.total));
+            }
             if stop.load(Ordering::Relaxed) {
                 // unwinds to `run_caught` without invoking the panic hook
                 resume_unwind(Box::new(Cancelled));
@@ -135,7 +154,7 @@ impl Job {
     /// `run`, with unwinding caught: never a panic out of the worker thread.
     fn run_caught(&self, stop: &AtomicBool) -> Outcome {
         match catch_unwind(AssertUnwindSafe(|| self.run(stop))) {
-            Ok(result) => Outcome::Done(result),
+            Ok(result) => Outcome::Done(Box::new(result)),
             Err(payload) if payload.is::<Cancelled>() => Outcome::Cancelled,
             Err(payload) => Outcome::Panicked(panic_message(payload.as_ref())),
         }
@@ -151,23 +170,43 @@ fn panic_message(payload: &(dyn Any + Send)) -> String {
 }
 
 /// Runs `job` on its own thread (see [`crate::worker`]); on Ctrl-C the diagnosis stops at its
-/// next progress report.
-fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Diagnosis> {
-    let outcome = match crate::worker::run_interruptible(py, "simgap-diagnose", move |stop| job.run_caught(stop)) {
+/// next progress report. `progress` is called on this thread, with the GIL, with each new
+/// progress report as `(stage, done, total)`; an exception from it stops the diagnosis and is
+/// raised.
+fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>>) -> PyResult<Diagnosis> {
+    let latest = job.latest.clone();
+    let mut last: Option<(String, usize, usize)> = None;
+    let mut report = move |_py: Python<'_>| -> PyResult<()> {
+        let Some(callback) = &progress else { return Ok(()) };
+        let now = latest.lock().ok().and_then(|l| l.clone());
+        if now.is_some() && now != last {
+            if let Some((stage, done, total)) = &now {
+                callback.call1((stage.as_str(), *done, *total))?;
+            }
+            last = now;
+        }
+        Ok(())
+    };
+    let result = crate::worker::run_interruptible_ticking(py, "simgap-diagnose", move |stop| job.run_caught(stop), &mut report);
+    // the last report, so a bar ends where the diagnosis did
+    if result.is_ok() {
+        report(py)?;
+    }
+    let outcome = match result {
         Ok(outcome) => outcome,
         Err(WorkerError::Signal(e)) => return Err(e),
         Err(WorkerError::Spawn(e)) => return Err(Kind::Fit.err(format!("cannot start the diagnosis thread: {e}"))),
         Err(WorkerError::Lost) => return Err(Kind::Simgap.err("the diagnosis thread ended without a result (a bug in simgap)")),
     };
     match outcome {
-        Outcome::Done(result) => result.map_err(from_diag),
+        Outcome::Done(result) => (*result).map_err(from_diag),
         Outcome::Cancelled => Err(Kind::Fit.err("the diagnosis was interrupted")),
         Outcome::Panicked(message) => Err(Kind::Simgap.err(format!("the diagnosis failed unexpectedly (a bug in simgap): {message}"))),
     }
 }
 
-/// Diagnoses the gap between `model` and logged runs (the `simgap diagnose` pipeline, BRIEF
-/// §3.3): **where** the gap lies, **which** unmodelled effect causes it, and **how far** it
+/// Diagnoses the gap between `model` and logged runs (the `simgap diagnose`
+/// pipeline): **where** the gap lies, **which** unmodelled effect causes it, and **how far** it
 /// shrinks on held-out runs once that effect is added.
 ///
 /// `fit`: runs used to fit and select effects; `holdout`: runs used only to measure the gap
@@ -181,18 +220,59 @@ fn run_interruptible(py: Python<'_>, job: Job) -> PyResult<Diagnosis> {
 /// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
 /// TypeError for arguments that are neither runs nor paths.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange"))]
-pub(crate) fn diagnose(py: Python<'_>, model: &PyModel, fit: &Bound<'_, PyAny>, holdout: &Bound<'_, PyAny>, formulation: &str) -> PyResult<PyReport> {
-    let job = Job { model: model.model(), formulation: self::formulation(formulation)?, fit: Source::from_arg("fit", fit)?, holdout: Source::from_arg("holdout", holdout)? };
-    let diagnosis = run_interruptible(py, job)?;
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None))]
+pub(crate) fn diagnose(
+    py: Python<'_>,
+    model: &PyModel,
+    fit: &Bound<'_, PyAny>,
+    holdout: &Bound<'_, PyAny>,
+    formulation: &str,
+    experiment: Option<&Bound<'_, PyAny>>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<PyReport> {
+    let progress = progress.filter(|p| !p.is_none());
+    if let Some(p) = &progress {
+        if !p.is_callable() {
+            return Err(PyTypeError::new_err(format!("progress: expected a callable (stage, done, total) or None, got {}", type_name(p))));
+        }
+    }
+    let experiment = experiment.filter(|e| !e.is_none()).map(experiment_arg).transpose()?;
+    let model = model.model();
+    let job = Job {
+        model: model.clone(),
+        formulation: self::formulation(formulation)?,
+        fit: Source::from_arg("fit", fit)?,
+        holdout: Source::from_arg("holdout", holdout)?,
+        experiment,
+        latest: Latest::default(),
+    };
+    let diagnosis = run_interruptible(py, job, progress)?;
     let json = diagnosis.report.to_json();
-    Ok(PyReport { diagnosis: Arc::new(diagnosis), json })
+    Ok(PyReport { diagnosis: Arc::new(diagnosis), model, json })
 }
 
-/// The result of `diagnose`: the report of BRIEF §3.3, with the runs behind its figures.
+/// The `experiment` argument: a `simgap.experiment` metadata dict (values converted with
+/// `str`), or the path of an experiment JSON file (as the CLI's `--experiment`).
+fn experiment_arg(arg: &Bound<'_, PyAny>) -> PyResult<Experiment> {
+    if let Ok(dict) = arg.cast::<PyDict>() {
+        let mut map = BTreeMap::new();
+        for (k, v) in dict.iter() {
+            map.insert(k.str()?.to_string(), v.str()?.to_string());
+        }
+        return experiment_from_map(&map).map_err(|m| Kind::Log.err(format!("experiment: {m}")));
+    }
+    let path: PathBuf = arg
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("experiment: expected a dict of simgap.experiment metadata or the path of an experiment file, got {}", type_name(arg))))?;
+    simgap_log::experiment::read_experiment_file(&path).map_err(crate::errors::from_log)
+}
+
+/// The result of `diagnose`: the diagnosis report, with the runs behind its figures.
 #[pyclass(module = "simgap._simgap", name = "Report", frozen)]
 pub(crate) struct PyReport {
     diagnosis: Arc<Diagnosis>,
+    /// The model diagnosed (for inertial corrections as percentages in the HTML).
+    model: Arc<Model>,
     json: String,
 }
 
@@ -240,8 +320,14 @@ impl PyReport {
     /// Writes the self-contained HTML report (verdict, tables, inline SVG plots of every
     /// held-out run) to `path`, like the CLI's `--html`. Raises LogError when it cannot.
     fn to_html(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        let diagnosis = self.diagnosis.clone();
-        py.detach(move || simgap_diag::html::write_html(&diagnosis, &path)).map_err(from_diag)
+        let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
+        py.detach(move || simgap_diag::html::write_html_for(&diagnosis, Some(&model), &path)).map_err(from_diag)
+    }
+
+    /// The HTML report as a string: a notebook (Jupyter, VS Code) shows it in place of the repr.
+    fn _repr_html_(&self, py: Python<'_>) -> PyResult<String> {
+        let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
+        py.detach(move || simgap_diag::html::render_html_for(&diagnosis, Some(&model))).map_err(|m| Kind::Simgap.err(format!("cannot draw the report: {m}")))
     }
 
     /// The terminal summary the CLI prints.
@@ -326,6 +412,25 @@ impl PyReport {
     #[getter]
     fn holdout_corrected<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         Self::runs(py, self.diagnosis.holdout_corrected.iter().cloned())
+    }
+
+    /// The fit runs as the diagnosis saw them, for plots: one dict per run with `log` (its
+    /// name), `t` (N,) [s], and (N, dof) arrays `q`, `qd`, `qdd` (smoothed) and `residual`,
+    /// the nominal torque residual τ_cmd − (H q̈ + C q̇ + g) [N·m].
+    #[getter]
+    fn fit_residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for f in &self.diagnosis.fit_data {
+            let (n, dof) = (f.len(), f.dof);
+            let d = PyDict::new(py);
+            d.set_item("log", f.name.as_str())?;
+            d.set_item("t", crate::conv::to_array(py, f.t.clone(), &[n]))?;
+            for (key, m) in [("q", &f.q), ("qd", &f.qd), ("qdd", &f.qdd), ("residual", &f.residual)] {
+                d.set_item(key, crate::conv::to_array(py, m.clone(), &[n, dof]))?;
+            }
+            list.append(d)?;
+        }
+        Ok(list)
     }
 
     /// A report key, as in the JSON (`report["where"]`). Raises KeyError.

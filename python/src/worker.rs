@@ -21,6 +21,18 @@ pub(crate) enum WorkerError {
 /// check for signals; on one it sets the stop flag handed to `work`, waits for the worker and
 /// returns [`WorkerError::Signal`].
 pub(crate) fn run_interruptible<T: Send + 'static>(py: Python<'_>, name: &str, work: impl FnOnce(&AtomicBool) -> T + Send + 'static) -> Result<T, WorkerError> {
+    run_interruptible_ticking(py, name, work, |_| Ok(()))
+}
+
+/// [`run_interruptible`], calling `tick` with the GIL every 50 ms while the worker runs (e.g. to
+/// report progress to a Python callback). An error from `tick` stops the worker like a signal
+/// and is returned as [`WorkerError::Signal`].
+pub(crate) fn run_interruptible_ticking<T: Send + 'static>(
+    py: Python<'_>,
+    name: &str,
+    work: impl FnOnce(&AtomicBool) -> T + Send + 'static,
+    mut tick: impl FnMut(Python<'_>) -> PyResult<()>,
+) -> Result<T, WorkerError> {
     let stop = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel();
     let worker = {
@@ -45,7 +57,7 @@ pub(crate) fn run_interruptible<T: Send + 'static>(py: Python<'_>, name: &str, w
             Ok(result) => break result,
             Err(mpsc::RecvTimeoutError::Timeout) => {
                 if interrupted.is_none() {
-                    if let Err(e) = py.check_signals() {
+                    if let Err(e) = py.check_signals().and_then(|()| tick(py)) {
                         stop.store(true, Ordering::Relaxed);
                         interrupted = Some(e);
                     }

@@ -1,5 +1,5 @@
 """simgap.diagnose: a hidden viscous friction recovered from simulated runs of the paper's arm,
-checked on a held-out run; the report's contract (BRIEF §3.3); errors."""
+checked on a held-out run; the report's JSON contract; errors."""
 
 from __future__ import annotations
 

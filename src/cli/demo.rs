@@ -36,6 +36,8 @@ const SAMPLE_PERIOD: f64 = 0.0025;
 const COUNTS_PER_REV: f64 = 1_024_000.0;
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
+    // Ctrl-C: the file being written is removed, finished files stay whole
+    super::interrupt::install();
     let dir = &args.out_dir;
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     println!("simgap demo: the paper's arm with hidden effects, diagnosed blind; files in {}", dir.display());

@@ -1,4 +1,4 @@
-//! `simgap diagnose` (BRIEF §3.3): where the gap lies, which effect causes it, how far it
+//! `simgap diagnose`: where the gap lies, which effect causes it, how far it
 //! shrinks on held-out runs.
 //!
 //! Outputs are written atomically (to `X.tmp`, then renamed), and Ctrl-C removes the temporary
@@ -19,7 +19,6 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
 use anyhow::{bail, Context};
 use simgap::core::{Formulation, Model};
@@ -101,7 +100,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
 
 /// Reads the logs, diagnoses, prints the summary and writes the outputs.
 pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
-    install_interrupt_cleanup();
+    super::interrupt::install();
     // read: every error names its file
     let experiment = job.experiment.map(simgap::log::experiment::read_experiment_file).transpose()?;
     let options = LogOptions { topics: job.topics.clone(), experiment, ..LogOptions::default() };
@@ -133,11 +132,8 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         }
     }
 
-    // diagnose with a progress bar (hidden when stderr is not a terminal)
-    let bar = indicatif::ProgressBar::new(1);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {msg:<16} [{bar:30}] {pos}/{len} {elapsed}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()).progress_chars("=> "),
-    );
+    // diagnose with a progress bar naming the stage (hidden when stderr is not a terminal)
+    let bar = super::progress_bar(1, "{spinner} {msg:<24} [{bar:30}] {pos}/{len}  {elapsed}");
     let mut on_progress = |p: Progress| {
         bar.set_message(p.stage);
         bar.set_length(p.total.max(1) as u64);
@@ -153,7 +149,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         println!("wrote {}", path.display());
     }
     if let Some(path) = job.html {
-        write_atomically(path, |tmp| simgap::diag::html::write_html(&diagnosis, tmp).map_err(Into::into))?;
+        write_atomically(path, |tmp| simgap::diag::html::write_html_for(&diagnosis, Some(job.model), tmp).map_err(Into::into))?;
         println!("wrote {}", path.display());
     }
     if let Some(path) = job.mcap {
@@ -163,37 +159,14 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     Ok(diagnosis)
 }
 
-/// Temporary files being written, removed by the Ctrl-C handler.
-static IN_PROGRESS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
-
-/// On Ctrl-C: remove the temporary file being written (if any) and exit with status 130.
-/// Finished outputs are complete, and outputs not yet renamed were never visible.
-fn install_interrupt_cleanup() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        let handler = || {
-            if let Ok(paths) = IN_PROGRESS.lock() {
-                for p in paths.iter() {
-                    let _ = std::fs::remove_file(p);
-                }
-            }
-            eprintln!("\ninterrupted: no output was left half-written");
-            std::process::exit(130);
-        };
-        if let Err(e) = ctrlc::set_handler(handler) {
-            eprintln!("warning: cannot install the Ctrl-C handler: {e}");
-        }
-    });
-}
-
 /// Writes `path` through `X.tmp` and a rename, so it is either the old file or the whole new one.
 pub(crate) fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> anyhow::Result<()>) -> anyhow::Result<()> {
     let mut name = path.file_name().with_context(|| format!("{}: not a file name", path.display()))?.to_os_string();
     name.push(".tmp");
     let tmp = path.with_file_name(name);
-    IN_PROGRESS.lock().map(|mut v| v.push(tmp.clone())).ok();
+    super::interrupt::IN_PROGRESS.lock().map(|mut v| v.push(tmp.clone())).ok();
     let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot rename {} into place", path.display(), tmp.display())));
-    IN_PROGRESS.lock().map(|mut v| v.retain(|p| p != &tmp)).ok();
+    super::interrupt::IN_PROGRESS.lock().map(|mut v| v.retain(|p| p != &tmp)).ok();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }

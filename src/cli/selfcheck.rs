@@ -1,8 +1,6 @@
 //! `simgap selfcheck`: random blind scenarios diagnosed and scored against the hidden truth.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 use rayon::prelude::*;
 use simgap::diag::selfcheck::{run_scenario, summarise, ScenarioScore, Summary};
@@ -10,7 +8,7 @@ use simgap::diag::selfcheck::{run_scenario, summarise, ScenarioScore, Summary};
 /// Arguments of `simgap selfcheck`.
 #[derive(clap::Args)]
 pub(crate) struct Args {
-    /// Number of scenarios.
+    /// Number of scenarios, 1 ≤ scenarios ≤ 100000.
     #[arg(long, default_value_t = 100)]
     scenarios: usize,
     /// Seed of the scenario generator.
@@ -51,17 +49,18 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     let mut cols: Vec<String> = sum.confusion.values().flat_map(|m| m.keys().cloned()).collect();
     cols.sort();
     cols.dedup();
-    let short = |c: &str| c.replace("_friction", "").replace("torque_", "").replace("_structure", "").replace("inertial_error", "inertial").replace("saturation", "saturate").replace("time_delay", "delay");
+    // whole names, each column as wide as its name
+    let widths: Vec<usize> = cols.iter().map(|c| c.chars().count().max(3) + 2).collect();
     let _ = write!(s, "  {:<20}", "");
-    for c in &cols {
-        let _ = write!(s, "{:>10}", short(c));
+    for (c, w) in cols.iter().zip(&widths) {
+        let _ = write!(s, "{c:>w$}");
     }
     let _ = writeln!(s);
     for (row, m) in &sum.confusion {
         let _ = write!(s, "  {row:<20}");
-        for c in &cols {
+        for (c, w) in cols.iter().zip(&widths) {
             let v = m.get(c).copied().unwrap_or(0);
-            let _ = write!(s, "{:>10}", if v == 0 { ".".to_string() } else { v.to_string() });
+            let _ = write!(s, "{:>w$}", if v == 0 { ".".to_string() } else { v.to_string() });
         }
         let _ = writeln!(s);
     }
@@ -74,20 +73,16 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
-    if args.scenarios == 0 {
-        anyhow::bail!("--scenarios: expected at least 1");
-    }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
-    let bar = indicatif::ProgressBar::new(args.scenarios as u64);
-    bar.set_style(indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} scenarios  {elapsed_precise} (eta {eta})").expect("template"));
+    super::check_range("scenarios", args.scenarios as f64, 1.0, 100_000.0, "")?;
+    // Ctrl-C: the scenarios running finish, the rest are skipped, the finished ones are scored
+    super::interrupt::cooperate();
+    // scenarios take from a second to a minute each, so no time estimate: the count and the
+    // elapsed time, redrawn steadily
+    let bar = super::progress_bar(args.scenarios as u64, "{spinner} self-check [{bar:30}] {pos}/{len} scenarios  {elapsed_precise}");
     let scores: Vec<Option<ScenarioScore>> = (0..args.scenarios)
         .into_par_iter()
         .map(|i| {
-            if stop.load(Ordering::SeqCst) {
+            if super::interrupt::requested() {
                 return None;
             }
             let s = run_scenario(args.seed, i);
@@ -97,7 +92,8 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     bar.finish_and_clear();
     let scores: Vec<ScenarioScore> = scores.into_iter().flatten().collect();
-    if stop.load(Ordering::SeqCst) {
+    let interrupted = super::interrupt::requested();
+    if interrupted {
         eprintln!("interrupted: scoring the {} scenarios that finished", scores.len());
     }
     for s in scores.iter().filter(|s| !s.exact) {
@@ -114,10 +110,11 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     print!("{}", table(&sum, scores.len(), args.seed));
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({ "seed": args.seed, "summary": sum, "scenarios": scores }))?;
-        let tmp = path.with_extension("json.tmp");
-        std::fs::write(&tmp, text)?;
-        std::fs::rename(&tmp, path)?;
+        super::diagnose::write_atomically(path, |tmp| std::fs::write(tmp, text).map_err(Into::into))?;
         println!("wrote {}", path.display());
+    }
+    if interrupted {
+        return Err(super::Interrupted.into());
     }
     Ok(())
 }

@@ -1,12 +1,9 @@
 //! `simgap simulate`: one closed-loop run of a model with effects, written to MCAP.
 
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use simgap::core::Model;
-use simgap::log::McapSink;
 use simgap::sim::{
     l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink,
     Step, VelocityEstimate,
@@ -41,13 +38,13 @@ pub(crate) struct Args {
     /// Initial velocities [rad/s], comma-separated (default zeros).
     #[arg(long, allow_hyphen_values = true)]
     qd0: Option<String>,
-    /// Duration [s].
+    /// Duration [s], 0 < duration ≤ 86400 (at most 10⁷ samples).
     #[arg(long, default_value_t = 3.0)]
     duration: f64,
-    /// Controller sample period [s].
+    /// Controller sample period [s], 10⁻⁶ ≤ T ≤ 1.
     #[arg(long, default_value_t = 0.0025)]
     sample_period: f64,
-    /// Minimum RK4 steps per sample.
+    /// Minimum RK4 steps per sample, 1 ≤ substeps ≤ 10000 (at most 10⁹ steps in all).
     #[arg(long, default_value_t = simgap::sim::DEFAULT_SUBSTEPS)]
     substeps: usize,
     /// An effect of the plant, repeatable, e.g. 'viscous_friction:b=2.288,0.175',
@@ -57,19 +54,21 @@ pub(crate) struct Args {
     /// Saturate applied torques at the URDF effort limits.
     #[arg(long)]
     torque_limits: bool,
-    /// Encoder counts per revolution (0 = exact positions).
+    /// Encoder counts per revolution, 0 (exact positions) or 1 ≤ counts ≤ 10¹².
     #[arg(long, default_value_t = 1_024_000.0)]
     counts_per_rev: f64,
     /// Measure the exact velocity instead of the backward difference.
     #[arg(long)]
     exact_velocity: bool,
-    /// Standard deviation of the position noise [rad].
+    /// Standard deviation of the position noise [rad], 0 ≤ noise ≤ 1.
     #[arg(long, default_value_t = 0.0)]
     noise: f64,
     /// Seed of the noise.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Output MCAP file (ROS 2 profile); without it, only the summary is printed.
+    /// Output log, its format chosen by the extension: `.mcap` (ROS 2 profile), `.csv` or
+    /// `.csv.gz` (with the experiment in a sidecar `.experiment.json`); without it, only the
+    /// summary is printed.
     #[arg(long)]
     out: Option<PathBuf>,
 }
@@ -134,22 +133,96 @@ impl Sink for Tee<'_> {
     }
 }
 
-/// A stop flag raised by Ctrl-C.
-pub(crate) fn ctrl_c_flag() -> Arc<AtomicBool> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let f = flag.clone();
-    if let Err(e) = ctrlc::set_handler(move || f.store(true, Ordering::Relaxed)) {
-        eprintln!("warning: cannot install the Ctrl-C handler: {e}");
-    }
-    flag
-}
-
 fn is_paper_arm(model: &Model) -> bool {
     model.joint_names() == ["shoulder", "elbow"] && model.dof() == 2
 }
 
+/// Most samples a run may have (its arrays are held in memory).
+const MAX_SAMPLES: f64 = 1e7;
+/// Most integration steps a run may take.
+const MAX_STEPS: f64 = 1e9;
+
+/// Every numeric option against its documented range, and `--out`'s extension, before anything
+/// is simulated.
+fn check_args(args: &Args) -> anyhow::Result<()> {
+    use super::{check_range, number};
+    check_range("duration", args.duration, f64::MIN_POSITIVE, 86_400.0, "s")?;
+    check_range("sample-period", args.sample_period, 1e-6, 1.0, "s")?;
+    check_range("substeps", args.substeps as f64, 1.0, 10_000.0, "")?;
+    let samples = args.duration / args.sample_period;
+    if samples > MAX_SAMPLES {
+        bail!("--duration {} s at --sample-period {} s gives {} samples; expected at most {} (a longer run does not fit in memory)", number(args.duration), number(args.sample_period), number(samples.round()), number(MAX_SAMPLES));
+    }
+    if samples * args.substeps as f64 > MAX_STEPS {
+        bail!("{} samples × --substeps {} gives {} integration steps; expected at most {}", number(samples.round()), args.substeps, number((samples * args.substeps as f64).round()), number(MAX_STEPS));
+    }
+    if args.counts_per_rev != 0.0 && !(args.counts_per_rev >= 1.0 && args.counts_per_rev <= 1e12) {
+        bail!("--counts-per-rev {} is out of range; expected 0 (exact positions) or 1 ≤ counts-per-rev ≤ 1e12", number(args.counts_per_rev));
+    }
+    check_range("noise", args.noise, 0.0, 1.0, "rad")?;
+    if let Some(path) = &args.out {
+        log_format(path)?;
+    }
+    Ok(())
+}
+
+/// The log format `path` names by its extension, or an error saying which are known.
+fn log_format(path: &Path) -> anyhow::Result<&'static str> {
+    let name = path.file_name().map(|s| s.to_string_lossy().to_lowercase()).unwrap_or_default();
+    if name.ends_with(".mcap") {
+        Ok("mcap")
+    } else if name.ends_with(".csv") || name.ends_with(".csv.gz") {
+        Ok("csv")
+    } else {
+        bail!("--out {}: unknown log format; expected a file ending in .mcap, .csv or .csv.gz", path.display())
+    }
+}
+
+/// Writes `run` to `path` (format by extension) through a hidden temporary file in the same
+/// folder and a rename; a CSV log's experiment goes to its sidecar file.
+fn write_log_atomically(run: &simgap::sim::Run, path: &Path) -> anyhow::Result<()> {
+    let name = path.file_name().with_context(|| format!("--out {}: not a file name", path.display()))?.to_string_lossy().to_string();
+    // the temporary file keeps the extension, which chooses the format
+    let tmp = path.with_file_name(format!(".partial-{}.{name}", std::process::id()));
+    let csv = log_format(path)? == "csv";
+    let tmp_sidecar = simgap::log::experiment::sidecar_path(&tmp);
+    super::interrupt::IN_PROGRESS.lock().map(|mut v| v.extend([tmp.clone(), tmp_sidecar.clone()])).ok();
+    let result = simgap::log::write_log(run, &tmp).map_err(anyhow::Error::from).and_then(|()| {
+        if csv && tmp_sidecar.exists() {
+            std::fs::rename(&tmp_sidecar, simgap::log::experiment::sidecar_path(path))?;
+        }
+        std::fs::rename(&tmp, path).map_err(Into::into)
+    });
+    super::interrupt::IN_PROGRESS.lock().map(|mut v| v.retain(|p| p != &tmp && p != &tmp_sidecar)).ok();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+        let _ = std::fs::remove_file(&tmp_sidecar);
+    }
+    result.with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A sink that counts samples on a progress bar and passes them on.
+struct Counting<'a> {
+    inner: &'a mut dyn Sink,
+    bar: &'a indicatif::ProgressBar,
+}
+
+impl Sink for Counting<'_> {
+    fn begin(&mut self, joints: &[String], experiment: &Experiment) -> simgap::sim::Result<()> {
+        self.inner.begin(joints, experiment)
+    }
+    fn record(&mut self, sample: &Sample<'_>) -> simgap::sim::Result<()> {
+        self.bar.inc(1);
+        self.inner.record(sample)
+    }
+    fn finish(&mut self, end: &RunEnd) -> simgap::sim::Result<()> {
+        self.inner.finish(end)
+    }
+}
+
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     use simgap::core::robots::paper_arm;
+    check_args(&args)?;
     let model = args.model.load()?;
     let n = model.dof();
     let paper = is_paper_arm(&model);
@@ -199,17 +272,15 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         qd0: args.qd0.as_deref().map(|s| parse_list("qd0", s, n)).transpose()?.unwrap_or_default(),
         ..SimParams::default()
     };
-    // simulate into memory, and into the MCAP file when asked
-    let stop = ctrl_c_flag();
+    // simulate into memory with a progress bar; Ctrl-C stops the run cleanly
+    super::interrupt::cooperate();
+    let samples = params.intervals() as u64 + 1;
+    let bar = super::progress_bar(samples, "{spinner} simulating  [{bar:30}] {pos}/{len} samples  {elapsed}");
     let mut memory = MemorySink::new();
     let start = std::time::Instant::now();
-    let end = match &args.out {
-        Some(path) => {
-            let mut file = McapSink::create(path)?;
-            simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut Tee(&mut memory, &mut file), Some(&stop))?
-        }
-        None => simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut memory, Some(&stop))?,
-    };
+    let end = simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut Counting { inner: &mut memory, bar: &bar }, Some(&super::interrupt::STOP));
+    bar.finish_and_clear();
+    let end = end?;
     let elapsed = start.elapsed();
     let run = memory.into_run();
     // summary
@@ -222,14 +293,16 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         let per: Vec<String> = run.joints.iter().zip(&l2.per_joint).map(|(j, v)| format!("{j} {v:.6}")).collect();
         println!("L2 tracking error [rad]: overall {:.6} ({})", l2.overall, per.join(", "));
     }
+    // the log, whole or up to the interruption, written atomically
     if let Some(path) = &args.out {
+        write_log_atomically(&run, path)?;
         println!("wrote {}", path.display());
     }
     match end {
         RunEnd::Completed => Ok(()),
         RunEnd::Interrupted { t } => {
-            eprintln!("interrupted at t = {t} s; the log holds the run so far");
-            Ok(())
+            eprintln!("interrupted at t = {t} s{}", if args.out.is_some() { "; the log holds the run so far" } else { "" });
+            Err(super::Interrupted.into())
         }
         RunEnd::Diverged { t, joint } => bail!("the simulation diverged at t = {t} s on joint '{joint}'; the log holds the run until then"),
     }

@@ -1,4 +1,4 @@
-//! `simgap terms`: the dynamics terms as JSON lines (BRIEF §3.4), exactly the library's numbers.
+//! `simgap terms`: the dynamics terms as JSON lines (one object per state: `joints`, `q`, `qd`, `H`, `C`, `Hdot`, `g`), exactly the library's numbers.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -67,6 +67,22 @@ fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
     (0..m.nrows()).map(|i| m.row(i).iter().copied().collect()).collect()
 }
 
+/// Every term finite, or an error naming the quantity and the joint (row) where it is not.
+fn check_finite(names: &[&str], q: &[f64], qd: &[f64], terms: &DynamicsTerms, hdot: &nalgebra::DMatrix<f64>) -> anyhow::Result<()> {
+    let matrices = [("H", &terms.mass_matrix), ("C", &terms.coriolis_matrix), ("Hdot", hdot)];
+    let bad = matrices
+        .iter()
+        .find_map(|(what, m)| (0..m.nrows()).find_map(|i| m.row(i).iter().find(|v| !v.is_finite()).map(|v| (*what, i, *v))))
+        .or_else(|| terms.gravity_torques.iter().enumerate().find(|(_, v)| !v.is_finite()).map(|(i, v)| ("g", i, *v)));
+    if let Some((what, i, v)) = bad {
+        bail!(
+            "{what} is not finite in the row of joint '{}' ({v}) at q = {q:?}, qd = {qd:?}; expected finite results: positions or velocities this large overflow",
+            names.get(i).copied().unwrap_or("?")
+        );
+    }
+    Ok(())
+}
+
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let model = args.model.load()?;
     let n = model.dof();
@@ -86,6 +102,8 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         mass_matrix_derivative_into(&model, &mut ws, q, qd, &mut hdot);
         // C again through its own entry point, so the output is exactly coriolis_matrix
         coriolis_matrix_into(&model, &mut ws, q, qd, args.model.formulation, &mut terms.coriolis_matrix);
+        // results too large to represent are refused, naming where they first appear
+        check_finite(&names, q, qd, &terms, &hdot)?;
         let line = serde_json::json!({
             "joints": names,
             "formulation": args.model.formulation.as_str(),

@@ -1,4 +1,4 @@
-"""MCAP interoperability with the ROS 2 Python tooling (BRIEF §3.1).
+"""MCAP interoperability with the ROS 2 Python tooling.
 
 - a JointState bag written by ``mcap_ros2.writer.Writer`` (joints shuffled per message, absolute
   stamps, zstd or lz4 chunks, ``simgap.experiment`` metadata) reads in simgap;

@@ -1,4 +1,4 @@
-"""Pinocchio 4.1 as a peer oracle for `simgap terms` (BRIEF §3.4) on real URDFs.
+"""Pinocchio 4.1 as a peer oracle for `simgap terms` on real URDFs.
 
 For the paper arm, UR5 and the Panda (chain to `panda_hand`, fingers locked at zero in both
 libraries), 1000 random states go through `simgap terms --states` in both formulations and are

@@ -25,6 +25,55 @@ pub enum Error {
         /// What the parser said.
         message: String,
     },
+    /// Elements nest deeper than any URDF does (refused before parsing: the XML readers recurse
+    /// once per level).
+    #[error("{source_name}: elements nest {depth} levels deep (more than {limit} from line {line} on); expected a URDF, whose elements nest a handful of levels (robot > link > visual > geometry > mesh)")]
+    TooDeep {
+        /// File name.
+        source_name: String,
+        /// The deepest nesting found.
+        depth: usize,
+        /// The most levels accepted.
+        limit: usize,
+        /// Line where the nesting first exceeds the limit.
+        line: u32,
+    },
+    /// An unexpanded xacro element or expression.
+    #[error("{source_name}: line {line}: {}; expected plain URDF: run xacro first (xacro robot.urdf.xacro > robot.urdf)", xacro_found(.element, .attribute, .value))]
+    Xacro {
+        /// File name.
+        source_name: String,
+        /// Line of the element.
+        line: u32,
+        /// The element's tag.
+        element: String,
+        /// The attribute holding the expression; empty when the element itself is a xacro one.
+        attribute: String,
+        /// The attribute's value.
+        value: String,
+    },
+    /// A number attribute that is not a number.
+    #[error("{source_name}: line {line}: {element} has {attribute}=\"{value}\"; expected {}", expected_numbers(*.count))]
+    BadNumber {
+        /// File name.
+        source_name: String,
+        /// Line of the element.
+        line: u32,
+        /// The element and the link or joint it belongs to, e.g. `<mass> of link 'forearm'`.
+        element: String,
+        /// The attribute.
+        attribute: &'static str,
+        /// The text found.
+        value: String,
+        /// How many numbers the attribute holds.
+        count: u8,
+    },
+    /// The `<robot>` element has no `<link>`.
+    #[error("{source_name}: <robot> has no <link> element; expected at least one link, and joints connecting them")]
+    NoLinks {
+        /// File name.
+        source_name: String,
+    },
     /// A link name appears twice.
     #[error("{source_name}: link '{link}' is defined more than once; expected unique link names")]
     DuplicateLink {
@@ -162,6 +211,22 @@ pub enum Error {
     /// A model built in code is inconsistent.
     #[error("invalid model: {0}")]
     InvalidModel(String),
+}
+
+fn expected_numbers(count: u8) -> String {
+    if count == 1 {
+        "a number".into()
+    } else {
+        format!("{count} numbers separated by spaces")
+    }
+}
+
+fn xacro_found(element: &str, attribute: &str, value: &str) -> String {
+    if attribute.is_empty() {
+        format!("<{element}> is an unexpanded xacro element")
+    } else {
+        format!("<{element}> attribute {attribute}=\"{value}\" is an unexpanded xacro expression")
+    }
 }
 
 /// Result alias of this crate.

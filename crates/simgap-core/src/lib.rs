@@ -61,6 +61,7 @@ pub mod error;
 pub(crate) mod lanes;
 pub mod model;
 pub mod robots;
+pub mod sincos;
 pub mod spatial;
 pub mod urdf;
 pub mod workspace;

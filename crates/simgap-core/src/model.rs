@@ -250,7 +250,7 @@ impl Model {
         let j = &self.joints[i];
         let c = &self.cache[i];
         if j.kind.is_rotational() {
-            let (s, co) = crate::spatial::sin_cos(qi);
+            let (s, co) = crate::sincos::sin_cos(qi);
             Transform { rotation: c.a + c.b * co + c.d * s, translation: j.placement.translation }
         } else {
             Transform { rotation: j.placement.rotation, translation: j.placement.translation + c.placed_axis * qi }

@@ -211,3 +211,98 @@ fn root_element_other_than_robot_is_malformed_urdf() {
     assert!(matches!(err, Error::MalformedUrdf { .. }), "{err:?}");
     assert_mentions(&err.to_string(), &["<string>", "<model>", "expected <robot>"]);
 }
+
+/// The pendulum fixture with `from` replaced by `to` (exactly once).
+fn pendulum_with(from: &str, to: &str) -> String {
+    let text = std::fs::read_to_string(common::model_path("pendulum.urdf")).unwrap();
+    assert_eq!(text.matches(from).count(), 1, "{from:?} is not in the pendulum fixture exactly once");
+    text.replacen(from, to, 1)
+}
+
+#[track_caller]
+fn load_text(text: &str) -> (Error, String) {
+    let err = match Model::from_urdf_str_with(text, "inline.urdf", &UrdfOptions::default()) {
+        Ok(m) => panic!("loaded as a {}-DOF model", m.dof()),
+        Err(e) => e,
+    };
+    let message = err.to_string();
+    assert_mentions(&message, &["inline.urdf", "expected"]);
+    (err, message)
+}
+
+#[test]
+fn deep_nesting_is_refused_before_parsing_naming_the_depth() {
+    // ~15,000 levels (≈ 105 KB): the XML readers would recurse once per level and overflow the stack
+    let depth = 15_000;
+    let text = format!("<robot name=\"r\"><link name=\"a\">{}{}</link></robot>", "<x>".repeat(depth), "</x>".repeat(depth));
+    // on a small stack, as a Python or worker thread has: the check itself must not recurse
+    let (err, msg) = std::thread::Builder::new().stack_size(256 * 1024).spawn(move || load_text(&text)).unwrap().join().unwrap();
+    assert!(matches!(&err, Error::TooDeep { depth: d, line: 1, .. } if *d == depth + 2), "{err:?}");
+    assert_mentions(&msg, &["nest 15002 levels deep", "more than 64"]);
+}
+
+#[test]
+fn nesting_within_the_limit_loads() {
+    let inner = format!("{}{}", "<x>".repeat(50), "</x>".repeat(50));
+    let text = pendulum_with("<link name=\"base_link\"/>", &format!("<link name=\"base_link\">{inner}</link>"));
+    assert_eq!(Model::from_urdf_str(&text).unwrap().dof(), 1);
+}
+
+#[test]
+fn unexpanded_xacro_expression_names_element_and_attribute() {
+    let text = pendulum_with("<mass value=\"2.0\"/>", "<mass value=\"${m_bob}\"/>");
+    let (err, msg) = load_text(&text);
+    assert!(matches!(&err, Error::Xacro { element, attribute, value, line: 20, .. } if element == "mass" && attribute == "value" && value == "${m_bob}"), "{err:?}");
+    assert_mentions(&msg, &["line 20", "<mass>", "value=\"${m_bob}\"", "run xacro first"]);
+}
+
+#[test]
+fn unexpanded_xacro_substitution_args_are_named() {
+    let text = pendulum_with("<axis xyz=\"0 1 0\"/>", "<axis xyz='$(arg axis)'/>");
+    let (err, msg) = load_text(&text);
+    assert!(matches!(&err, Error::Xacro { element, attribute, .. } if element == "axis" && attribute == "xyz"), "{err:?}");
+    assert_mentions(&msg, &["<axis>", "xyz=\"$(arg axis)\"", "run xacro first"]);
+}
+
+#[test]
+fn xacro_element_is_named() {
+    let text = pendulum_with("<link name=\"base_link\"/>", "<link name=\"base_link\"/>\n  <xacro:property name=\"m\" value=\"2\"/>");
+    let (err, msg) = load_text(&text);
+    assert!(matches!(&err, Error::Xacro { element, attribute, .. } if element == "xacro:property" && attribute.is_empty()), "{err:?}");
+    assert_mentions(&msg, &["<xacro:property>", "unexpanded xacro element", "run xacro first"]);
+}
+
+#[test]
+fn robot_without_links_says_so() {
+    let (err, msg) = load_text("<robot name=\"empty\"></robot>");
+    assert!(matches!(err, Error::NoLinks { .. }), "{err:?}");
+    assert_mentions(&msg, &["<robot> has no <link>", "at least one link"]);
+    assert!(!msg.contains("closed loop"), "{msg}");
+}
+
+#[test]
+fn nan_effort_limit_is_refused_naming_the_joint() {
+    let text = pendulum_with("effort=\"20\"", "effort=\"NaN\"");
+    let (err, msg) = load_text(&text);
+    assert!(matches!(&err, Error::NonFinite { element, field, .. } if element == "joint 'hinge'" && field == "limit/effort"), "{err:?}");
+    assert_mentions(&msg, &["joint 'hinge'", "limit/effort", "finite"]);
+}
+
+#[test]
+fn infinite_velocity_limit_is_refused_naming_the_joint() {
+    let text = pendulum_with("velocity=\"10\"", "velocity=\"inf\"");
+    let (err, msg) = load_text(&text);
+    assert!(matches!(&err, Error::NonFinite { element, field, .. } if element == "joint 'hinge'" && field == "limit/velocity"), "{err:?}");
+    assert_mentions(&msg, &["joint 'hinge'", "limit/velocity"]);
+}
+
+#[test]
+fn number_that_is_not_a_number_names_element_attribute_and_owner() {
+    let text = pendulum_with("<mass value=\"2.0\"/>", "<mass value=\"two\"/>");
+    let (err, msg) = load_text(&text);
+    assert!(matches!(&err, Error::BadNumber { element, attribute, line: 20, .. } if element == "<mass> of link 'bob'" && *attribute == "value"), "{err:?}");
+    assert_mentions(&msg, &["line 20", "<mass> of link 'bob'", "value=\"two\"", "expected a number"]);
+    let text = pendulum_with("<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1\"/>");
+    let (_, msg) = load_text(&text);
+    assert_mentions(&msg, &["<axis> of joint 'hinge'", "xyz=\"0 1\"", "expected 3 numbers"]);
+}

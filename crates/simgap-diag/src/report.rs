@@ -194,7 +194,7 @@ impl Report {
             let _ = writeln!(s, "  worst: {} t = {:.3}–{:.3} s, {} ({}), RMS {:.3e} rad", seg.log, seg.start, seg.end, seg.joint, seg.phase, seg.rms_error);
         }
         let _ = writeln!(s, "\nWHICH (candidates fitted alone, ranked by cross-validated residual removed)");
-        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>14} {:>8}  {}", "rank", "effect", "cv-resid", "held-out L2", "ratio", "selected");
+        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>14} {:>8}  selected", "rank", "effect", "cv-resid", "held-out L2", "ratio");
         for c in &self.candidates {
             let _ = writeln!(
                 s,
@@ -207,17 +207,61 @@ impl Report {
                 if c.selected { "yes" } else { "" }
             );
         }
-        let _ = writeln!(s, "\nSELECTED");
+        // selected effects in candidate rank order, joints in model order
+        let _ = writeln!(s, "\nSELECTED (in rank order)");
         if self.selected_effects.is_empty() {
             let _ = writeln!(s, "  nothing significant");
         }
-        for e in &self.selected_effects {
-            let params: Vec<String> = e.parameters.iter().map(|(k, v)| format!("{k} = {}", fmt_param(v))).collect();
+        for e in crate::html::ranked_selection(self) {
+            let params: Vec<String> = e
+                .parameters
+                .iter()
+                .map(|(k, v)| {
+                    let unit = e.units.get(k).map(String::as_str).unwrap_or_else(|| crate::effects::param_unit(&e.effect, k));
+                    let unit = if unit == "-" || unit.is_empty() { String::new() } else { format!(" {unit}") };
+                    format!("{k} = {}{unit}", fmt_param(v))
+                })
+                .collect();
             let _ = writeln!(s, "  {:<20} joints {:?}  {}", e.effect, e.joints, params.join(", "));
+            if !e.description.is_empty() {
+                let _ = writeln!(s, "  {:<20} {}", "", e.description);
+            }
         }
-        let _ = writeln!(s, "\nHOW FAR (held-out runs, closed loop, eq. 127)");
+        if !self.alternatives.is_empty() {
+            let _ = writeln!(s, "\nALTERNATIVES (explain the fit runs as well; these data cannot tell them apart)");
+            for a in &self.alternatives {
+                let _ = writeln!(s, "  {}: {}", a.effects.join(" + "), a.why);
+            }
+        }
+        let k = &self.gap.kstep;
+        let headline = |name: &str| if self.gap.headline == name { "  [headline]" } else { "" };
+        if !k.horizons_s.is_empty() {
+            let _ = writeln!(s, "\nHOW FAR (held-out runs, k-step prediction: RMS position error after h seconds){}", headline("k_step"));
+            let _ = writeln!(s, "  {:>8} {:>14} {:>14} {:>14} {:>8}", "h [s]", "const. vel.", "nominal", "selected", "ratio");
+            for (i, h) in k.horizons_s.iter().enumerate() {
+                let get = |v: &Vec<f64>| v.get(i).copied().unwrap_or(f64::NAN);
+                let _ = writeln!(s, "  {:>8} {:>14.4e} {:>14.4e} {:>14.4e} {:>8.3}", h, get(&k.floor), get(&k.before), get(&k.after), get(&k.after) / get(&k.before));
+            }
+        }
+        let _ = writeln!(s, "\nHOW FAR (held-out runs, closed loop, eq. 127){}", headline("closed_loop"));
         let _ = writeln!(s, "  L2 before {:.4e} rad   after {:.4e} rad   after/before {:.3}", self.gap.holdout_l2_before, self.gap.holdout_l2_after, self.gap.ratio);
-        let _ = writeln!(s, "\n{}", self.verdict);
+        for (b, a) in self.gap.runs_before.iter().zip(&self.gap.runs_after) {
+            if b.status != "completed" || a.status != "completed" {
+                let _ = writeln!(s, "  run {}: nominal {}, selected {}", b.log, b.status, a.status);
+            }
+        }
+        if !self.gap.headline_reason.is_empty() {
+            let _ = writeln!(s, "  ({})", self.gap.headline_reason);
+        }
+        if !self.notes.is_empty() {
+            let _ = writeln!(s, "\nNOTES");
+            for n in &self.notes {
+                let _ = writeln!(s, "  - {n}");
+            }
+        }
+        // the conclusion from the figures above, so it cannot contradict them
+        let a = crate::html::assess(self);
+        let _ = writeln!(s, "\n{}", a.text);
         s
     }
 }

@@ -1,4 +1,4 @@
-//! Controllers: the callback the simulator calls once per sample (BRIEF §3.1).
+//! Controllers: the callback the simulator calls once per sample.
 
 use std::collections::BTreeMap;
 

@@ -1,4 +1,4 @@
-//! Unmodelled effects (BRIEF §3.2): friction, actuator errors, inertial errors, delays.
+//! Unmodelled effects: friction, actuator errors, inertial errors, delays.
 //!
 //! An [`Effect`] is something the real robot has and the nominal [`Model`] lacks. A
 //! [`Plant`](crate::plant::Plant) is the nominal model plus a list of effects; the simulator
@@ -62,7 +62,7 @@ pub fn friction_slope_bound(effects: &[Effect], coulomb_width: f64, out: &mut [f
     }
 }
 
-/// The names of every effect, in the order of BRIEF §3.2 (part of the public contract).
+/// The names of every effect, in their documented order (part of the public contract).
 pub const EFFECT_NAMES: [&str; 12] = [
     "viscous_friction",
     "coulomb_friction",
@@ -92,7 +92,7 @@ pub struct LinkDelta {
     pub inertia: [f64; 6],
 }
 
-/// One unmodelled effect (BRIEF §3.2). Per-joint vectors have length `model.dof()`.
+/// One unmodelled effect. Per-joint vectors have length `model.dof()`.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Effect {
     /// `τ += −b q̇`; `b` [N·m·s/rad].

@@ -16,7 +16,7 @@ pub const KEY_KV: &str = "kv";
 /// Metadata key of the controller sample period [s].
 pub const KEY_SAMPLE_PERIOD: &str = "sample_period";
 
-/// The controller of an experiment (BRIEF §3.1).
+/// The controller of an experiment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ControllerKind {
     /// τ = Kp (q_ref − q) + Kv (q̇_ref − q̇).
@@ -50,7 +50,7 @@ impl std::str::FromStr for ControllerKind {
     }
 }
 
-/// The `simgap.experiment` metadata of a log (BRIEF §3.1).
+/// The `simgap.experiment` metadata of a log.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Experiment {
     /// Controller kind.
@@ -304,7 +304,7 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
     })
 }
 
-/// The `simgap.experiment` string map of an experiment (BRIEF §3.1). Numbers are written in
+/// The `simgap.experiment` string map of an experiment. Numbers are written in
 /// Rust's shortest round-trip form, so [`experiment_from_map`] gives back the same values.
 /// Entries of `extra` with a reserved key are left out.
 pub fn experiment_to_map(e: &Experiment) -> BTreeMap<String, String> {

@@ -204,8 +204,10 @@ fn step_loop(
     // delay line: delay = m T + r; ring buffer of the last m + 2 commands
     let ratio = plant.delay() / period;
     let ratio = if (ratio - ratio.round()).abs() < 1e-9 { ratio.round() } else { ratio };
-    let m = ratio.floor() as usize;
-    let frac = ratio - m as f64;
+    // a delay longer than the run holds the first command throughout: the line never needs
+    // more slots than the run has samples (a delay of 1e9 s allocates nothing more)
+    let m = (ratio.floor() as usize).min(intervals + 1);
+    let frac = if m == intervals + 1 { 0.0 } else { ratio - m as f64 };
     let depth = m + 2;
     let mut history = vec![0.0; depth * n];
     let limits = plant.effort_limits();
@@ -320,7 +322,7 @@ fn diverged_joint(q: &[f64], qd: &[f64], bound: f64) -> Option<usize> {
     (v > bound).then_some(j)
 }
 
-/// Simulates an experiment (BRIEF §3.1) into memory: the controller from
+/// Simulates an experiment (`simgap.experiment`) into memory: the controller from
 /// [`controller_from_experiment`] (gains mapped by joint name; `replay` is the logged run of
 /// a replay experiment), the plant `model` + `effects` under `formulation`, and the sample
 /// period of the experiment (overriding `params.sample_period`). The run's metadata is the

@@ -1,4 +1,4 @@
-//! Every effect of BRIEF §3.2 changes the run in the expected direction.
+//! Every unmodelled effect changes the run in the expected direction.
 
 use simgap_core::robots::paper_arm;
 use simgap_core::{gravity_torques, kinetic_energy, potential_energy, Formulation, Model, Workspace};
