@@ -423,8 +423,16 @@ class Report:
         ``holdout_ratio``, ``selected``, ``reason``."""
     @property
     def gap(self) -> dict[str, Any]:
-        """How far the gap shrinks: ``holdout_l2_before``, ``holdout_l2_after``, ``ratio``, per
-        joint and per run, and the same over the fit runs."""
+        """How far the gap shrinks: ``headline`` and ``headline_reason``, ``kstep`` (held-out
+        k-step prediction error per horizon before and after, and the constant-velocity floor),
+        ``holdout_l2_before``, ``holdout_l2_after``, ``ratio``, per joint and per run."""
+    @property
+    def alternatives(self) -> list[dict[str, Any]]:
+        """Effect sets these data cannot tell apart from the selected one: ``{effects, why}``."""
+    @property
+    def notes(self) -> list[str]:
+        """Warnings about the logs and the answer (glitches, inferred sensors, URDF pitfalls,
+        what the residual still holds)."""
     @property
     def location(self) -> dict[str, Any]:
         """Where the gap lies (the report's ``where``): ``per_joint`` shares, ``worst_segments``,

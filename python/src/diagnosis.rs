@@ -350,11 +350,25 @@ impl PyReport {
         self.field(py, "candidates")
     }
 
-    /// How far the gap shrinks: `holdout_l2_before`, `holdout_l2_after`, `ratio`, per joint
-    /// and per run, and the same over the fit runs.
+    /// How far the gap shrinks: `headline` and `headline_reason`, `kstep` (held-out k-step
+    /// prediction error per horizon before and after, and the constant-velocity floor),
+    /// `holdout_l2_before`, `holdout_l2_after`, `ratio`, per joint and per run.
     #[getter]
     fn gap<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         self.field(py, "gap")
+    }
+
+    /// Effect sets these data cannot tell apart from the selected one: `{effects, why}`.
+    #[getter]
+    fn alternatives<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "alternatives")
+    }
+
+    /// Warnings about the logs and the answer (glitches, inferred sensors, URDF pitfalls, what
+    /// the residual still holds).
+    #[getter]
+    fn notes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "notes")
     }
 
     /// Where the gap lies (the report's `where`): `per_joint` shares, `worst_segments`,

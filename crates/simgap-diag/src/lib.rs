@@ -375,7 +375,17 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
     let mut notes = prep.notes.clone();
     if moving {
-        notes.extend(pitfalls::urdf_pitfalls(model, data));
+        // a pitfall is named with what prediction says of the matching correction; a rotor
+        // inertia that does not improve prediction is not named at all
+        let alone = |effect: &str| groups.iter().position(|g| g.0 == effect).map(|i| alone_score[i]);
+        for note in pitfalls::urdf_pitfalls(model, data) {
+            let effect = if note.contains("rotor inertia") { Some("armature") } else if note.contains("inertia about") { Some("inertial_error") } else { None };
+            match effect.and_then(|e| alone(e).map(|a| (e, a))) {
+                Some(("armature", a)) if a >= 1.0 - ADD_GAIN => {}
+                Some((e, a)) => notes.push(format!("{note}; fitted alone, {e} predicts the fit runs at {a:.2} of the nominal model's cross-validated k-step error")),
+                None => notes.push(note),
+            }
+        }
     }
     for j in &location.per_joint {
         if let (Some(a), Some(m)) = (j.actuator_residual_l2, j.mechanics_residual_l2) {
@@ -491,15 +501,16 @@ fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run]
     }
     // sensors as the logs show them
     let sensors: Vec<resim::InferredSensors> = fit_runs.iter().chain(&hold_runs).map(resim::infer_sensors).collect();
-    for s in &sensors {
-        if s.velocity == "backward_difference" || s.counts_per_rev.is_some() {
-            notes.push(format!(
-                "{}: sensors inferred from the log: velocity {}{}; the re-simulated controller sees the same",
-                s.log,
-                s.velocity.replace('_', " "),
-                s.counts_per_rev.map_or(String::new(), |c| format!(", encoder {c} counts per revolution"))
-            ));
+    let mut kinds: Vec<(String, Vec<&str>)> = Vec::new();
+    for s in sensors.iter().filter(|s| s.velocity == "backward_difference" || s.counts_per_rev.is_some()) {
+        let kind = format!("velocity {}{}", s.velocity.replace('_', " "), s.counts_per_rev.map_or(String::new(), |c| format!(", encoder {c} counts per revolution")));
+        match kinds.iter_mut().find(|k| k.0 == kind) {
+            Some(k) => k.1.push(&s.log),
+            None => kinds.push((kind, vec![&s.log])),
         }
+    }
+    for (kind, logs) in kinds {
+        notes.push(format!("sensors inferred from the logs ({}): {kind}; the re-simulated controller sees the same", logs.join(", ")));
     }
     // passive joints: commanded effort always zero in every run
     let n = model.dof();

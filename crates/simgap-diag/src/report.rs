@@ -193,20 +193,24 @@ impl Report {
         for seg in self.location.worst_segments.iter().take(3) {
             let _ = writeln!(s, "  worst: {} t = {:.3}–{:.3} s, {} ({}), RMS {:.3e} rad", seg.log, seg.start, seg.end, seg.joint, seg.phase, seg.rms_error);
         }
-        let _ = writeln!(s, "\nWHICH (candidates fitted alone, ranked by cross-validated residual removed)");
-        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>14} {:>8}  selected", "rank", "effect", "cv-resid", "held-out L2", "ratio");
+        let _ = writeln!(s, "\nWHICH (candidates fitted alone, ranked by cross-validated prediction of the fit runs)");
+        let last = self.gap.fit_kstep_cv_before.len().saturating_sub(1);
+        let _ = writeln!(s, "  {:<4} {:<20} {:>10} {:>12} {:>12}  selected", "rank", "effect", "cv-resid", "fit k-step", "held k-step");
         for c in &self.candidates {
+            // k-step ratios at the longest horizon: fit runs (cross-validated), held-out runs
+            let ratio = |v: &[f64], before: &[f64]| v.get(last).zip(before.get(last)).map_or(f64::NAN, |(a, b)| a / b);
             let _ = writeln!(
                 s,
-                "  {:<4} {:<20} {:>9.1}% {:>14.4e} {:>8.3}  {}",
+                "  {:<4} {:<20} {:>9.1}% {:>12.3} {:>12.3}  {}",
                 c.rank,
                 c.effect,
                 100.0 * c.cv_residual_reduction,
-                c.holdout_l2_after,
-                c.holdout_ratio,
+                ratio(&c.fit_kstep_cv, &self.gap.fit_kstep_cv_before),
+                ratio(&c.holdout_kstep_after, &self.gap.kstep.before),
                 if c.selected { "yes" } else { "" }
             );
         }
+        let _ = writeln!(s, "  (k-step columns: error after / before at {} s; below 1 the effect predicts better)", self.gap.kstep.horizons_s.last().copied().unwrap_or(f64::NAN));
         // selected effects in candidate rank order, joints in model order
         let _ = writeln!(s, "\nSELECTED (in rank order)");
         if self.selected_effects.is_empty() {
