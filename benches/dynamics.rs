@@ -15,13 +15,12 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+use criterion::Throughput;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use nalgebra::DMatrix;
-use criterion::Throughput;
 use simgap::core::{
-    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into,
-    forward_dynamics_into, gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model,
-    Workspace,
+    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into, forward_dynamics_into,
+    gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
 };
 
 #[path = "support/robots.rs"]
@@ -43,7 +42,11 @@ struct Bench {
 }
 
 /// Times `f(bench, state)` cycling through the states.
-fn run<M: criterion::measurement::Measurement>(group: &mut BenchmarkGroup<'_, M>, b: &mut Bench, f: impl Fn(&Model, &mut Workspace, &State, &mut DMatrix<f64>, &mut [f64], &mut DynamicsTerms)) {
+fn run<M: criterion::measurement::Measurement>(
+    group: &mut BenchmarkGroup<'_, M>,
+    b: &mut Bench,
+    f: impl Fn(&Model, &mut Workspace, &State, &mut DMatrix<f64>, &mut [f64], &mut DynamicsTerms),
+) {
     let Bench { name, model, ws, states, matrix, vector, terms } = b;
     group.bench_function(name.as_str(), |bencher| {
         let mut k = 0;

@@ -21,8 +21,8 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use simgap::core::robots::paper_arm;
 use simgap::core::{Formulation, Model};
-use simgap::sim::integrate::Rk4;
 use simgap::log::McapSink;
+use simgap::sim::integrate::Rk4;
 use simgap::sim::{simulate, Effect, Experiment, MemorySink, Pd, Plant, RunEnd, Sample, SimParams, Sink, Step};
 
 /// A sink that drops every sample.

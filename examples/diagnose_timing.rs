@@ -29,7 +29,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         duration: seconds,
     };
     let t = Instant::now();
-    let fit: Vec<_> = ["fit0", "fit1", "fit2"].iter().map(|s| generate(&model, Formulation::EulerLagrange, &effects, &spec(s, &mut rng), 0.002, 1_024_000.0)).collect::<Result<_, _>>()?;
+    let fit: Vec<_> =
+        ["fit0", "fit1", "fit2"].iter().map(|s| generate(&model, Formulation::EulerLagrange, &effects, &spec(s, &mut rng), 0.002, 1_024_000.0)).collect::<Result<_, _>>()?;
     let hold = vec![generate(&model, Formulation::EulerLagrange, &effects, &spec("holdout", &mut rng), 0.002, 1_024_000.0)?];
     let samples: usize = fit.iter().chain(&hold).map(|r| r.len()).sum();
     println!("generated {} s of 500 Hz logs ({samples} samples, 7 joints) in {:.2} s", 4.0 * seconds, t.elapsed().as_secs_f64());

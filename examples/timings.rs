@@ -21,9 +21,8 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use nalgebra::DMatrix;
 use simgap::core::{
-    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into,
-    forward_dynamics_into, gravity_torques_into,
-    inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
+    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into, forward_dynamics_into,
+    gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
 };
 
 #[path = "../benches/support/robots.rs"]
@@ -219,7 +218,17 @@ fn to_urdf(model: &Model) -> String {
             s,
             "  <link name=\"{}\">\n    <inertial>\n      <origin xyz=\"{:e} {:e} {:e}\" rpy=\"0 0 0\"/>\n      <mass value=\"{:e}\"/>\n      \
              <inertia ixx=\"{:e}\" ixy=\"{:e}\" ixz=\"{:e}\" iyy=\"{:e}\" iyz=\"{:e}\" izz=\"{:e}\"/>\n    </inertial>\n  </link>\n",
-            j.link, com.x, com.y, com.z, j.inertia.mass, i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 1)], i[(1, 2)], i[(2, 2)]
+            j.link,
+            com.x,
+            com.y,
+            com.z,
+            j.inertia.mass,
+            i[(0, 0)],
+            i[(0, 1)],
+            i[(0, 2)],
+            i[(1, 1)],
+            i[(1, 2)],
+            i[(2, 2)]
         );
         let (roll, pitch, yaw) = nalgebra::Rotation3::from_matrix_unchecked(j.placement.rotation).euler_angles();
         let t = &j.placement.translation;
@@ -229,7 +238,21 @@ fn to_urdf(model: &Model) -> String {
             s,
             "  <joint name=\"{}\" type=\"{}\">\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    <origin xyz=\"{:e} {:e} {:e}\" rpy=\"{:e} {:e} {:e}\"/>\n    \
              <axis xyz=\"{:e} {:e} {:e}\"/>\n    <limit {limit}effort=\"{:e}\" velocity=\"{:e}\"/>\n  </joint>\n",
-            j.name, j.kind.as_str(), parent, j.link, t.x, t.y, t.z, roll, pitch, yaw, j.axis.x, j.axis.y, j.axis.z, l.effort.min(1e9), l.velocity.min(1e9)
+            j.name,
+            j.kind.as_str(),
+            parent,
+            j.link,
+            t.x,
+            t.y,
+            t.z,
+            roll,
+            pitch,
+            yaw,
+            j.axis.x,
+            j.axis.y,
+            j.axis.z,
+            l.effort.min(1e9),
+            l.velocity.min(1e9)
         );
         parent = j.link.clone();
     }

@@ -141,7 +141,15 @@ fn terms_refuses_non_finite_results_naming_the_joint() {
 
 #[test]
 fn no_help_text_names_an_internal_document() {
-    for cmd in [vec!["--help"], vec!["terms", "--help"], vec!["diagnose", "--help"], vec!["simulate", "--help"], vec!["paper", "--help"], vec!["demo", "--help"], vec!["selfcheck", "--help"]] {
+    for cmd in [
+        vec!["--help"],
+        vec!["terms", "--help"],
+        vec!["diagnose", "--help"],
+        vec!["simulate", "--help"],
+        vec!["paper", "--help"],
+        vec!["demo", "--help"],
+        vec!["selfcheck", "--help"],
+    ] {
         let o = simgap(&cmd);
         let t = text(&o);
         assert!(o.status.success(), "{cmd:?}: {t}");
@@ -167,7 +175,8 @@ fn summary_lists_selected_effects_by_rank_with_joints_in_model_order() {
     assert!(o.status.success(), "{}", text(&o));
     let report: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
     let joints: Vec<&str> = report["joints"].as_array().unwrap().iter().map(|j| j.as_str().unwrap()).collect();
-    let mut ranked: Vec<(u64, &str)> = report["candidates"].as_array().unwrap().iter().filter(|c| c["selected"] == true).map(|c| (c["rank"].as_u64().unwrap(), c["effect"].as_str().unwrap())).collect();
+    let mut ranked: Vec<(u64, &str)> =
+        report["candidates"].as_array().unwrap().iter().filter(|c| c["selected"] == true).map(|c| (c["rank"].as_u64().unwrap(), c["effect"].as_str().unwrap())).collect();
     ranked.sort();
     let section = t.split("SELECTED").nth(1).expect("a SELECTED section");
     let section = section.split("\n\n").next().unwrap();

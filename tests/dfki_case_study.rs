@@ -108,8 +108,7 @@ fn dfki_c0_open_loop_diagnosis() {
     }
     // the tool finds friction in these data (as the DFKI identification does): it is selected on
     // at least one joint, with a positive coefficient
-    let friction: Vec<&Value> =
-        selected.iter().filter(|e| matches!(e["effect"].as_str(), Some("viscous_friction" | "coulomb_friction" | "stribeck_friction"))).collect();
+    let friction: Vec<&Value> = selected.iter().filter(|e| matches!(e["effect"].as_str(), Some("viscous_friction" | "coulomb_friction" | "stribeck_friction"))).collect();
     assert!(!friction.is_empty(), "no friction effect selected: {}", r["selected_effects"]);
     for e in friction {
         assert!(!e["joints"].as_array().unwrap().is_empty(), "friction on no joint: {e}");

@@ -71,19 +71,8 @@ pub(crate) fn joint_vectors<'a>(dof: usize, args: &[(&str, &'a ArrayArg<'_>)]) -
         [n] if *n == dof => Batch::Single,
         [n] => return Err(Kind::Dimension.err(format!("{first_name}: expected {dof}, got {n} (shape {}; one state has one value per joint)", shape_str(&shape)))),
         [b, n] if *n == dof => Batch::Many(*b),
-        [_, n] => {
-            return Err(Kind::Dimension.err(format!(
-                "{first_name}: expected {dof}, got {n} (shape {}; a batch has shape (N, {dof}), one row per state)",
-                shape_str(&shape)
-            )))
-        }
-        _ => {
-            return Err(Kind::Dimension.err(format!(
-                "{first_name}: expected shape ({dof},) or (N, {dof}), got {} ({} dimensions)",
-                shape_str(&shape),
-                shape.len()
-            )))
-        }
+        [_, n] => return Err(Kind::Dimension.err(format!("{first_name}: expected {dof}, got {n} (shape {}; a batch has shape (N, {dof}), one row per state)", shape_str(&shape)))),
+        _ => return Err(Kind::Dimension.err(format!("{first_name}: expected shape ({dof},) or (N, {dof}), got {} ({} dimensions)", shape_str(&shape), shape.len()))),
     };
     for (name, arr) in &args[1..] {
         let s = arr.shape();

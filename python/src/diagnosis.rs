@@ -11,10 +11,10 @@
 //! `--json` output, `where` included.
 
 use std::any::Any;
+use std::collections::BTreeMap;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 use pyo3::exceptions::{PyKeyError, PyTypeError};
@@ -52,9 +52,7 @@ impl Source {
         if arg.is_instance_of::<PyString>() || arg.cast::<PyRun>().is_ok() || arg.hasattr("__fspath__")? {
             return Ok(vec![Source::from_item(name, arg)?]);
         }
-        let items = arg
-            .try_iter()
-            .map_err(|_| PyTypeError::new_err(format!("{name}: expected a sequence of simgap.Run or paths, got {}", type_name(arg))))?;
+        let items = arg.try_iter().map_err(|_| PyTypeError::new_err(format!("{name}: expected a sequence of simgap.Run or paths, got {}", type_name(arg))))?;
         items.enumerate().map(|(i, item)| Source::from_item(&format!("{name}[{i}]"), &item?)).collect()
     }
 
@@ -124,10 +122,7 @@ impl Job {
     fn run(&self, stop: &AtomicBool) -> simgap_diag::Result<Diagnosis> {
         for f in &self.fit {
             if let Some(h) = self.holdout.iter().find(|h| f.same_as(h)) {
-                return Err(simgap_diag::Error::Input(format!(
-                    "{}: given both as fit and as held-out log; held-out runs must never be used for fitting",
-                    h.describe()
-                )));
+                return Err(simgap_diag::Error::Input(format!("{}: given both as fit and as held-out log; held-out runs must never be used for fitting", h.describe())));
             }
         }
         let load = |s: &Source| -> simgap_diag::Result<Run> {
@@ -162,11 +157,7 @@ impl Job {
 }
 
 fn panic_message(payload: &(dyn Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
+    payload.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| payload.downcast_ref::<String>().cloned()).unwrap_or_else(|| "unknown panic".into())
 }
 
 /// Runs `job` on its own thread (see [`crate::worker`]); on Ctrl-C the diagnosis stops at its
@@ -466,7 +457,8 @@ impl PyReport {
 
     fn __repr__(&self) -> String {
         let r = &self.diagnosis.report;
-        let selected: Vec<String> = r.selected_effects.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{}[{}]", e.effect, e.joints.join(",")) }).collect();
+        let selected: Vec<String> =
+            r.selected_effects.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{}[{}]", e.effect, e.joints.join(",")) }).collect();
         format!(
             "Report(model={:?}, formulation={:?}, selected_effects={:?}, holdout_l2_before={}, holdout_l2_after={})",
             r.model, r.formulation, selected, r.gap.holdout_l2_before, r.gap.holdout_l2_after

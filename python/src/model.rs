@@ -15,8 +15,8 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex, RwLock};
 
 use nalgebra::{DMatrix, Vector3};
-use pyo3::exceptions::PyValueError;
 use numpy::{PyArrayDyn, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyFloat;
 use rayon::prelude::*;
@@ -122,25 +122,14 @@ where
         let result = py.detach(|| -> Result<(), StateError> {
             let block = if count < PARALLEL_THRESHOLD { count } else { count.div_ceil(4 * threads).max(16) };
             let nblocks = count.div_ceil(block);
-            let blocks: Vec<_> = blocks_of(a, widths[0], block, nblocks)
-                .into_iter()
-                .zip(blocks_of(b, widths[1], block, nblocks))
-                .zip(blocks_of(c, widths[2], block, nblocks))
-                .enumerate()
-                .collect();
+            let blocks: Vec<_> =
+                blocks_of(a, widths[0], block, nblocks).into_iter().zip(blocks_of(b, widths[1], block, nblocks)).zip(blocks_of(c, widths[2], block, nblocks)).enumerate().collect();
             let run_block = |scratch: &mut Scratch, (i, ((a, b), c)): (usize, ((&mut [f64], &mut [f64]), &mut [f64]))| -> Result<(), StateError> {
                 let first = start + i * block;
-                let states = (a.len().checked_div(widths[0]))
-                    .or(b.len().checked_div(widths[1]))
-                    .or(c.len().checked_div(widths[2]))
-                    .unwrap_or(0);
+                let states = (a.len().checked_div(widths[0])).or(b.len().checked_div(widths[1])).or(c.len().checked_div(widths[2])).unwrap_or(0);
                 for s in 0..states {
                     let k = first + s;
-                    let outs = [
-                        &mut a[s * widths[0]..(s + 1) * widths[0]],
-                        &mut b[s * widths[1]..(s + 1) * widths[1]],
-                        &mut c[s * widths[2]..(s + 1) * widths[2]],
-                    ];
+                    let outs = [&mut a[s * widths[0]..(s + 1) * widths[0]], &mut b[s * widths[1]..(s + 1) * widths[1]], &mut c[s * widths[2]..(s + 1) * widths[2]]];
                     kernel(&model, scratch, [input(k, 0), input(k, 1), input(k, 2)], outs).map_err(|message| StateError { state: k, message })?;
                 }
                 Ok(())
@@ -188,12 +177,8 @@ where
         py.detach(|| {
             let block = if count < PARALLEL_THRESHOLD || threads == 1 { count } else { count.div_ceil(4 * threads).next_multiple_of(BLOCK_STATES) };
             let nblocks = count.div_ceil(block);
-            let blocks: Vec<_> = blocks_of(a, widths[0], block, nblocks)
-                .into_iter()
-                .zip(blocks_of(b, widths[1], block, nblocks))
-                .zip(blocks_of(c, widths[2], block, nblocks))
-                .enumerate()
-                .collect();
+            let blocks: Vec<_> =
+                blocks_of(a, widths[0], block, nblocks).into_iter().zip(blocks_of(b, widths[1], block, nblocks)).zip(blocks_of(c, widths[2], block, nblocks)).enumerate().collect();
             let run_block = |(i, ((a, b), c)): (usize, ((&mut [f64], &mut [f64]), &mut [f64]))| {
                 let first = start + i * block;
                 let last = (first + block).min(end);
@@ -404,26 +389,30 @@ impl PyModel {
     /// Mass matrix H(q) (composite rigid body algorithm): symmetric positive definite.
     #[pyo3(signature = (q))]
     fn mass_matrix<'py>(&self, py: Python<'py>, q: ArrayArg<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.matrix_fn(py, &[("q", &q)], |m, ws, [q, _, _], out| simgap_core::mass_matrix_into(m, ws, q, out), |m, [q, _, _], out| {
-            simgap_core::mass_matrix_batch(m, q, out)
-        })
+        self.matrix_fn(py, &[("q", &q)], |m, ws, [q, _, _], out| simgap_core::mass_matrix_into(m, ws, q, out), |m, [q, _, _], out| simgap_core::mass_matrix_batch(m, q, out))
     }
 
     /// Coriolis matrix C(q, q̇) of the chosen formulation.
     #[pyo3(signature = (q, qd, formulation = "euler_lagrange"))]
     fn coriolis_matrix<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>, formulation: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self::formulation(formulation)?;
-        self.matrix_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::coriolis_matrix_into(m, ws, q, qd, f, out), |m, [q, qd, _], out| {
-            simgap_core::coriolis_matrix_batch(m, q, qd, f, out)
-        })
+        self.matrix_fn(
+            py,
+            &[("q", &q), ("qd", &qd)],
+            |m, ws, [q, qd, _], out| simgap_core::coriolis_matrix_into(m, ws, q, qd, f, out),
+            |m, [q, qd, _], out| simgap_core::coriolis_matrix_batch(m, q, qd, f, out),
+        )
     }
 
     /// Time derivative of the mass matrix, Ḣ(q, q̇) = Σ_k ∂H/∂q_k q̇_k.
     #[pyo3(signature = (q, qd))]
     fn mass_matrix_derivative<'py>(&self, py: Python<'py>, q: ArrayArg<'py>, qd: ArrayArg<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.matrix_fn(py, &[("q", &q), ("qd", &qd)], |m, ws, [q, qd, _], out| simgap_core::mass_matrix_derivative_into(m, ws, q, qd, out), |m, [q, qd, _], out| {
-            simgap_core::mass_matrix_derivative_batch(m, q, qd, out)
-        })
+        self.matrix_fn(
+            py,
+            &[("q", &q), ("qd", &qd)],
+            |m, ws, [q, qd, _], out| simgap_core::mass_matrix_derivative_into(m, ws, q, qd, out),
+            |m, [q, qd, _], out| simgap_core::mass_matrix_derivative_batch(m, q, qd, out),
+        )
     }
 
     /// Coriolis and centrifugal torques C(q, q̇) q̇ of the chosen formulation.

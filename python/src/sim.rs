@@ -14,8 +14,8 @@ use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use simgap_core::Model;
 use simgap_log::{LogOptions, TopicMap};
-use simgap_sim::{experiment_from_map, experiment_to_map, reorder_joints};
 use simgap_sim::reference::{Reference, Step};
+use simgap_sim::{experiment_from_map, experiment_to_map, reorder_joints};
 use simgap_sim::{ControllerKind, Effect, Experiment, Integrator, L2Report, MemorySink, Plant, Run, RunEnd, SensorParams, SimParams, VelocityEstimate};
 
 use crate::conv::{row_major, to_array, ArrayArg};

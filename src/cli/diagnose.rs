@@ -223,11 +223,7 @@ fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
             w.write_run(nominal, &only_states(format!("/holdout/{name}/nominal/joint_states")), start)?;
         }
         if let Some(Some(corrected)) = d.holdout_corrected.get(i) {
-            let topics = RunTopics {
-                states: format!("/holdout/{name}/joint_states"),
-                reference: Some(format!("/holdout/{name}/joint_reference")),
-                measured_effort: None,
-            };
+            let topics = RunTopics { states: format!("/holdout/{name}/joint_states"), reference: Some(format!("/holdout/{name}/joint_reference")), measured_effort: None };
             w.write_run(corrected, &topics, start)?;
         }
     }

@@ -65,7 +65,13 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         runs.push(run);
     }
     let k = simgap::diag::kstep::evaluate(&model, args.formulation, &effects, &runs, &args.horizon, simgap::diag::PrepareOptions::default().window)?;
-    println!("k-step prediction of {} log(s) by '{}'{} ({} windows)", runs.len(), model.name(), if effects.is_empty() { String::new() } else { format!(" with {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")) }, k.runs.iter().map(|r| r.windows).sum::<usize>());
+    println!(
+        "k-step prediction of {} log(s) by '{}'{} ({} windows)",
+        runs.len(),
+        model.name(),
+        if effects.is_empty() { String::new() } else { format!(" with {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")) },
+        k.runs.iter().map(|r| r.windows).sum::<usize>()
+    );
     println!("  {:>10} {:>14} {:>14} {:>14}", "horizon", "model [rad]", "+effects [rad]", "floor [rad]");
     for (i, h) in k.horizons_s.iter().enumerate() {
         println!("  {:>9.3}s {:>14.4e} {:>14.4e} {:>14.4e}", h, k.before[i], k.after[i], k.floor[i]);

@@ -97,14 +97,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("interrupted: scoring the {} scenarios that finished", scores.len());
     }
     for s in scores.iter().filter(|s| !s.exact) {
-        eprintln!(
-            "  scenario {:>3} ({}): hidden {:?}, selected {:?}{}",
-            s.index,
-            s.robot,
-            s.truth,
-            s.found,
-            s.error.as_deref().map(|e| format!(" — {e}")).unwrap_or_default()
-        );
+        eprintln!("  scenario {:>3} ({}): hidden {:?}, selected {:?}{}", s.index, s.robot, s.truth, s.found, s.error.as_deref().map(|e| format!(" — {e}")).unwrap_or_default());
     }
     let sum = summarise(&scores);
     print!("{}", table(&sum, scores.len(), args.seed));

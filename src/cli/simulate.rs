@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use simgap::core::Model;
 use simgap::sim::{
-    l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink,
-    Step, VelocityEstimate,
+    l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink, Step,
+    VelocityEstimate,
 };
 
 /// Arguments of `simgap simulate`.
@@ -74,10 +74,7 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn parse_list(what: &str, s: &str, n: usize) -> anyhow::Result<Vec<f64>> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>().with_context(|| format!("--{what}: '{x}' is not a number")))
-        .collect::<anyhow::Result<_>>()?;
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().with_context(|| format!("--{what}: '{x}' is not a number"))).collect::<anyhow::Result<_>>()?;
     if v.len() == 1 && n > 1 {
         return Ok(vec![v[0]; n]);
     }
@@ -151,10 +148,22 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     check_range("substeps", args.substeps as f64, 1.0, 10_000.0, "")?;
     let samples = args.duration / args.sample_period;
     if samples > MAX_SAMPLES {
-        bail!("--duration {} s at --sample-period {} s gives {} samples; expected at most {} (a longer run does not fit in memory)", number(args.duration), number(args.sample_period), number(samples.round()), number(MAX_SAMPLES));
+        bail!(
+            "--duration {} s at --sample-period {} s gives {} samples; expected at most {} (a longer run does not fit in memory)",
+            number(args.duration),
+            number(args.sample_period),
+            number(samples.round()),
+            number(MAX_SAMPLES)
+        );
     }
     if samples * args.substeps as f64 > MAX_STEPS {
-        bail!("{} samples × --substeps {} gives {} integration steps; expected at most {}", number(samples.round()), args.substeps, number((samples * args.substeps as f64).round()), number(MAX_STEPS));
+        bail!(
+            "{} samples × --substeps {} gives {} integration steps; expected at most {}",
+            number(samples.round()),
+            args.substeps,
+            number((samples * args.substeps as f64).round()),
+            number(MAX_STEPS)
+        );
     }
     if args.counts_per_rev != 0.0 && !(args.counts_per_rev >= 1.0 && args.counts_per_rev <= 1e12) {
         bail!("--counts-per-rev {} is out of range; expected 0 (exact positions) or 1 ≤ counts-per-rev ≤ 1e12", number(args.counts_per_rev));

@@ -23,10 +23,7 @@ pub(crate) struct Args {
 }
 
 fn parse_list(what: &str, s: &str, n: usize) -> anyhow::Result<Vec<f64>> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>().with_context(|| format!("--{what}: '{x}' is not a number")))
-        .collect::<anyhow::Result<_>>()?;
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().with_context(|| format!("--{what}: '{x}' is not a number"))).collect::<anyhow::Result<_>>()?;
     if v.len() != n {
         bail!("--{what}: expected {n} values (one per joint), got {}", v.len());
     }

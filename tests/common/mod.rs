@@ -39,7 +39,11 @@ fn newest(path: &Path) -> Option<std::time::SystemTime> {
             let p = e.path();
             let name = e.file_name().to_string_lossy().to_string();
             if p.is_dir() {
-                if name == "target" || name.starts_with('.') { None } else { newest(&p) }
+                if name == "target" || name.starts_with('.') {
+                    None
+                } else {
+                    newest(&p)
+                }
             } else if name.ends_with(".rs") || name.ends_with(".toml") || name.ends_with(".urdf") {
                 e.metadata().ok()?.modified().ok()
             } else {
@@ -48,4 +52,3 @@ fn newest(path: &Path) -> Option<std::time::SystemTime> {
         })
         .max()
 }
-

@@ -66,22 +66,21 @@ pub mod spatial;
 pub mod urdf;
 pub mod workspace;
 
+pub use algorithms::aba::forward_dynamics_aba_into;
 pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matrix_derivative, mass_matrix_derivative_into, Formulation};
-pub use batch::{
-    batch_lanes, bias_torques_batch, coriolis_matrix_batch, coriolis_torques_batch, dynamics_terms_batch, gravity_torques_batch, inverse_dynamics_batch,
-    mass_matrix_batch, mass_matrix_derivative_batch,
-};
 pub use algorithms::crba::{mass_matrix, mass_matrix_into};
 pub use algorithms::energy::{kinetic_energy, potential_energy};
-pub use algorithms::aba::forward_dynamics_aba_into;
 pub use algorithms::forward_dynamics::{forward_dynamics, forward_dynamics_crba_into, forward_dynamics_into, solve_spd_in_place, try_solve_spd_in_place, ABA_MIN_DOF};
 pub use algorithms::kinematics::forward_kinematics;
 pub use algorithms::regressor::{inertia_from_parameters, inertial_parameters, inverse_dynamics_regressor, inverse_dynamics_regressor_into, PARAMS_PER_LINK};
 pub use algorithms::rnea::{
-    bias_torques, bias_torques_into, coriolis_torques, coriolis_torques_into, gravity_torques, gravity_torques_into, inverse_dynamics,
-    inverse_dynamics_into,
+    bias_torques, bias_torques_into, coriolis_torques, coriolis_torques_into, gravity_torques, gravity_torques_into, inverse_dynamics, inverse_dynamics_into,
 };
 pub use algorithms::terms::{dynamics_terms, dynamics_terms_into, DynamicsTerms};
+pub use batch::{
+    batch_lanes, bias_torques_batch, coriolis_matrix_batch, coriolis_torques_batch, dynamics_terms_batch, gravity_torques_batch, inverse_dynamics_batch, mass_matrix_batch,
+    mass_matrix_derivative_batch,
+};
 pub use error::{Error, Result};
 pub use model::{Joint, JointKind, JointLimits, Model, STANDARD_GRAVITY};
 pub use robots::{ARM7_URDF, PAPER_ARM_URDF, PENDULUM_URDF};

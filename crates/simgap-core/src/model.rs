@@ -73,14 +73,7 @@ pub struct Joint {
 
 impl Joint {
     /// A joint with default limits.
-    pub fn new(
-        name: impl Into<String>,
-        kind: JointKind,
-        axis: Vector3<f64>,
-        placement: Transform,
-        link: impl Into<String>,
-        inertia: SpatialInertia,
-    ) -> Self {
+    pub fn new(name: impl Into<String>, kind: JointKind, axis: Vector3<f64>, placement: Transform, link: impl Into<String>, inertia: SpatialInertia) -> Self {
         Joint { name: name.into(), kind, axis, placement, limits: JointLimits::default(), link: link.into(), inertia }
     }
 }

@@ -39,19 +39,13 @@ impl Motion {
     /// Motion cross product `self × m` (the derivative of `m` moving with velocity `self`).
     #[inline]
     pub fn cross_motion(&self, m: &Motion) -> Motion {
-        Motion {
-            angular: self.angular.cross(&m.angular),
-            linear: self.angular.cross(&m.linear) + self.linear.cross(&m.angular),
-        }
+        Motion { angular: self.angular.cross(&m.angular), linear: self.angular.cross(&m.linear) + self.linear.cross(&m.angular) }
     }
 
     /// Force cross product `self ×* f`.
     #[inline]
     pub fn cross_force(&self, f: &Force) -> Force {
-        Force {
-            moment: self.angular.cross(&f.moment) + self.linear.cross(&f.force),
-            force: self.angular.cross(&f.force),
-        }
+        Force { moment: self.angular.cross(&f.moment) + self.linear.cross(&f.force), force: self.angular.cross(&f.force) }
     }
 
     /// Power pairing `selfᵀ f`.
@@ -137,37 +131,21 @@ impl Default for Transform {
 
 impl Transform {
     /// The identity transform.
-    pub const IDENTITY: Transform = Transform {
-        rotation: Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
-        translation: Vector3::new(0.0, 0.0, 0.0),
-    };
+    pub const IDENTITY: Transform = Transform { rotation: Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), translation: Vector3::new(0.0, 0.0, 0.0) };
 
     /// Builds a transform from URDF `xyz` and `rpy` (fixed-axis roll, pitch, yaw: R = Rz(y) Ry(p) Rx(r)).
     pub fn from_xyz_rpy(xyz: [f64; 3], rpy: [f64; 3]) -> Self {
         let (sr, cr) = rpy[0].sin_cos();
         let (sp, cp) = rpy[1].sin_cos();
         let (sy, cy) = rpy[2].sin_cos();
-        let rotation = Matrix3::new(
-            cy * cp,
-            cy * sp * sr - sy * cr,
-            cy * sp * cr + sy * sr,
-            sy * cp,
-            sy * sp * sr + cy * cr,
-            sy * sp * cr - cy * sr,
-            -sp,
-            cp * sr,
-            cp * cr,
-        );
+        let rotation = Matrix3::new(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr, sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr, -sp, cp * sr, cp * cr);
         Transform { rotation, translation: Vector3::from(xyz) }
     }
 
     /// Composition `self * other` (apply `other` first).
     #[inline]
     pub fn compose(&self, other: &Transform) -> Transform {
-        Transform {
-            rotation: self.rotation * other.rotation,
-            translation: self.rotation * other.translation + self.translation,
-        }
+        Transform { rotation: self.rotation * other.rotation, translation: self.rotation * other.translation + self.translation }
     }
 
     /// Maps a point from child to parent coordinates.
@@ -203,8 +181,7 @@ fn cross_t_cross(a: &Vector3<f64>, b: &Vector3<f64>) -> Matrix3<f64> {
 
 impl SpatialInertia {
     /// The massless body.
-    pub const ZERO: SpatialInertia =
-        SpatialInertia { mass: 0.0, first_moment: Vector3::new(0.0, 0.0, 0.0), rotational: Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) };
+    pub const ZERO: SpatialInertia = SpatialInertia { mass: 0.0, first_moment: Vector3::new(0.0, 0.0, 0.0), rotational: Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) };
 
     /// Inertia of a body of mass `mass` whose centre of mass is at `com` and whose rotational
     /// inertia about the centre of mass is `inertia_com` (parallel-axis theorem).
@@ -239,18 +216,14 @@ impl SpatialInertia {
         let hr = r * self.first_moment;
         // rotate about the origin, then shift the reference point by t
         let rot = r * self.rotational * r.transpose();
-        let shift = Matrix3::from_diagonal_element(2.0 * hr.dot(t)) - t * hr.transpose() - hr * t.transpose()
-            + cross_t_cross(t, t) * self.mass;
+        let shift = Matrix3::from_diagonal_element(2.0 * hr.dot(t)) - t * hr.transpose() - hr * t.transpose() + cross_t_cross(t, t) * self.mass;
         SpatialInertia { mass: self.mass, first_moment: hr + t * self.mass, rotational: rot + shift }
     }
 
     /// Spatial momentum (or force) `I m`.
     #[inline]
     pub fn mul_motion(&self, m: &Motion) -> Force {
-        Force {
-            moment: self.rotational * m.angular + self.first_moment.cross(&m.linear),
-            force: m.linear * self.mass - self.first_moment.cross(&m.angular),
-        }
+        Force { moment: self.rotational * m.angular + self.first_moment.cross(&m.linear), force: m.linear * self.mass - self.first_moment.cross(&m.angular) }
     }
 
     /// Time derivative of this inertia for a body moving with spatial velocity `v`
@@ -272,11 +245,7 @@ impl std::ops::Add for SpatialInertia {
     type Output = SpatialInertia;
     #[inline]
     fn add(self, o: SpatialInertia) -> SpatialInertia {
-        SpatialInertia {
-            mass: self.mass + o.mass,
-            first_moment: self.first_moment + o.first_moment,
-            rotational: self.rotational + o.rotational,
-        }
+        SpatialInertia { mass: self.mass + o.mass, first_moment: self.first_moment + o.first_moment, rotational: self.rotational + o.rotational }
     }
 }
 
@@ -308,10 +277,7 @@ impl InertiaRate {
     /// `İ m`.
     #[inline]
     pub fn mul_motion(&self, m: &Motion) -> Force {
-        Force {
-            moment: self.rotational * m.angular + self.first_moment.cross(&m.linear),
-            force: -self.first_moment.cross(&m.angular),
-        }
+        Force { moment: self.rotational * m.angular + self.first_moment.cross(&m.linear), force: -self.first_moment.cross(&m.angular) }
     }
 }
 

@@ -478,7 +478,14 @@ fn find_chain(src: &str, robot: &urdf_rs::Robot, joints: &[RawJoint], link_inert
 
 /// Inertia of everything rigidly attached to `link` (off-path subtrees locked at q = 0); the
 /// movable joints locked are pushed to `locked`.
-fn rigid_subtree(link: &str, chain: &Chain, joints: &[RawJoint], on_path: &HashSet<usize>, link_inertia: &HashMap<String, SpatialInertia>, locked: &mut Vec<String>) -> SpatialInertia {
+fn rigid_subtree(
+    link: &str,
+    chain: &Chain,
+    joints: &[RawJoint],
+    on_path: &HashSet<usize>,
+    link_inertia: &HashMap<String, SpatialInertia>,
+    locked: &mut Vec<String>,
+) -> SpatialInertia {
     let mut total = link_inertia[link];
     for &k in chain.children.get(link).map(|v| v.as_slice()).unwrap_or(&[]) {
         if on_path.contains(&k) {

@@ -6,8 +6,8 @@ mod common;
 use nalgebra::DMatrix;
 use simgap_core::batch::set_batch_lanes;
 use simgap_core::{
-    batch, bias_torques_into, coriolis_matrix_into, coriolis_torques_into, gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into,
-    mass_matrix_into, Formulation, Model, Workspace,
+    batch, bias_torques_into, coriolis_matrix_into, coriolis_torques_into, gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, Formulation,
+    Model, Workspace,
 };
 
 use common::fixtures;

@@ -159,10 +159,7 @@ fn whole_massless_chain_is_massless() {
 #[test]
 fn every_bad_fixture_is_tested() {
     // a new file in models/bad/ needs a test above
-    let mut names: Vec<String> = std::fs::read_dir(common::model_path("bad"))
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .collect();
+    let mut names: Vec<String> = std::fs::read_dir(common::model_path("bad")).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     names.sort();
     let source = include_str!("urdf_errors.rs");
     for name in names {
@@ -189,10 +186,7 @@ fn unknown_tip_is_unknown_tip() {
 #[test]
 fn branching_arm_without_tip_is_not_serial() {
     let err = Model::from_urdf_file(common::model_path("arm7.urdf")).unwrap_err();
-    assert!(
-        matches!(&err, Error::NotSerial { link, children, .. } if link == "panda_hand" && children == &["panda_leftfinger", "panda_rightfinger"]),
-        "{err:?}"
-    );
+    assert!(matches!(&err, Error::NotSerial { link, children, .. } if link == "panda_hand" && children == &["panda_leftfinger", "panda_rightfinger"]), "{err:?}");
     assert_mentions(&err.to_string(), &["arm7.urdf", "link 'panda_hand'", "panda_leftfinger", "panda_rightfinger", "choose a tip link"]);
 }
 

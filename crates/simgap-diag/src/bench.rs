@@ -97,11 +97,7 @@ pub fn random_setpoints(dof: usize, amplitude: f64, duration: f64, every: f64, r
 /// The demo's bench robot: the paper's arm with its published friction (viscous 2.288 and
 /// 0.175 N·m·s/rad, Coulomb 7.17 and 1.734 N·m) and the elbow motor's 15 N·m limit.
 pub fn demo_effects() -> Vec<Effect> {
-    vec![
-        Effect::ViscousFriction { b: vec![2.288, 0.175] },
-        Effect::CoulombFriction { fc: vec![7.17, 1.734] },
-        Effect::TorqueSaturation { limit: vec![f64::INFINITY, 15.0] },
-    ]
+    vec![Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734] }, Effect::TorqueSaturation { limit: vec![f64::INFINITY, 15.0] }]
 }
 
 /// The demo's runs on the paper arm: three 4 s fit runs (the paper's step, an excitation and
@@ -112,9 +108,30 @@ pub fn demo_specs(seed: u64) -> (Vec<RunSpec>, Vec<RunSpec>) {
     let (kp, kv) = (KP.to_vec(), KV.to_vec());
     let fit = vec![
         RunSpec { name: "fit-step".into(), controller: ControllerKind::Pd, kp: kp.clone(), kv: kv.clone(), reference: RefSpec::Step(Q_DESIRED.to_vec()), duration: 4.0 },
-        RunSpec { name: "fit-excitation".into(), controller: ControllerKind::PdGravity, kp: kp.clone(), kv: kv.clone(), reference: RefSpec::Fourier(random_fourier(2, 1.0, &mut rng)), duration: 4.0 },
-        RunSpec { name: "fit-setpoints".into(), controller: ControllerKind::PdGravity, kp: kp.clone(), kv: kv.clone(), reference: random_setpoints(2, 1.2, 4.0, 1.0, &mut rng), duration: 4.0 },
+        RunSpec {
+            name: "fit-excitation".into(),
+            controller: ControllerKind::PdGravity,
+            kp: kp.clone(),
+            kv: kv.clone(),
+            reference: RefSpec::Fourier(random_fourier(2, 1.0, &mut rng)),
+            duration: 4.0,
+        },
+        RunSpec {
+            name: "fit-setpoints".into(),
+            controller: ControllerKind::PdGravity,
+            kp: kp.clone(),
+            kv: kv.clone(),
+            reference: random_setpoints(2, 1.2, 4.0, 1.0, &mut rng),
+            duration: 4.0,
+        },
     ];
-    let hold = vec![RunSpec { name: "holdout-excitation".into(), controller: ControllerKind::PdGravity, kp, kv, reference: RefSpec::Fourier(random_fourier(2, 1.0, &mut rng)), duration: 8.0 }];
+    let hold = vec![RunSpec {
+        name: "holdout-excitation".into(),
+        controller: ControllerKind::PdGravity,
+        kp,
+        kv,
+        reference: RefSpec::Fourier(random_fourier(2, 1.0, &mut rng)),
+        duration: 8.0,
+    }];
     (fit, hold)
 }

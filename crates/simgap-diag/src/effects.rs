@@ -321,7 +321,8 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         "coulomb_friction" => format!("Coulomb friction {}", list_per_joint(e, "fc", "N·m")),
         "stribeck_friction" => {
             let (fc, fs, vs) = (per_joint(e, "fc"), per_joint(e, "fs"), per_joint(e, "vs"));
-            let parts: Vec<String> = fc.iter().zip(&fs).zip(&vs).map(|((c, s), v)| format!("on {}: fc = {} N·m, fs = {} N·m below {} rad/s", c.0, sig3(c.1), sig3(s.1), sig3(v.1))).collect();
+            let parts: Vec<String> =
+                fc.iter().zip(&fs).zip(&vs).map(|((c, s), v)| format!("on {}: fc = {} N·m, fs = {} N·m below {} rad/s", c.0, sig3(c.1), sig3(s.1), sig3(v.1))).collect();
             format!("Stribeck friction {}", parts.join("; "))
         }
         "armature" => format!("rotor inertia (armature) {}", list_per_joint(e, "ia", "kg·m²")),
@@ -335,7 +336,11 @@ fn describe(model: &Model, e: &EffectReport) -> String {
             format!("torque saturation at {}", parts.join(", "))
         }
         "cogging" => {
-            let parts: Vec<String> = per_joint(e, "amplitude").iter().zip(per_joint(e, "periods_per_rev")).map(|((j, a), (_, n))| format!("{} N·m, {n:.0} periods per revolution on {j}", sig3(a.abs()))).collect();
+            let parts: Vec<String> = per_joint(e, "amplitude")
+                .iter()
+                .zip(per_joint(e, "periods_per_rev"))
+                .map(|((j, a), (_, n))| format!("{} N·m, {n:.0} periods per revolution on {j}", sig3(a.abs())))
+                .collect();
             format!("cogging torque {}", parts.join(", "))
         }
         "time_delay" => format!("actuation delay of {} ms (whole robot)", sig3(1e3 * num("delay"))),
@@ -366,10 +371,19 @@ fn describe_inertial(model: &Model, deltas: &[LinkDelta]) -> String {
             let mut words = Vec::new();
             if d.mass.abs() > 1e-4 * old.mass.max(1e-3) {
                 let ratio = (old.mass + d.mass) / old.mass;
-                let bound = if old.mass > 0.0 && (ratio <= 1.001 / crate::inertial::MASS_FACTOR || ratio >= 0.999 * crate::inertial::MASS_FACTOR) { " (at the plausibility bound: the data pull further)" } else { "" };
+                let bound = if old.mass > 0.0 && (ratio <= 1.001 / crate::inertial::MASS_FACTOR || ratio >= 0.999 * crate::inertial::MASS_FACTOR) {
+                    " (at the plausibility bound: the data pull further)"
+                } else {
+                    ""
+                };
                 words.push(if old.mass > 0.0 { format!("mass {} ({} kg){bound}", percent(d.mass / old.mass), sig3(d.mass)) } else { format!("mass {} kg", sig3(d.mass)) });
             }
-            let com: Vec<String> = ["x", "y", "z"].iter().zip(d.com).filter(|(_, c)| c.abs() >= 5e-4).map(|(a, c)| format!("{}{:.0} mm along {a}", if c < 0.0 { "−" } else { "+" }, 1e3 * c.abs())).collect();
+            let com: Vec<String> = ["x", "y", "z"]
+                .iter()
+                .zip(d.com)
+                .filter(|(_, c)| c.abs() >= 5e-4)
+                .map(|(a, c)| format!("{}{:.0} mm along {a}", if c < 0.0 { "−" } else { "+" }, 1e3 * c.abs()))
+                .collect();
             if !com.is_empty() {
                 let reach = crate::inertial::link_reach(model)[d.joint];
                 let at = (old.com() + Vector3::from(d.com)).norm() >= 0.999 * reach;
@@ -380,7 +394,11 @@ fn describe_inertial(model: &Model, deltas: &[LinkDelta]) -> String {
             let di = Matrix3::new(d.inertia[0], d.inertia[1], d.inertia[2], d.inertia[1], d.inertia[3], d.inertia[4], d.inertia[2], d.inertia[4], d.inertia[5]);
             let (i0, di_a) = ((a.transpose() * old.inertia_about_com() * a)[0], (a.transpose() * di * a)[0]);
             if di_a.abs() > 1e-4 * i0.abs().max(1e-9) {
-                words.push(if i0 > 1e-12 { format!("inertia about the COM (joint axis) {} ({} kg·m²)", percent(di_a / i0), sig3(di_a)) } else { format!("inertia about the COM (joint axis) {} kg·m²", sig3(di_a)) });
+                words.push(if i0 > 1e-12 {
+                    format!("inertia about the COM (joint axis) {} ({} kg·m²)", percent(di_a / i0), sig3(di_a))
+                } else {
+                    format!("inertia about the COM (joint axis) {} kg·m²", sig3(di_a))
+                });
             }
             if words.is_empty() {
                 words.push("unchanged within rounding".into());

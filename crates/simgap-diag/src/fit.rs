@@ -277,7 +277,13 @@ pub fn solve_bounded(g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64])
         let mut hit = None;
         for (a, &i) in free.iter().enumerate() {
             let d = sf[a] - th[i];
-            let t = if sf[a] < lo[i] { (lo[i] - th[i]) / d } else if sf[a] > hi[i] { (hi[i] - th[i]) / d } else { continue };
+            let t = if sf[a] < lo[i] {
+                (lo[i] - th[i]) / d
+            } else if sf[a] > hi[i] {
+                (hi[i] - th[i]) / d
+            } else {
+                continue;
+            };
             if t < alpha {
                 alpha = t.max(0.0);
                 hit = Some(i);
@@ -294,11 +300,7 @@ pub fn solve_bounded(g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64])
         // the free minimum is feasible: release the held parameter the gradient pulls inside most
         let w = c - g * &th;
         let scale = w.amax().max(1e-300);
-        let release = (0..k)
-            .filter(|&i| held[i])
-            .map(|i| (i, if th[i] <= lo[i] { w[i] } else { -w[i] }))
-            .filter(|&(_, v)| v > 1e-12 * scale)
-            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let release = (0..k).filter(|&i| held[i]).map(|i| (i, if th[i] <= lo[i] { w[i] } else { -w[i] })).filter(|&(_, v)| v > 1e-12 * scale).max_by(|a, b| a.1.total_cmp(&b.1));
         match release {
             Some((i, _)) => held[i] = false,
             None => break,

@@ -89,7 +89,11 @@ pub fn assess(r: &Report) -> Assessment {
         let (h, b, a) = (k.horizons_s[i], k.before[i], k.after[i]);
         let floor = k.floor.get(i).copied().unwrap_or(f64::NAN);
         let ratio = a / b;
-        let beat = if floor.is_finite() && a >= floor { format!(" It does not beat constant-velocity extrapolation ({floor:.3e} rad), so it says little about the physics.") } else { String::new() };
+        let beat = if floor.is_finite() && a >= floor {
+            format!(" It does not beat constant-velocity extrapolation ({floor:.3e} rad), so it says little about the physics.")
+        } else {
+            String::new()
+        };
         let (class, what) = if !ratio.is_finite() {
             ("warn", format!("the {h} s prediction error cannot be compared ({b:.3e} → {a:.3e} rad)"))
         } else if ratio > 1.0 {
@@ -136,12 +140,7 @@ fn lowercase_first(s: &str) -> String {
 pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Result<String, String> {
     let r = &d.report;
     let mut h = String::new();
-    let _ = write!(
-        h,
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>simgap diagnosis: {}</title>\n<style>{}</style></head><body>\n",
-        esc(&r.model),
-        CSS
-    );
+    let _ = write!(h, "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>simgap diagnosis: {}</title>\n<style>{}</style></head><body>\n", esc(&r.model), CSS);
     let _ = writeln!(h, "<h1>simgap diagnosis of <code>{}</code></h1>", esc(&r.model));
     let _ = writeln!(
         h,
@@ -172,7 +171,10 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
             h,
             "<p class=\"meta\">Windows of each held-out run restart the model from the measured state and predict h seconds ahead; RMS position error at the window ends. Constant-velocity extrapolation is the floor a physical model must beat.</p>"
         );
-        let _ = writeln!(h, "<table class=\"kstep\"><tr><th>horizon h [s]</th><th>constant velocity [rad]</th><th>nominal [rad]</th><th>selected effects [rad]</th><th>after / before</th></tr>");
+        let _ = writeln!(
+            h,
+            "<table class=\"kstep\"><tr><th>horizon h [s]</th><th>constant velocity [rad]</th><th>nominal [rad]</th><th>selected effects [rad]</th><th>after / before</th></tr>"
+        );
         for (i, hz) in kstep.horizons_s.iter().enumerate() {
             let get = |v: &Vec<f64>| v.get(i).copied().unwrap_or(f64::NAN);
             let (f, b, a) = (get(&kstep.floor), get(&kstep.before), get(&kstep.after));
@@ -198,7 +200,13 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
     for (b, a) in r.gap.runs_before.iter().zip(&r.gap.runs_after) {
         let _ = writeln!(h, "<tr><td>run {} <small>({} → {})</small></td>{}{}{}</tr>", esc(&b.log), esc(&b.status), esc(&a.status), num(b.l2), num(a.l2), fixed(a.l2 / b.l2, 3));
     }
-    let _ = writeln!(h, "<tr><td>fit runs (for reference)</td>{}{}{}</tr></table>", num(r.gap.fit_l2_before), num(r.gap.fit_l2_after), fixed(r.gap.fit_l2_after / r.gap.fit_l2_before, 3));
+    let _ = writeln!(
+        h,
+        "<tr><td>fit runs (for reference)</td>{}{}{}</tr></table>",
+        num(r.gap.fit_l2_before),
+        num(r.gap.fit_l2_after),
+        fixed(r.gap.fit_l2_after / r.gap.fit_l2_before, 3)
+    );
     if has_kstep && !headline_kstep {
         kstep_section(&mut h)?;
     }
@@ -210,7 +218,11 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
     } else {
         let _ = writeln!(h, "<table class=\"selected\"><tr><th>effect</th><th>joints</th><th>parameters (± 95 %)</th></tr>");
         for e in &ranked_selection(r) {
-            let cell = if e.effect == "inertial_error" { inertial_cell(&e.joints, &e.parameters, model) } else { params_cell(&e.effect, &e.parameters, Some(&e.uncertainty), Some(&e.units)) };
+            let cell = if e.effect == "inertial_error" {
+                inertial_cell(&e.joints, &e.parameters, model)
+            } else {
+                params_cell(&e.effect, &e.parameters, Some(&e.uncertainty), Some(&e.units))
+            };
             let description = if e.description.is_empty() { String::new() } else { format!("<br><small>{}</small>", esc(&e.description)) };
             let _ = writeln!(h, "<tr><td><code>{}</code>{description}</td><td>{}</td><td>{cell}</td></tr>", esc(&e.effect), esc(&e.joints.join(", ")));
         }
@@ -248,7 +260,16 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
         let _ = writeln!(h, "<h3>Worst time segments</h3><table><tr><th>log</th><th>t since the log's start [s]</th><th>joint</th><th>phase</th><th>RMS error [rad]</th></tr>");
         for s in &r.location.worst_segments {
             let t0 = log_start(d, &s.log);
-            let _ = writeln!(h, "<tr><td>{}</td><td>{:.3}–{:.3}</td><td>{}</td><td>{}</td>{}</tr>", esc(&s.log), s.start - t0, s.end - t0, esc(&s.joint), esc(&s.phase), num(s.rms_error));
+            let _ = writeln!(
+                h,
+                "<tr><td>{}</td><td>{:.3}–{:.3}</td><td>{}</td><td>{}</td>{}</tr>",
+                esc(&s.log),
+                s.start - t0,
+                s.end - t0,
+                esc(&s.joint),
+                esc(&s.phase),
+                num(s.rms_error)
+            );
         }
         let _ = writeln!(h, "</table>");
     }
@@ -355,7 +376,12 @@ fn any_finite(p: &Param) -> bool {
 }
 
 /// Parameters as `name = value ± u unit`, one per line; units from `units` or the vocabulary.
-fn params_cell(effect: &str, params: &std::collections::BTreeMap<String, Param>, unc: Option<&std::collections::BTreeMap<String, Param>>, units: Option<&std::collections::BTreeMap<String, String>>) -> String {
+fn params_cell(
+    effect: &str,
+    params: &std::collections::BTreeMap<String, Param>,
+    unc: Option<&std::collections::BTreeMap<String, Param>>,
+    units: Option<&std::collections::BTreeMap<String, String>>,
+) -> String {
     params
         .iter()
         .map(|(k, v)| {
@@ -382,7 +408,9 @@ fn inertial_cell(joints: &[String], parameters: &std::collections::BTreeMap<Stri
         _ => vec![],
     };
     let (dm, dc, di) = (per_joint("delta_mass"), per_link("delta_com"), per_link("delta_inertia"));
-    let mut rows = String::from("<table class=\"inertial\"><tr><th>link</th><th>mass</th><th>centre of mass moved [mm]</th><th>inertia about the centre of mass (xx, yy, zz; xy, xz, yz)</th></tr>");
+    let mut rows = String::from(
+        "<table class=\"inertial\"><tr><th>link</th><th>mass</th><th>centre of mass moved [mm]</th><th>inertia about the centre of mass (xx, yy, zz; xy, xz, yz)</th></tr>",
+    );
     for (i, joint) in joints.iter().enumerate() {
         let urdf = model.and_then(|m| m.joints().iter().find(|j| &j.name == joint));
         let link = urdf.map_or_else(|| format!("link of joint {joint}"), |j| j.link.clone());
@@ -418,7 +446,14 @@ fn inertial_cell(joints: &[String], parameters: &std::collections::BTreeMap<Stri
         } else {
             "–".into()
         };
-        let _ = write!(rows, "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>", esc(&link), esc(&mass), esc(&com), esc(&inertia).replace("&lt;small&gt;", "<small>").replace("&lt;/small&gt;", "</small>"));
+        let _ = write!(
+            rows,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            esc(&link),
+            esc(&mass),
+            esc(&com),
+            esc(&inertia).replace("&lt;small&gt;", "<small>").replace("&lt;/small&gt;", "</small>")
+        );
     }
     rows.push_str("</table>");
     if let Some(Param::Number(n)) = parameters.get("identifiable_directions") {
@@ -605,7 +640,14 @@ fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>
             .y_label_area_size(75)
             .build_cartesian_2d(0.0..t1, lo..hi)
             .map_err(draw_err)?;
-        chart.configure_mesh().x_desc("time since the log's start [s]").y_desc("q [rad]").x_label_formatter(&|v| format!("{v:.xd$}")).y_label_formatter(&|v| format!("{v:.yd$}")).draw().map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("time since the log's start [s]")
+            .y_desc("q [rad]")
+            .x_label_formatter(&|v| format!("{v:.xd$}"))
+            .y_label_formatter(&|v| format!("{v:.yd$}"))
+            .draw()
+            .map_err(draw_err)?;
         chart.draw_series(LineSeries::new(m, RGBColor(120, 120, 120).stroke_width(4))).map_err(draw_err)?;
         if !n.is_empty() {
             chart.draw_series(LineSeries::new(n, RED.stroke_width(1))).map_err(draw_err)?;
@@ -613,13 +655,16 @@ fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>
         if !c.is_empty() {
             chart.draw_series(DashedLineSeries::new(c, 6, 4, BLUE.stroke_width(2))).map_err(draw_err)?;
         }
-        let mut err = ChartBuilder::on(&bottom)
-            .margin(8)
-            .x_label_area_size(38)
-            .y_label_area_size(75)
-            .build_cartesian_2d(0.0..t1, (elo..ehi).log_scale())
+        let mut err = ChartBuilder::on(&bottom).margin(8).x_label_area_size(38).y_label_area_size(75).build_cartesian_2d(0.0..t1, (elo..ehi).log_scale()).map_err(draw_err)?;
+        err.configure_mesh()
+            .light_line_style(WHITE)
+            .x_desc("time since the log's start [s]")
+            .y_desc("|q_meas − q_sim| [rad]")
+            .x_label_formatter(&|v| format!("{v:.xd$}"))
+            .y_label_formatter(&|v| log_label(*v))
+            .y_labels(5)
+            .draw()
             .map_err(draw_err)?;
-        err.configure_mesh().light_line_style(WHITE).x_desc("time since the log's start [s]").y_desc("|q_meas − q_sim| [rad]").x_label_formatter(&|v| format!("{v:.xd$}")).y_label_formatter(&|v| log_label(*v)).y_labels(5).draw().map_err(draw_err)?;
         if !en.is_empty() {
             err.draw_series(LineSeries::new(en, RED.stroke_width(1))).map_err(draw_err)?;
         }
@@ -669,7 +714,14 @@ fn residual_svg(d: &Diagnosis, j: usize) -> std::result::Result<String, String> 
             .y_label_area_size(75)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(draw_err)?;
-        chart.configure_mesh().x_desc("q̇ [rad/s]").y_desc("residual [N·m]").x_label_formatter(&|v| format!("{v:.xd$}")).y_label_formatter(&|v| format!("{v:.yd$}")).draw().map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("q̇ [rad/s]")
+            .y_desc("residual [N·m]")
+            .x_label_formatter(&|v| format!("{v:.xd$}"))
+            .y_label_formatter(&|v| format!("{v:.yd$}"))
+            .draw()
+            .map_err(draw_err)?;
         chart.draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 2, BLUE.mix(0.4).filled()))).map_err(draw_err)?;
         Ok(())
     })
@@ -678,7 +730,8 @@ fn residual_svg(d: &Diagnosis, j: usize) -> std::result::Result<String, String> 
 /// The k-step prediction error against the horizon (log axis): constant-velocity floor,
 /// nominal, with the selected effects.
 fn kstep_svg(k: &crate::report::KStep) -> std::result::Result<String, String> {
-    let lines: Vec<(&str, &Vec<f64>, RGBColor)> = vec![("constant velocity (floor)", &k.floor, RGBColor(120, 120, 120)), ("nominal model", &k.before, RED), ("with selected effects", &k.after, BLUE)];
+    let lines: Vec<(&str, &Vec<f64>, RGBColor)> =
+        vec![("constant velocity (floor)", &k.floor, RGBColor(120, 120, 120)), ("nominal model", &k.before, RED), ("with selected effects", &k.after, BLUE)];
     let pts = |v: &Vec<f64>| -> Vec<(f64, f64)> { k.horizons_s.iter().zip(v).filter(|(h, e)| h.is_finite() && e.is_finite() && **e > 0.0).map(|(h, e)| (*h, *e)).collect() };
     let all: Vec<f64> = lines.iter().flat_map(|l| pts(l.1)).map(|p| p.1).collect();
     let (lo, hi) = all.iter().fold((f64::INFINITY, 0.0_f64), |(a, b), v| (a.min(*v), b.max(*v)));
@@ -693,7 +746,15 @@ fn kstep_svg(k: &crate::report::KStep) -> std::result::Result<String, String> {
             .y_label_area_size(75)
             .build_cartesian_2d(0.0..hmax, (lo..hi).log_scale())
             .map_err(draw_err)?;
-        chart.configure_mesh().light_line_style(WHITE).x_desc("horizon h [s]").y_desc("RMS position error [rad]").x_label_formatter(&|v| format!("{v:.2}")).y_label_formatter(&|v| log_label(*v)).draw().map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .light_line_style(WHITE)
+            .x_desc("horizon h [s]")
+            .y_desc("RMS position error [rad]")
+            .x_label_formatter(&|v| format!("{v:.2}"))
+            .y_label_formatter(&|v| log_label(*v))
+            .draw()
+            .map_err(draw_err)?;
         for (k2, (label, v, color)) in lines.iter().enumerate() {
             let p = pts(v);
             chart.draw_series(LineSeries::new(p.clone(), color.stroke_width(2))).map_err(draw_err)?;
@@ -794,7 +855,11 @@ fn shrink_svg(r: &Report) -> std::result::Result<String, String> {
             chart.draw_series(std::iter::once(Text::new(text, (x, y - 0.28), ("sans-serif", 13).into_font()))).map_err(draw_err)?;
         }
         chart.draw_series(LineSeries::new(vec![(1.0, 0.0), (1.0, n as f64)], BLACK.stroke_width(1))).map_err(draw_err)?;
-        for (k, (label, o)) in [("selected", Outcome::Selected), ("better", Outcome::Better), ("worse", Outcome::Worse), ("diverged", Outcome::Diverged), ("not simulated", Outcome::NotSimulated)].into_iter().enumerate() {
+        for (k, (label, o)) in
+            [("selected", Outcome::Selected), ("better", Outcome::Better), ("worse", Outcome::Worse), ("diverged", Outcome::Diverged), ("not simulated", Outcome::NotSimulated)]
+                .into_iter()
+                .enumerate()
+        {
             let y = 50 + 24 * k as i32;
             let col = color(o);
             let style = if matches!(o, Outcome::Diverged | Outcome::NotSimulated) { col.stroke_width(2) } else { col.mix(0.75).filled() };

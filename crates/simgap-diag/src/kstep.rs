@@ -389,7 +389,14 @@ pub fn floor_all(runs: &[PredictionRun], horizons: &[f64], dof: usize) -> (Error
 ///
 /// # Errors
 /// As [`predict`].
-pub fn predict_cv(model: &Model, formulation: Formulation, runs: &[PredictionRun], horizons: &[f64], folds: usize, effects_of: &(dyn Fn(usize) -> Vec<Effect> + Sync)) -> Result<Errors> {
+pub fn predict_cv(
+    model: &Model,
+    formulation: Formulation,
+    runs: &[PredictionRun],
+    horizons: &[f64],
+    folds: usize,
+    effects_of: &(dyn Fn(usize) -> Vec<Effect> + Sync),
+) -> Result<Errors> {
     let per_fold: Vec<Vec<(usize, Errors)>> = (0..folds)
         .into_par_iter()
         .map(|f| {
@@ -447,13 +454,19 @@ pub fn evaluate(model: &Model, formulation: Formulation, effects: &[Effect], run
     for r in runs {
         let mut run = crate::dataset::align_run(model, r)?;
         if run.experiment.is_none() {
-            return Err(crate::Error::Log { log: run.source.clone(), message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into() });
+            return Err(crate::Error::Log {
+                log: run.source.clone(),
+                message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into(),
+            });
         }
         crate::robust::repair_glitches(&mut run);
         let sensor = crate::resim::infer_sensors(&run).params();
         let pr = PredictionRun::new(run, horizons, window, sensor, 0, MAX_WINDOWS_PER_RUN);
         if pr.windows() == 0 {
-            return Err(crate::Error::Log { log: pr.run.source.clone(), message: format!("too short to predict: {:.3} s; expected at least the shortest horizon plus the smoothing window", pr.run.duration()) });
+            return Err(crate::Error::Log {
+                log: pr.run.source.clone(),
+                message: format!("too short to predict: {:.3} s; expected at least the shortest horizon plus the smoothing window", pr.run.duration()),
+            });
         }
         prepared.push(pr);
     }
@@ -470,7 +483,13 @@ pub fn evaluate(model: &Model, formulation: Formulation, effects: &[Effect], run
         runs: prepared
             .iter()
             .enumerate()
-            .map(|(i, pr)| crate::report::RunKStep { log: pr.run.source.clone(), windows: pr.windows(), before: before_runs[i].rms(), after: after_runs[i].rms(), floor: floor_runs[i].rms() })
+            .map(|(i, pr)| crate::report::RunKStep {
+                log: pr.run.source.clone(),
+                windows: pr.windows(),
+                before: before_runs[i].rms(),
+                after: after_runs[i].rms(),
+                floor: floor_runs[i].rms(),
+            })
             .collect(),
     })
 }

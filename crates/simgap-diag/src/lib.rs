@@ -240,10 +240,14 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     check_stop(options)?;
 
     // candidates: every effect of the vocabulary alone
-    let groups: Vec<(&'static str, Vec<Term>)> = candidate_groups(&ctx, &p.y).into_iter().map(|(n, mut t)| {
-        drop_passive_actuator_terms(&mut t, &prep.passive);
-        (n, t)
-    }).filter(|(_, t)| !t.is_empty()).collect();
+    let groups: Vec<(&'static str, Vec<Term>)> = candidate_groups(&ctx, &p.y)
+        .into_iter()
+        .map(|(n, mut t)| {
+            drop_passive_actuator_terms(&mut t, &prep.passive);
+            (n, t)
+        })
+        .filter(|(_, t)| !t.is_empty())
+        .collect();
 
     // prune by prediction: cross-validated k-step error on the fit runs
     let mut scorer = Scorer { model, formulation, ctx: &ctx, prep: &prep, nominal: Vec::new(), memo: Default::default() };
@@ -288,11 +292,13 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     progress(Progress { stage: "predicting held-out runs", done: 0, total: 3 });
     let (floor_all, floor_runs) = kstep::floor_all(&prep.hold_pred, &horizons, model.dof());
     let (before_k, before_runs_k) = kstep::predict_all(model, formulation, &[], &prep.hold_pred, &horizons)?;
-    let (after_k, after_runs_k) = if sel_effects.is_empty() { (before_k.clone(), before_runs_k.clone()) } else { kstep::predict_all(model, formulation, &sel_effects, &prep.hold_pred, &horizons)? };
+    let (after_k, after_runs_k) =
+        if sel_effects.is_empty() { (before_k.clone(), before_runs_k.clone()) } else { kstep::predict_all(model, formulation, &sel_effects, &prep.hold_pred, &horizons)? };
     check_stop(options)?;
     progress(Progress { stage: "re-simulating held-out runs", done: 1, total: 3 });
     let hold_nominal: Vec<(resim::RunGap, Option<Run>)> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
-    let hold_after: Vec<(resim::RunGap, Option<Run>)> = if sel_effects.is_empty() { hold_nominal.clone() } else { prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect() };
+    let hold_after: Vec<(resim::RunGap, Option<Run>)> =
+        if sel_effects.is_empty() { hold_nominal.clone() } else { prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect() };
     let before_runs: Vec<resim::RunGap> = hold_nominal.iter().map(|g| g.0.clone()).collect();
     let after_runs: Vec<resim::RunGap> = hold_after.iter().map(|g| g.0.clone()).collect();
     let (before, before_joint) = resim::combine(&before_runs, &prep.hold_runs);
@@ -328,7 +334,10 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         } else if !unphysical.is_empty() {
             format!("fitted alone it is not physical ({})", unphysical.join(", "))
         } else {
-            format!("alone it predicts the fit runs at {:.3} of the nominal model's k-step error (cross-validated); not among the best terms of any selection step", alone_score[gi])
+            format!(
+                "alone it predicts the fit runs at {:.3} of the nominal model's k-step error (cross-validated); not among the best terms of any selection step",
+                alone_score[gi]
+            )
         };
         let (joints_c, parameters, uncertainty) = match rep {
             Some(r) => (r.joints, r.parameters, r.uncertainty),
@@ -379,7 +388,13 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         // inertia that does not improve prediction is not named at all
         let alone = |effect: &str| groups.iter().position(|g| g.0 == effect).map(|i| alone_score[i]);
         for note in pitfalls::urdf_pitfalls(model, data) {
-            let effect = if note.contains("rotor inertia") { Some("armature") } else if note.contains("inertia about") { Some("inertial_error") } else { None };
+            let effect = if note.contains("rotor inertia") {
+                Some("armature")
+            } else if note.contains("inertia about") {
+                Some("inertial_error")
+            } else {
+                None
+            };
             match effect.and_then(|e| alone(e).map(|a| (e, a))) {
                 Some(("armature", a)) if a >= 1.0 - ADD_GAIN => {}
                 Some((e, a)) => notes.push(format!("{note}; fitted alone, {e} predicts the fit runs at {a:.2} of the nominal model's cross-validated k-step error")),
@@ -389,8 +404,12 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     }
     for j in &location.per_joint {
         if let (Some(a), Some(m)) = (j.actuator_residual_l2, j.mechanics_residual_l2) {
-            let (part, other) = if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };
-            notes.push(format!("{}: with the measured torque the gap splits into actuator {a:.3e} N·m and mechanics {m:.3e} N·m (RMS): most of it lies in {part}, less in {other}", j.joint));
+            let (part, other) =
+                if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };
+            notes.push(format!(
+                "{}: with the measured torque the gap splits into actuator {a:.3e} N·m and mechanics {m:.3e} N·m (RMS): most of it lies in {part}, less in {other}",
+                j.joint
+            ));
         }
     }
     notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons));
@@ -398,7 +417,13 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let selection_log = selection
         .log
         .iter()
-        .map(|s| Decision { effect: s.term.effect_name().into(), joint: s.term.joint().map(|j| joints[j].clone()), cv_mse: s.cv_mse, accepted: s.accepted, reason: s.reason.clone() })
+        .map(|s| Decision {
+            effect: s.term.effect_name().into(),
+            joint: s.term.joint().map(|j| joints[j].clone()),
+            cv_mse: s.cv_mse,
+            accepted: s.accepted,
+            reason: s.reason.clone(),
+        })
         .collect();
     let report = Report {
         simgap_version: env!("CARGO_PKG_VERSION").into(),
@@ -476,11 +501,17 @@ fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run]
         if !(exp.sample_period.is_finite() && exp.sample_period > 0.0) || !(0.02..=50.0).contains(&ratio) {
             return Err(Error::Log {
                 log: r.source.clone(),
-                message: format!("sample_period {} s, but the log's stamps are {:.6} s apart (median); expected a period within a factor 50 of the stamp spacing", exp.sample_period, spacing),
+                message: format!(
+                    "sample_period {} s, but the log's stamps are {:.6} s apart (median); expected a period within a factor 50 of the stamp spacing",
+                    exp.sample_period, spacing
+                ),
             });
         }
         if (ratio - 1.0).abs() > 0.05 {
-            notes.push(format!("{}: the experiment's sample period {} s differs from the median stamp spacing {:.6} s; the controller is simulated at the experiment's period", r.source, exp.sample_period, spacing));
+            notes.push(format!(
+                "{}: the experiment's sample period {} s differs from the median stamp spacing {:.6} s; the controller is simulated at the experiment's period",
+                r.source, exp.sample_period, spacing
+            ));
         }
     }
     // a held-out run must be one the fit never saw
@@ -526,10 +557,18 @@ fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run]
         return Err(Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
     }
     let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
-    let fit_pred: Vec<PredictionRun> = fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN)).collect();
-    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
+    let fit_pred: Vec<PredictionRun> = fit_runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN))
+        .collect();
+    let hold_pred: Vec<PredictionRun> =
+        hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
     if let Some(pr) = hold_pred.iter().find(|p| p.windows() == 0) {
-        return Err(Error::Log { log: pr.run.source.clone(), message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]) });
+        return Err(Error::Log {
+            log: pr.run.source.clone(),
+            message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]),
+        });
     }
     Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive })
 }
@@ -551,7 +590,14 @@ fn fits_in(terms: &[Term], t: &Term) -> bool {
 /// (only when (a) does not reach [`SECOND_PATH_ABOVE`]).
 /// A set that does not beat the nominal model's prediction by [`ADD_GAIN`] is emptied: the
 /// data then support no effect.
-fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], sel: &mut select::Selection, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<()> {
+fn prune_and_complete(
+    scorer: &Scorer<'_>,
+    groups: &[(&'static str, Vec<Term>)],
+    alone_score: &[f64],
+    sel: &mut select::Selection,
+    progress: &mut dyn FnMut(Progress),
+    options: &DiagnoseOptions,
+) -> Result<()> {
     let mut path_a = (sel.terms.clone(), Vec::new());
     let score_a = refine_by_prediction(scorer, groups, alone_score, &mut path_a.0, &mut path_a.1, progress, options)?;
     // the second path only where the first does not already halve the nominal error
@@ -565,7 +611,10 @@ fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)],
                 term: t,
                 cv_mse: f64::NAN,
                 accepted: false,
-                reason: format!("dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, not better by {:.0} %", 100.0 * ADD_GAIN),
+                reason: format!(
+                    "dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, not better by {:.0} %",
+                    100.0 * ADD_GAIN
+                ),
             });
         }
     }
@@ -576,7 +625,15 @@ fn prune_and_complete(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)],
 
 /// Backward elimination, then forward completion with whole effects (at most three), repeated;
 /// returns the final prediction score.
-fn refine_by_prediction(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone_score: &[f64], terms: &mut Vec<Term>, log: &mut Vec<select::Step>, progress: &mut dyn FnMut(Progress), options: &DiagnoseOptions) -> Result<f64> {
+fn refine_by_prediction(
+    scorer: &Scorer<'_>,
+    groups: &[(&'static str, Vec<Term>)],
+    alone_score: &[f64],
+    terms: &mut Vec<Term>,
+    log: &mut Vec<select::Step>,
+    progress: &mut dyn FnMut(Progress),
+    options: &DiagnoseOptions,
+) -> Result<f64> {
     let mut current = scorer.score(terms);
     let mut added = 0;
     loop {
@@ -638,7 +695,10 @@ fn refine_by_prediction(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)
                     term: t.clone(),
                     cv_mse: f64::NAN,
                     accepted: true,
-                    reason: format!("added by prediction: with {} the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (without it {current:.4})", groups[*gi].0),
+                    reason: format!(
+                        "added by prediction: with {} the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (without it {current:.4})",
+                        groups[*gi].0
+                    ),
                 });
             }
             terms.extend(g.iter().cloned());
@@ -671,7 +731,10 @@ fn rank_selected(scorer: &Scorer<'_>, terms: &[Term], reports: &mut [EffectRepor
 fn headline(prep: &Prepared, before_runs: &[resim::RunGap], after_runs: &[resim::RunGap], before: f64) -> (String, String) {
     let open_loop: Vec<&str> = prep.hold_runs.iter().filter(|r| r.experiment.as_ref().is_none_or(|e| e.controller == ControllerKind::Replay)).map(|r| r.source.as_str()).collect();
     if !open_loop.is_empty() {
-        return ("k_step".into(), format!("held-out run(s) {} are open-loop replays: a whole-run simulation of an open loop measures how fast trajectories diverge, not the model", open_loop.join(", ")));
+        return (
+            "k_step".into(),
+            format!("held-out run(s) {} are open-loop replays: a whole-run simulation of an open loop measures how fast trajectories diverge, not the model", open_loop.join(", ")),
+        );
     }
     if let Some(g) = before_runs.iter().chain(after_runs).find(|g| g.status != "completed") {
         return ("k_step".into(), format!("the closed-loop simulation of {} did not complete ({}): its whole-run figure measures divergence", g.log, g.status));
@@ -711,14 +774,19 @@ fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone
     // exact equivalences
     for e in selected {
         match e.effect.as_str() {
-            "payload" => out.push(Alternative { effects: with("payload", "inertial_error"), why: "a point mass on the last link is an inertial error of the last link: the same dynamics".into() }),
+            "payload" => out.push(Alternative {
+                effects: with("payload", "inertial_error"),
+                why: "a point mass on the last link is an inertial error of the last link: the same dynamics".into(),
+            }),
             "torque_gain" => {
                 if let Some(Param::PerJoint(k)) = e.parameters.get("k") {
                     let mean = k.iter().sum::<f64>() / k.len().max(1) as f64;
                     if e.joints.len() == scorer.model.dof() && k.iter().all(|x| (x - mean).abs() <= 0.02 * mean.abs()) {
                         out.push(Alternative {
                             effects: with("torque_gain", "inertial_error"),
-                            why: format!("a torque gain equal on every joint (k ≈ {mean:.3}) and every link's inertial parameters scaled by 1/k are the same dynamics up to friction"),
+                            why: format!(
+                                "a torque gain equal on every joint (k ≈ {mean:.3}) and every link's inertial parameters scaled by 1/k are the same dynamics up to friction"
+                            ),
                         });
                     }
                 }
@@ -726,7 +794,10 @@ fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone
             "stribeck_friction" => {
                 if let Some(Param::PerJoint(vs)) = e.parameters.get("vs") {
                     if vs.iter().all(|v| *v <= 0.02) {
-                        out.push(Alternative { effects: with("stribeck_friction", "coulomb_friction"), why: "the Stribeck velocity is below what these runs resolve: Coulomb friction is the same effect here".into() });
+                        out.push(Alternative {
+                            effects: with("stribeck_friction", "coulomb_friction"),
+                            why: "the Stribeck velocity is below what these runs resolve: Coulomb friction is the same effect here".into(),
+                        });
                     }
                 }
             }
@@ -738,7 +809,8 @@ fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone
         let mut swaps: Vec<(String, usize)> = Vec::new();
         for name in &names {
             let Some(si) = groups.iter().position(|g| g.0 == name.as_str()) else { continue };
-            let mut others: Vec<usize> = (0..groups.len()).filter(|&i| i != si && !names.iter().any(|n| n == groups[i].0) && alone_score[i] <= alone_score[si] * (1.0 + 5.0 * TIE_TOLERANCE)).collect();
+            let mut others: Vec<usize> =
+                (0..groups.len()).filter(|&i| i != si && !names.iter().any(|n| n == groups[i].0) && alone_score[i] <= alone_score[si] * (1.0 + 5.0 * TIE_TOLERANCE)).collect();
             others.sort_by(|a, b| alone_score[*a].total_cmp(&alone_score[*b]));
             for i in others.into_iter().take(2) {
                 swaps.push((name.clone(), i));
@@ -758,7 +830,11 @@ fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone
                 if !out.iter().any(|a: &Alternative| a.effects == effects) {
                     out.push(Alternative {
                         effects,
-                        why: format!("replacing {name} by {} predicts the fit runs as well (cross-validated k-step score {s:.4} against {current:.4}, within {:.0} %)", groups[i].0, 100.0 * TIE_TOLERANCE),
+                        why: format!(
+                            "replacing {name} by {} predicts the fit runs as well (cross-validated k-step score {s:.4} against {current:.4}, within {:.0} %)",
+                            groups[i].0,
+                            100.0 * TIE_TOLERANCE
+                        ),
                     });
                 }
             }
@@ -795,7 +871,11 @@ fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, b
         ("closed-loop L²".to_string(), before, after)
     } else {
         let i = k.horizons_s.len().saturating_sub(1).min(k.horizons_s.iter().position(|h| *h >= 0.5).unwrap_or(usize::MAX));
-        (format!("k-step error at {} s", k.horizons_s.get(i).copied().unwrap_or(f64::NAN)), k.before.get(i).copied().unwrap_or(f64::NAN), k.after.get(i).copied().unwrap_or(f64::NAN))
+        (
+            format!("k-step error at {} s", k.horizons_s.get(i).copied().unwrap_or(f64::NAN)),
+            k.before.get(i).copied().unwrap_or(f64::NAN),
+            k.after.get(i).copied().unwrap_or(f64::NAN),
+        )
     };
     let diverged = before_runs.iter().any(|g| g.status != "completed");
     let diverged_note = if diverged && headline != "closed_loop" { " (the nominal closed-loop simulation diverged, so the closed-loop figure is not used)" } else { "" };
@@ -803,7 +883,10 @@ fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, b
         return format!("nothing significant: no effect improves the cross-validated prediction of the fit runs; held-out {figure} {b:.3e} rad{diverged_note}");
     }
     if !(a < b) {
-        return format!("not explained: the effects the fit runs support ({}) do not improve the held-out {figure}: {b:.3e} → {a:.3e} rad (worse or equal){diverged_note}", names.join("; "));
+        return format!(
+            "not explained: the effects the fit runs support ({}) do not improve the held-out {figure}: {b:.3e} → {a:.3e} rad (worse or equal){diverged_note}",
+            names.join("; ")
+        );
     }
     format!("the gap is explained by {}; held-out {figure} {b:.3e} → {a:.3e} rad ({:.1} % of before){diverged_note}", names.join("; "), 100.0 * a / b)
 }
@@ -839,4 +922,3 @@ fn candidate_groups(ctx: &Context<'_>, resid: &terms::Column) -> Vec<(&'static s
     }
     groups
 }
-

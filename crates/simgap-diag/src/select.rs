@@ -173,7 +173,10 @@ impl<'a> Context<'a> {
             Family::Saturation(j) => {
                 let max = self.max_command(j);
                 let floor = self.saturation_floor[j];
-                (1..=24).map(|i| Term::Saturation { joint: j, limit: max * (0.2 + 0.8 * (1.0 - (i as f64 / 25.0))) }).filter(|t| matches!(t, Term::Saturation { limit, .. } if *limit >= floor)).collect()
+                (1..=24)
+                    .map(|i| Term::Saturation { joint: j, limit: max * (0.2 + 0.8 * (1.0 - (i as f64 / 25.0))) })
+                    .filter(|t| matches!(t, Term::Saturation { limit, .. } if *limit >= floor))
+                    .collect()
             }
             Family::Cogging(j) => (3..=64).map(|n| Term::Cogging { joint: j, periods: n as f64 }).collect(),
             Family::Delay => {
@@ -549,7 +552,16 @@ fn grid_penalty(t: &Term) -> f64 {
 }
 
 /// One pass of exchange moves; true when a swap was made.
-fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: &mut Vec<TermDesign>, current: &mut Fit, nominal: &Fit, opts: &SelectOptions, log: &mut Vec<Step>) -> bool {
+fn exchange(
+    ctx: &Context<'_>,
+    fams: &[Family],
+    terms: &mut Vec<Term>,
+    designs: &mut Vec<TermDesign>,
+    current: &mut Fit,
+    nominal: &Fit,
+    opts: &SelectOptions,
+    log: &mut Vec<Step>,
+) -> bool {
     let p = &ctx.problem;
     let mut best: Option<(usize, Term, Fit, Vec<TermDesign>)> = None;
     for i in 0..terms.len() {
@@ -593,7 +605,12 @@ fn exchange(ctx: &Context<'_>, fams: &[Family], terms: &mut Vec<Term>, designs: 
     }
     match best {
         Some((i, c, f, ds)) => {
-            log.push(Step { term: c.clone(), cv_mse: f.cv_mse, accepted: true, reason: format!("exchanged for {} (cross-validated residual {:.3e} → {:.3e})", describe(&terms[i]), current.cv_mse, f.cv_mse) });
+            log.push(Step {
+                term: c.clone(),
+                cv_mse: f.cv_mse,
+                accepted: true,
+                reason: format!("exchanged for {} (cross-validated residual {:.3e} → {:.3e})", describe(&terms[i]), current.cv_mse, f.cv_mse),
+            });
             terms.remove(i);
             terms.push(c);
             *designs = ds;
@@ -645,14 +662,10 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         let rel = |e: &(Term, Fit, Vec<TermDesign>)| current.cv_mse - e.1.cv_mse;
         let Some(best_rel) = evaluated.iter().map(rel).max_by(f64::total_cmp) else { break };
         let tol = best_rel * (1.0 - 0.5 * opts.min_relative_gain);
-        let Some((term, f, ds)) = evaluated
-            .into_iter()
-            .filter(|e| rel(e) >= tol)
-            .min_by(|a, b| {
-                let (pa, pb) = (n_params(&a.0, a.2.last().unwrap()), n_params(&b.0, b.2.last().unwrap()));
-                pa.cmp(&pb).then(a.1.cv_mse.total_cmp(&b.1.cv_mse))
-            })
-        else {
+        let Some((term, f, ds)) = evaluated.into_iter().filter(|e| rel(e) >= tol).min_by(|a, b| {
+            let (pa, pb) = (n_params(&a.0, a.2.last().unwrap()), n_params(&b.0, b.2.last().unwrap()));
+            pa.cmp(&pb).then(a.1.cv_mse.total_cmp(&b.1.cv_mse))
+        }) else {
             break;
         };
         let (now_t, new_t, nominal_t) = (cv_of(&current, &term), cv_of(&f, &term), cv_of(&nominal, &term));

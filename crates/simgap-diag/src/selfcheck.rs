@@ -96,7 +96,9 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
             // link never draw this effect)
             let link = rng.random_range(0..n.saturating_sub(1).max(1));
             let m = model.joints()[link].inertia.mass;
-            Effect::InertialError { deltas: vec![LinkDelta { joint: link, mass: m * rng.random_range(0.15..0.35) * if rng.random_bool(0.5) { 1.0 } else { -1.0 }, com: [0.0; 3], inertia: [0.0; 6] }] }
+            Effect::InertialError {
+                deltas: vec![LinkDelta { joint: link, mass: m * rng.random_range(0.15..0.35) * if rng.random_bool(0.5) { 1.0 } else { -1.0 }, com: [0.0; 3], inertia: [0.0; 6] }],
+            }
         }
         "time_delay" => Effect::TimeDelay { delay: rng.random_range(1..=3) as f64 * 0.0025 },
         _ => Effect::CoriolisStructure,
@@ -142,7 +144,10 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
             if matches!(name, "coulomb_friction" | "stribeck_friction") && effects.iter().any(dry) {
                 continue;
             }
-            if effects.iter().any(|e| e.name() == name) || (name == "payload" && effects.iter().any(|e| e.name() == "inertial_error")) || (name == "inertial_error" && effects.iter().any(|e| e.name() == "payload")) {
+            if effects.iter().any(|e| e.name() == name)
+                || (name == "payload" && effects.iter().any(|e| e.name() == "inertial_error"))
+                || (name == "inertial_error" && effects.iter().any(|e| e.name() == "payload"))
+            {
                 continue;
             }
             let joint = rng.random_range(0..n);
@@ -271,10 +276,12 @@ pub struct ScenarioScore {
 }
 
 fn label(s: &BTreeSet<(String, Option<String>)>) -> Vec<String> {
-    s.iter().map(|(e, j)| match j {
-        Some(j) => format!("{e}@{j}"),
-        None => e.clone(),
-    }).collect()
+    s.iter()
+        .map(|(e, j)| match j {
+            Some(j) => format!("{e}@{j}"),
+            None => e.clone(),
+        })
+        .collect()
 }
 
 /// Runs one scenario end to end.
@@ -302,7 +309,8 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
         Ok(d) => {
             let found = found_set(&d);
             let truth_names: BTreeSet<String> = truth.iter().map(|t| t.0.clone()).collect();
-            let in_alternatives = found != truth && !truth_names.is_empty() && d.report.alternatives.iter().any(|a| a.effects.iter().cloned().collect::<BTreeSet<String>>() == truth_names);
+            let in_alternatives =
+                found != truth && !truth_names.is_empty() && d.report.alternatives.iter().any(|a| a.effects.iter().cloned().collect::<BTreeSet<String>>() == truth_names);
             let k = &d.report.gap.kstep;
             let last = k.horizons_s.len().saturating_sub(1);
             ScenarioScore {

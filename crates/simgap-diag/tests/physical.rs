@@ -170,7 +170,9 @@ fn assert_physical(model: &Model, e: &EffectReport, delivered: &[f64], what: &st
             }
         }
         "inertial_error" => {
-            let (Some(Param::PerJoint(dm)), Some(Param::PerLink(dc)), Some(Param::PerLink(di))) = (e.parameters.get("delta_mass"), e.parameters.get("delta_com"), e.parameters.get("delta_inertia")) else {
+            let (Some(Param::PerJoint(dm)), Some(Param::PerLink(dc)), Some(Param::PerLink(di))) =
+                (e.parameters.get("delta_mass"), e.parameters.get("delta_com"), e.parameters.get("delta_inertia"))
+            else {
                 panic!("{what}: inertial_error without delta_mass/com/inertia: {e:?}")
             };
             for (k, j) in e.joints.iter().enumerate() {
@@ -191,7 +193,14 @@ fn assert_report_physical(model: &Model, d: &simgap_diag::Diagnosis, delivered: 
         assert!(!e.description.is_empty(), "{name}: {} has no description", e.effect);
     }
     for c in &d.report.candidates {
-        let e = EffectReport { effect: c.effect.clone(), joints: c.joints.clone(), parameters: c.parameters.clone(), uncertainty: Default::default(), units: Default::default(), description: String::new() };
+        let e = EffectReport {
+            effect: c.effect.clone(),
+            joints: c.joints.clone(),
+            parameters: c.parameters.clone(),
+            uncertainty: Default::default(),
+            units: Default::default(),
+            description: String::new(),
+        };
         assert_physical(model, &e, delivered, &format!("{name}, candidate"));
         assert!(!c.reason.contains("not physical"), "{name}: candidate {} left unsimulated: {}", c.effect, c.reason);
     }
@@ -226,7 +235,14 @@ fn head(mut run: Run, seconds: f64) -> Run {
 
 fn replay(run: &mut Run, period: f64) {
     let dof = run.dof();
-    run.experiment = Some(Experiment { controller: ControllerKind::Replay, joints: run.joints.clone(), kp: vec![0.0; dof], kv: vec![0.0; dof], sample_period: period, extra: Default::default() });
+    run.experiment = Some(Experiment {
+        controller: ControllerKind::Replay,
+        joints: run.joints.clone(),
+        kp: vec![0.0; dof],
+        kv: vec![0.0; dof],
+        sample_period: period,
+        extra: Default::default(),
+    });
 }
 
 #[test]

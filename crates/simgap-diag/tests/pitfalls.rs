@@ -89,7 +89,14 @@ fn dfki_double_pendulum_inertia_pitfall() {
         .iter()
         .map(|i| {
             let mut r = simgap_sim::csv_log::read_csv_auto(&rec.join(format!("trajectory_{i}.csv.gz"))).unwrap();
-            r.experiment = Some(Experiment { controller: ControllerKind::Replay, joints: r.joints.clone(), kp: vec![0.0; 2], kv: vec![0.0; 2], sample_period: 0.002, extra: Default::default() });
+            r.experiment = Some(Experiment {
+                controller: ControllerKind::Replay,
+                joints: r.joints.clone(),
+                kp: vec![0.0; 2],
+                kv: vec![0.0; 2],
+                sample_period: 0.002,
+                extra: Default::default(),
+            });
             FitData::new(&model, Formulation::EulerLagrange, align_run(&model, &r).unwrap(), &PrepareOptions::default()).unwrap()
         })
         .collect();

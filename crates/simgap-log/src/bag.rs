@@ -19,9 +19,7 @@ pub fn bag_files(dir: &Path) -> Result<Vec<PathBuf>> {
         let text = std::fs::read_to_string(&metadata).map_err(|e| err(format!("cannot read metadata.yaml: {e}")))?;
         if let Some(storage) = yaml_scalar(&text, "storage_identifier") {
             if storage != "mcap" {
-                return Err(err(format!(
-                    "the bag is stored as '{storage}'; simgap reads MCAP bags (convert with `ros2 bag convert` or `rosbags-convert --dst-storage mcap`)"
-                )));
+                return Err(err(format!("the bag is stored as '{storage}'; simgap reads MCAP bags (convert with `ros2 bag convert` or `rosbags-convert --dst-storage mcap`)")));
             }
         }
         for name in yaml_list(&text, "relative_file_paths") {

@@ -195,17 +195,8 @@ impl CsvMapping {
     /// the file has it.
     /// Joints `Joint1`, `Joint2` as in the DFKI URDFs.
     pub fn dfki_double_pendulum() -> CsvMapping {
-        Self::from_suffixes(
-            "time",
-            &DFKI_DOUBLE_PENDULUM_JOINTS,
-            &["1", "2"],
-            "pos_meas",
-            Some("vel_filt"),
-            Some("tau_con"),
-            Some("pos_des"),
-            Some("vel_des"),
-        )
-        .optional_reference(true)
+        Self::from_suffixes("time", &DFKI_DOUBLE_PENDULUM_JOINTS, &["1", "2"], "pos_meas", Some("vel_filt"), Some("tau_con"), Some("pos_des"), Some("vel_des"))
+            .optional_reference(true)
     }
 
     /// DFKI double pendulum system-identification records of design A.0
@@ -221,10 +212,7 @@ impl CsvMapping {
     /// in `data_measured` files `torque` is the torque **reported by the motor**, not the
     /// commanded one (that is in `data_desired` for feedback-only controllers). Joint `shoulder`.
     pub fn dfki_simple_pendulum() -> CsvMapping {
-        CsvMapping::new("time")
-            .position(DFKI_SIMPLE_PENDULUM_JOINT, "position")
-            .velocity(DFKI_SIMPLE_PENDULUM_JOINT, "velocity")
-            .effort(DFKI_SIMPLE_PENDULUM_JOINT, "torque")
+        CsvMapping::new("time").position(DFKI_SIMPLE_PENDULUM_JOINT, "position").velocity(DFKI_SIMPLE_PENDULUM_JOINT, "velocity").effort(DFKI_SIMPLE_PENDULUM_JOINT, "torque")
     }
 
     /// The joints of this mapping, in position-column order.
@@ -241,15 +229,7 @@ impl CsvMapping {
         let old = self.joints();
         assert_eq!(old.len(), names.len(), "one new name per joint");
         let rename: HashMap<String, String> = old.into_iter().zip(names.iter().map(|s| s.to_string())).collect();
-        for list in [
-            &mut self.position,
-            &mut self.velocity,
-            &mut self.effort,
-            &mut self.position_ref,
-            &mut self.velocity_ref,
-            &mut self.effort_ff,
-            &mut self.effort_measured,
-        ] {
+        for list in [&mut self.position, &mut self.velocity, &mut self.effort, &mut self.position_ref, &mut self.velocity_ref, &mut self.effort_ff, &mut self.effort_measured] {
             for (j, _) in list.iter_mut() {
                 if let Some(n) = rename.get(j) {
                     *j = n.clone();
@@ -287,15 +267,15 @@ pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
     // a quantity is mapped when any of its columns is there (missing ones then fail clearly)
     let any = |p: &str| joints.iter().any(|j| has(&format!("{p}{j}")));
     let mut mapping = CsvMapping::from_prefixes(
-            "time",
-            &joints,
-            "q_",
-            any("qd_").then_some("qd_"),
-            any("tau_").then_some("tau_"),
-            any("q_ref_").then_some("q_ref_"),
-            any("qd_ref_").then_some("qd_ref_"),
-        )
-        .optional_reference(false);
+        "time",
+        &joints,
+        "q_",
+        any("qd_").then_some("qd_"),
+        any("tau_").then_some("tau_"),
+        any("q_ref_").then_some("q_ref_"),
+        any("qd_ref_").then_some("qd_ref_"),
+    )
+    .optional_reference(false);
     for j in &joints {
         if any("tau_ff_") {
             mapping = mapping.effort_ff(j, &format!("tau_ff_{j}"));
@@ -348,9 +328,7 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
     let mut reader = csv_reader(path)?;
     let header: Vec<String> = reader.headers().map_err(|e| err(format!("cannot read the CSV header: {e}")))?.iter().map(str::to_string).collect();
     let column = |name: &str, what: &str| -> Result<usize> {
-        header.iter().position(|h| h == name).ok_or_else(|| {
-            err(format!("column '{name}' ({what}) is not in the header (columns: {})", header.join(",")))
-        })
+        header.iter().position(|h| h == name).ok_or_else(|| err(format!("column '{name}' ({what}) is not in the header (columns: {})", header.join(","))))
     };
     // columns of each quantity, in joint order
     let t_col = column(&mapping.time, "time")?;
@@ -361,9 +339,7 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
         joints
             .iter()
             .map(|j| {
-                let (_, c) = list.iter().find(|(lj, _)| lj == j).ok_or_else(|| {
-                    err(format!("the column mapping gives a position but no {what} for joint '{j}'"))
-                })?;
+                let (_, c) = list.iter().find(|(lj, _)| lj == j).ok_or_else(|| err(format!("the column mapping gives a position but no {what} for joint '{j}'")))?;
                 column(c, &format!("{what} of joint '{j}'"))
             })
             .collect()
@@ -536,11 +512,7 @@ pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
     }
     let file = File::create(path).map_err(|e| werr(&e))?;
     let gz = path.to_string_lossy().to_lowercase().ends_with(".gz");
-    let out: Box<dyn Write> = if gz {
-        Box::new(flate2::write::GzEncoder::new(BufWriter::new(file), flate2::Compression::default()))
-    } else {
-        Box::new(BufWriter::new(file))
-    };
+    let out: Box<dyn Write> = if gz { Box::new(flate2::write::GzEncoder::new(BufWriter::new(file), flate2::Compression::default())) } else { Box::new(BufWriter::new(file)) };
     let mut w = csv::WriterBuilder::new().from_writer(out);
     let dof = run.dof();
     // header
@@ -554,8 +526,8 @@ pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
         ("tau_measured_", &run.tau_measured[..]),
     ]
     .into_iter()
-        .filter(|(_, m)| !m.is_empty())
-        .collect();
+    .filter(|(_, m)| !m.is_empty())
+    .collect();
     let mut header = vec!["time".to_string()];
     for (p, _) in &blocks {
         header.extend(run.joints.iter().map(|j| format!("{p}{j}")));
@@ -581,4 +553,3 @@ fn finish_writer(mut out: Box<dyn Write>) -> std::io::Result<()> {
     drop(out);
     Ok(())
 }
-

@@ -23,8 +23,7 @@ pub(crate) fn sidecar_candidates(log_path: &Path) -> Vec<PathBuf> {
     let lower = name.to_lowercase();
     let stem_len = [".csv.gz", ".csv", ".mcap"].iter().find(|ext| lower.ends_with(*ext)).map_or(name.len(), |ext| name.len() - ext.len());
     let stem = &name[..stem_len];
-    let mut out =
-        vec![trimmed.with_file_name(format!("{stem}.experiment.json")), trimmed.with_file_name(format!("{stem}.experiment"))];
+    let mut out = vec![trimmed.with_file_name(format!("{stem}.experiment.json")), trimmed.with_file_name(format!("{stem}.experiment"))];
     if log_path.is_dir() {
         out.push(log_path.join("experiment.json"));
     }

@@ -160,11 +160,7 @@ pub fn read_mcap_bytes(name: &str, bytes: &[u8], options: &LogOptions) -> Result
 /// Runs a read; a panic (a bug) becomes an [`Error::Read`] instead of unwinding into the caller.
 fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
-        let what = payload
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "unknown".into());
+        let what = payload.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| payload.downcast_ref::<String>().cloned()).unwrap_or_else(|| "unknown".into());
         Err(read_error(path, format!("internal error while reading ({what}); please report it with this file")))
     })
 }

@@ -209,7 +209,8 @@ fn generic_csv_without_velocity_or_effort() {
 #[test]
 fn experiment_files_in_json_and_key_value_form() {
     let kv = tmp("exp.experiment");
-    std::fs::write(&kv, "# paper arm\ncontroller = pd_gravity\njoints = shoulder, elbow\nkp = 64.72, 32.36\nkv = 48.54,6.472\nsample_period = 0.0025\nrobot = paper arm\n").unwrap();
+    std::fs::write(&kv, "# paper arm\ncontroller = pd_gravity\njoints = shoulder, elbow\nkp = 64.72, 32.36\nkv = 48.54,6.472\nsample_period = 0.0025\nrobot = paper arm\n")
+        .unwrap();
     let e = read_experiment_file(&kv).unwrap();
     assert_eq!(e.controller, ControllerKind::PdGravity);
     assert_eq!(e.joints, names(&["shoulder", "elbow"]));

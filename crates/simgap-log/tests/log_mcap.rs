@@ -5,10 +5,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use mcap::records::{MessageHeader, Metadata};
-use simgap_log::mcap::{
-    JointState, McapSink, EXPERIMENT_METADATA, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA,
-    RUN_END_METADATA,
-};
+use simgap_log::mcap::{JointState, McapSink, EXPERIMENT_METADATA, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, RUN_END_METADATA};
 use simgap_log::{read_log_for, write_log, Compression, Error, LogOptions, SinkOptions};
 use simgap_sim::{reorder_joints, validate_run, ControllerKind, Experiment, MemorySink, Run, RunEnd, Sample, Sink};
 
@@ -133,13 +130,7 @@ impl Bag {
 }
 
 fn js(joints: &[&str], position: &[f64], velocity: &[f64], effort: &[f64]) -> JointState {
-    JointState {
-        name: names(joints),
-        position: position.to_vec(),
-        velocity: velocity.to_vec(),
-        effort: effort.to_vec(),
-        ..JointState::default()
-    }
+    JointState { name: names(joints), position: position.to_vec(), velocity: velocity.to_vec(), effort: effort.to_vec(), ..JointState::default() }
 }
 
 const T0: i64 = 1_712_345_678_000_000_000;
@@ -614,8 +605,7 @@ fn no_joint_states_or_a_wrong_schema_is_an_error() {
         let mut w = mcap::WriteOptions::new().create(file).unwrap();
         let s = w.add_schema("std_msgs/msg/String", "ros2msg", b"string data").unwrap();
         let c = w.add_channel(s, JOINT_STATES_TOPIC, "cdr", &BTreeMap::new()).unwrap();
-        w.write_to_known_channel(&MessageHeader { channel_id: c, sequence: 0, log_time: 0, publish_time: 0 }, &[0, 1, 0, 0, 1, 0, 0, 0, 0])
-            .unwrap();
+        w.write_to_known_channel(&MessageHeader { channel_id: c, sequence: 0, log_time: 0, publish_time: 0 }, &[0, 1, 0, 0, 1, 0, 0, 0, 0]).unwrap();
         w.finish().unwrap();
     }
     assert_error_names(read_mcap(&path), &path, "/joint_states (std_msgs/String) has no joint names");

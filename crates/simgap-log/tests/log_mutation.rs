@@ -61,14 +61,7 @@ fn sample_run(n: usize) -> Run {
             run.tau_measured.push(-0.9 * x);
         }
     }
-    run.experiment = Some(Experiment {
-        controller: ControllerKind::Pd,
-        joints,
-        kp: vec![1.0, 2.0, 3.0],
-        kv: vec![0.1, 0.2, 0.3],
-        sample_period: 0.0025,
-        extra: BTreeMap::new(),
-    });
+    run.experiment = Some(Experiment { controller: ControllerKind::Pd, joints, kp: vec![1.0, 2.0, 3.0], kv: vec![0.1, 0.2, 0.3], sample_period: 0.0025, extra: BTreeMap::new() });
     run
 }
 
@@ -84,13 +77,7 @@ fn rosbags_style_log() -> Vec<u8> {
         for k in 0..60i64 {
             let t = 1_700_000_000_000_000_000 + k * 2_000_000;
             for (names, x) in [(vec!["b", "a"], vec![1.0, 2.0]), (vec!["c"], vec![3.0])] {
-                let mut m = JointState {
-                    name: names.iter().map(|s| s.to_string()).collect(),
-                    position: x.clone(),
-                    velocity: x.clone(),
-                    effort: x,
-                    ..JointState::default()
-                };
+                let mut m = JointState { name: names.iter().map(|s| s.to_string()).collect(), position: x.clone(), velocity: x.clone(), effort: x, ..JointState::default() };
                 m.set_stamp_ns(t);
                 let h = MessageHeader { channel_id: c, sequence: k as u32, log_time: t as u64, publish_time: t as u64 };
                 w.write_to_known_channel(&h, &m.encode_cdr()).unwrap();

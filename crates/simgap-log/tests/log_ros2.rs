@@ -162,13 +162,7 @@ fn teleop_bag(dir: &Path, samples: i64) {
         for k in range {
             let t = T0 + k * DT;
             let x = k as f64;
-            let js = JointState {
-                name: names(&["b", "a"]),
-                position: vec![10.0 + x, x],
-                velocity: vec![1.0, 0.1],
-                effort: vec![],
-                ..JointState::default()
-            };
+            let js = JointState { name: names(&["b", "a"]), position: vec![10.0 + x, x], velocity: vec![1.0, 0.1], effort: vec![], ..JointState::default() };
             let mut js = js;
             js.set_stamp_ns(t);
             bag.publish("/robot/arm/joint_states", "sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION, t + 1000, &js.encode_cdr());
@@ -194,10 +188,7 @@ fn teleop_bag(dir: &Path, samples: i64) {
 }
 
 fn teleop_topics() -> TopicMap {
-    TopicMap::parse(
-        "states=/robot/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[a;b],measured_effort=/robot/effort",
-    )
-    .unwrap()
+    TopicMap::parse("states=/robot/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[a;b],measured_effort=/robot/effort").unwrap()
 }
 
 #[test]
@@ -314,8 +305,7 @@ fn absolute_stamps_survive_read_and_write_to_the_nanosecond() {
         })
         .collect();
     assert_eq!(stamps, (0..30).map(|k| (T0 + k * DT) as u64).collect::<Vec<_>>());
-    let topics: std::collections::BTreeSet<String> =
-        mcap::MessageStream::new(&bytes).unwrap().map(|m| m.unwrap().channel.topic.clone()).collect();
+    let topics: std::collections::BTreeSet<String> = mcap::MessageStream::new(&bytes).unwrap().map(|m| m.unwrap().channel.topic.clone()).collect();
     assert_eq!(topics.into_iter().collect::<Vec<_>>(), names(&["/joint_effort_measured", "/joint_reference", "/joint_states"]));
 }
 

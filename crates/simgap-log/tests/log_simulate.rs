@@ -55,12 +55,7 @@ fn diverged_simulation_leaves_a_readable_mcap() {
     assert!(!run.is_empty());
     let bytes = std::fs::read(&path).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
-    let statuses: Vec<String> = summary
-        .metadata_indexes
-        .iter()
-        .map(|i| mcap::read::metadata(&bytes, i).unwrap())
-        .filter(|m| m.name == "simgap.run_end")
-        .map(|m| m.metadata["status"].clone())
-        .collect();
+    let statuses: Vec<String> =
+        summary.metadata_indexes.iter().map(|i| mcap::read::metadata(&bytes, i).unwrap()).filter(|m| m.name == "simgap.run_end").map(|m| m.metadata["status"].clone()).collect();
     assert_eq!(statuses, vec!["diverged".to_string()]);
 }

@@ -122,7 +122,10 @@ impl Replay {
     /// [`Error::Invalid`] for an empty log or a length mismatch.
     pub fn new(t: Vec<f64>, tau: Vec<f64>) -> Result<Self> {
         if t.is_empty() || tau.len() % t.len() != 0 || tau.is_empty() {
-            return Err(Error::Invalid { what: "replay".into(), message: format!("{} times and {} torque values; expected a non-empty log with one row per time", t.len(), tau.len()) });
+            return Err(Error::Invalid {
+                what: "replay".into(),
+                message: format!("{} times and {} torque values; expected a non-empty log with one row per time", t.len(), tau.len()),
+            });
         }
         let tol = if t.len() > 1 { 0.5 * (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64 } else { 0.0 };
         Ok(Replay { t, tau, cursor: 0, tol: tol.max(1e-9) })
@@ -157,7 +160,11 @@ pub fn joint_map(model: &Model, names: &[String], source_name: &str) -> Result<V
         .joint_names()
         .iter()
         .map(|j| {
-            names.iter().position(|n| n == j).ok_or_else(|| Error::JointMismatch { source_name: source_name.into(), joint: (*j).to_string(), problem: "is in the model but not in the log".into() })
+            names.iter().position(|n| n == j).ok_or_else(|| Error::JointMismatch {
+                source_name: source_name.into(),
+                joint: (*j).to_string(),
+                problem: "is in the model but not in the log".into(),
+            })
         })
         .collect()
 }

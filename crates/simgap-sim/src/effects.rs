@@ -318,9 +318,7 @@ impl Effect {
         if let Some((k, _)) = params.iter().find(|(k, _)| !known.contains(&k.as_str())) {
             return Err(invalid(name, format!("unknown parameter '{k}'; expected {}", if known.is_empty() { "none".into() } else { known.join(", ") })));
         }
-        let get = |k: &str| -> Result<Vec<f64>> {
-            params.iter().find(|(p, _)| p == k).map(|(_, v)| v.clone()).ok_or_else(|| invalid(name, format!("missing parameter '{k}'")))
-        };
+        let get = |k: &str| -> Result<Vec<f64>> { params.iter().find(|(p, _)| p == k).map(|(_, v)| v.clone()).ok_or_else(|| invalid(name, format!("missing parameter '{k}'"))) };
         let per_joint = |k: &str| -> Result<Vec<f64>> {
             let v = get(k)?;
             match v.len() {
@@ -355,12 +353,7 @@ impl Effect {
                     Ok(v) => <[f64; 6]>::try_from(v.as_slice()).map_err(|_| invalid(name, format!("parameter 'inertia' takes 6 numbers, got {}", v.len())))?,
                     Err(_) => [0.0; 6],
                 };
-                let delta = LinkDelta {
-                    joint: joint as usize,
-                    mass: scalar("mass").unwrap_or(0.0),
-                    com: triple("com").unwrap_or([0.0; 3]),
-                    inertia,
-                };
+                let delta = LinkDelta { joint: joint as usize, mass: scalar("mass").unwrap_or(0.0), com: triple("com").unwrap_or([0.0; 3]), inertia };
                 Effect::InertialError { deltas: vec![delta] }
             }
             "torque_gain" => Effect::TorqueGain { k: per_joint("k")? },

@@ -98,7 +98,13 @@ pub fn l2_between(a: &Run, b: &Run, window: Option<(f64, f64)>) -> Result<L2Repo
     let map: Vec<usize> = a
         .joints
         .iter()
-        .map(|j| b.joints.iter().position(|x| x == j).ok_or_else(|| Error::JointMismatch { source_name: b.source.clone(), joint: j.clone(), problem: format!("is in '{}' but not in this run", a.source) }))
+        .map(|j| {
+            b.joints.iter().position(|x| x == j).ok_or_else(|| Error::JointMismatch {
+                source_name: b.source.clone(),
+                joint: j.clone(),
+                problem: format!("is in '{}' but not in this run", a.source),
+            })
+        })
         .collect::<Result<_>>()?;
     let (n, nb) = (a.dof(), b.dof());
     let (b0, b1) = match (b.t.first(), b.t.last()) {

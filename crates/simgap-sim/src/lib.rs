@@ -9,16 +9,13 @@ pub mod integrate;
 pub mod l2;
 pub mod plant;
 pub mod reference;
+pub mod run;
 pub mod sensor;
 pub mod simulate;
-pub mod run;
 pub mod sink;
 
 pub use error::{Error, Result};
-pub use run::{
-    central_difference, experiment_from_map, experiment_to_map, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind,
-    Experiment, Run, Sample,
-};
+pub use run::{central_difference, experiment_from_map, experiment_to_map, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind, Experiment, Run, Sample};
 pub use sink::{MemorySink, RunEnd, Sink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, ZeroTorque};

@@ -205,10 +205,7 @@ pub fn validate_run(run: &Run) -> Result<()> {
             return Err(err(format!("time of sample {k} is {t}")));
         }
         if k > 0 && t <= run.t[k - 1] {
-            return Err(err(format!(
-                "time is not strictly increasing: sample {k} at t = {t} s follows t = {} s",
-                run.t[k - 1]
-            )));
+            return Err(err(format!("time is not strictly increasing: sample {k} at t = {t} s follows t = {} s", run.t[k - 1])));
         }
     }
     // matrix sizes and finite values
@@ -229,13 +226,7 @@ pub fn validate_run(run: &Run) -> Result<()> {
             return Err(err(format!("{name} has {} values, expected {n} samples × {dof} joints = {}", m.len(), n * dof)));
         }
         if let Some(i) = m.iter().position(|x| !x.is_finite()) {
-            return Err(err(format!(
-                "{name} of joint '{}' is {} at t = {} s (sample {})",
-                run.joints[i % dof],
-                m[i],
-                run.t[i / dof],
-                i / dof
-            )));
+            return Err(err(format!("{name} of joint '{}' is {} at t = {} s (sample {})", run.joints[i % dof], m[i], run.t[i / dof], i / dof)));
         }
     }
     if !run.qd_ref.is_empty() && run.q_ref.is_empty() {
@@ -260,11 +251,7 @@ pub fn validate_run(run: &Run) -> Result<()> {
 /// [`Error::JointMismatch`] naming the first joint of `joints` missing from the run, or (without
 /// `drop_extra`) the first joint of the run not in `joints`.
 pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<Run> {
-    let mismatch = |joint: &str, problem: &str| Error::JointMismatch {
-        source_name: run.source.clone(),
-        joint: joint.to_string(),
-        problem: problem.to_string(),
-    };
+    let mismatch = |joint: &str, problem: &str| Error::JointMismatch { source_name: run.source.clone(), joint: joint.to_string(), problem: problem.to_string() };
     let mut index = Vec::with_capacity(joints.len());
     for j in joints {
         match run.joints.iter().position(|r| r == j) {
@@ -309,12 +296,8 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
 /// Entries of `extra` with a reserved key are left out.
 pub fn experiment_to_map(e: &Experiment) -> BTreeMap<String, String> {
     let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
-    let mut map: BTreeMap<String, String> = e
-        .extra
-        .iter()
-        .filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str()))
-        .map(|(k, v)| (k.clone(), v.clone()))
-        .collect();
+    let mut map: BTreeMap<String, String> =
+        e.extra.iter().filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
     map.insert(KEY_CONTROLLER.into(), e.controller.as_str().into());
     map.insert(KEY_JOINTS.into(), e.joints.join(","));
     map.insert(KEY_KP.into(), join(&e.kp));
@@ -334,23 +317,16 @@ pub fn experiment_from_map(map: &BTreeMap<String, String>) -> std::result::Resul
         if s.trim().is_empty() {
             return Ok(Vec::new());
         }
-        s.split(',')
-            .map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim())))
-            .collect()
+        s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim()))).collect()
     };
     let controller: ControllerKind = get(KEY_CONTROLLER)?.parse().map_err(|m| format!("key '{KEY_CONTROLLER}': {m}"))?;
     let joints_s = get(KEY_JOINTS)?;
-    let joints: Vec<String> =
-        if joints_s.trim().is_empty() { Vec::new() } else { joints_s.split(',').map(|s| s.trim().to_string()).collect() };
+    let joints: Vec<String> = if joints_s.trim().is_empty() { Vec::new() } else { joints_s.split(',').map(|s| s.trim().to_string()).collect() };
     let kp = numbers(KEY_KP)?;
     let kv = numbers(KEY_KV)?;
     let sp = get(KEY_SAMPLE_PERIOD)?;
     let sample_period = sp.trim().parse::<f64>().map_err(|_| format!("key '{KEY_SAMPLE_PERIOD}': '{sp}' is not a number"))?;
-    let extra = map
-        .iter()
-        .filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str()))
-        .map(|(k, v)| (k.clone(), v.clone()))
-        .collect();
+    let extra = map.iter().filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
     let e = Experiment { controller, joints, kp, kv, sample_period, extra };
     check_experiment(&e)?;
     Ok(e)

@@ -4,8 +4,7 @@ use simgap_core::robots::paper_arm;
 use simgap_core::{gravity_torques, kinetic_energy, potential_energy, Formulation, Model, Workspace};
 use simgap_sim::effects::{friction_slope_bound, smooth_sign};
 use simgap_sim::{
-    applied_torque, friction_torque, simulate, Controller, Effect, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, Step,
-    ZeroTorque, EFFECT_NAMES,
+    applied_torque, friction_torque, simulate, Controller, Effect, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, Step, ZeroTorque, EFFECT_NAMES,
 };
 
 fn run(model: &Model, effects: &[Effect], controller: &mut dyn Controller, params: &SimParams) -> Run {

@@ -6,8 +6,8 @@ use std::sync::Arc;
 use simgap_core::robots::paper_arm;
 use simgap_core::{kinetic_energy, potential_energy, Formulation, Model, Workspace};
 use simgap_sim::{
-    reference_from_run, simulate, simulate_experiment, Controller, ControllerKind, Experiment, Integrator, MemorySink, Pd, Plant, Replay, Run, RunEnd,
-    SensorParams, SimParams, Step, ZeroTorque, DEFAULT_SUBSTEPS,
+    reference_from_run, simulate, simulate_experiment, Controller, ControllerKind, Experiment, Integrator, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams,
+    Step, ZeroTorque, DEFAULT_SUBSTEPS,
 };
 
 fn paper_pd() -> Pd {
@@ -221,13 +221,8 @@ fn resimulating_a_logged_run_reproduces_it() {
     let logged = simulate_experiment(&model, Formulation::EulerLagrange, &[], &exp, &paper_step(), &params, None).unwrap();
     assert_eq!(logged.len(), 601);
     assert_eq!(logged.experiment.as_ref(), Some(&exp));
-    let again_params = SimParams {
-        t0: logged.t[0],
-        duration: logged.duration(),
-        q0: logged.row(&logged.q, 0).to_vec(),
-        qd0: logged.row(&logged.qd, 0).to_vec(),
-        ..SimParams::default()
-    };
+    let again_params =
+        SimParams { t0: logged.t[0], duration: logged.duration(), q0: logged.row(&logged.q, 0).to_vec(), qd0: logged.row(&logged.qd, 0).to_vec(), ..SimParams::default() };
     let again = simulate_experiment(&model, Formulation::EulerLagrange, &[], &exp, reference_from_run(&logged).as_ref(), &again_params, None).unwrap();
     assert_eq!(again.len(), logged.len());
     assert!(max_abs_diff(&again.q, &logged.q) < 1e-12);

@@ -26,11 +26,7 @@ pub fn forward_kinematics(model: &Model, ws: &mut Workspace, q: &[f64]) {
         let local = model.joint_transform(i, q[i]);
         let pose = if i == 0 { local } else { ws.poses[i - 1].compose(&local) };
         let axis = pose.rotation * joint.axis;
-        ws.subspaces[i] = if joint.kind.is_rotational() {
-            Motion::new(axis, pose.translation.cross(&axis))
-        } else {
-            Motion::new(nalgebra::Vector3::zeros(), axis)
-        };
+        ws.subspaces[i] = if joint.kind.is_rotational() { Motion::new(axis, pose.translation.cross(&axis)) } else { Motion::new(nalgebra::Vector3::zeros(), axis) };
         ws.poses[i] = pose;
     }
 }

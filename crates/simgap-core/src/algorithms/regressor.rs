@@ -24,11 +24,7 @@ pub fn inertial_parameters(inertia: &SpatialInertia) -> [f64; PARAMS_PER_LINK] {
 #[must_use]
 pub fn inertia_from_parameters(p: &[f64]) -> SpatialInertia {
     assert!(p.len() >= PARAMS_PER_LINK, "expected {PARAMS_PER_LINK} parameters, got {}", p.len());
-    SpatialInertia {
-        mass: p[0],
-        first_moment: Vector3::new(p[1], p[2], p[3]),
-        rotational: Matrix3::new(p[4], p[5], p[6], p[5], p[7], p[8], p[6], p[8], p[9]),
-    }
+    SpatialInertia { mass: p[0], first_moment: Vector3::new(p[1], p[2], p[3]), rotational: Matrix3::new(p[4], p[5], p[6], p[5], p[7], p[8], p[6], p[8], p[9]) }
 }
 
 /// Inverse-dynamics regressor Y, `dof × 10·dof`, such that

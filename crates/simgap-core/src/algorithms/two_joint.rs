@@ -12,8 +12,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::algorithms::coriolis::Formulation;
-use crate::model::Model;
 use crate::lanes::Lanes;
+use crate::model::Model;
 
 /// The generated closed form of a two-joint arm.
 #[derive(Clone, Debug, PartialEq)]

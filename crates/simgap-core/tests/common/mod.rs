@@ -71,13 +71,9 @@ pub struct Case {
 pub fn case() -> impl Strategy<Value = Case> {
     robot().prop_flat_map(|model| {
         let n = model.dof();
-        let positions: Vec<BoxedStrategy<f64>> = model
-            .joints()
-            .iter()
-            .map(|j| if j.kind.is_rotational() { (-std::f64::consts::PI..std::f64::consts::PI).boxed() } else { (-0.5..0.5).boxed() })
-            .collect();
-        (Just(model), positions, prop::collection::vec(-3.0..3.0, n), prop::collection::vec(-5.0..5.0, n))
-            .prop_map(|(model, q, qd, qdd)| Case { model, q, qd, qdd })
+        let positions: Vec<BoxedStrategy<f64>> =
+            model.joints().iter().map(|j| if j.kind.is_rotational() { (-std::f64::consts::PI..std::f64::consts::PI).boxed() } else { (-0.5..0.5).boxed() }).collect();
+        (Just(model), positions, prop::collection::vec(-3.0..3.0, n), prop::collection::vec(-5.0..5.0, n)).prop_map(|(model, q, qd, qdd)| Case { model, q, qd, qdd })
     })
 }
 

@@ -227,4 +227,3 @@ impl<'a> CdrReader<'a> {
         (0..n).map(|_| self.f64(field)).collect()
     }
 }
-

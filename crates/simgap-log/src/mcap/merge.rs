@@ -156,9 +156,7 @@ impl TopicData {
             Some(js) => {
                 let mut column = Vec::with_capacity(self.names.len());
                 for j in &self.names {
-                    let c = js.iter().position(|x| x == j).ok_or_else(|| {
-                        format!("joint '{j}' is in {topic} but not in {} (joints: {})", self.states_topic, js.join(", "))
-                    })?;
+                    let c = js.iter().position(|x| x == j).ok_or_else(|| format!("joint '{j}' is in {topic} but not in {} (joints: {})", self.states_topic, js.join(", ")))?;
                     column.push(c);
                 }
                 (js.to_vec(), column)
@@ -176,11 +174,7 @@ impl TopicData {
                         return Err(format!("{topic}: joint '{j}' is given twice at the same time t = {} s", time_s(t)));
                     }
                     if t < prev {
-                        return Err(format!(
-                            "{topic}: time is not monotonic for joint '{j}': t = {} s comes after t = {} s",
-                            time_s(t),
-                            time_s(prev)
-                        ));
+                        return Err(format!("{topic}: time is not monotonic for joint '{j}': t = {} s comes after t = {} s", time_s(t), time_s(prev)));
                     }
                 }
             }
@@ -225,11 +219,7 @@ impl TopicData {
                 g += 1;
             }
             if let Some(k) = filled.iter().position(|f| !f) {
-                return Err(format!(
-                    "{topic}: joint '{}' is missing at t = {} s (no message with that joint has this time stamp)",
-                    names[k],
-                    time_s(t)
-                ));
+                return Err(format!("{topic}: joint '{}' is missing at t = {} s (no message with that joint has this time stamp)", names[k], time_s(t)));
             }
             out.t.push(t);
         }

@@ -110,7 +110,6 @@ pub(crate) const OFFERED_QOS_PROFILES: &str = "- history: 3
     nsec: 854775807
   avoid_ros_namespace_conventions: false";
 
-
 /// The definition of `std_msgs/msg/Float64MultiArray` (for files that store none).
 pub const FLOAT64_MULTI_ARRAY_DEFINITION: &str = "\
 MultiArrayLayout layout

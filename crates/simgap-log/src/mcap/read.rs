@@ -29,10 +29,7 @@ use simgap_sim::{central_difference, experiment_from_map, hold_rows, interpolate
 use super::merge::{Extracted, Merged, TopicData};
 use super::scan::{scan, Record, ScanEnd};
 use super::schema::{Arity, ElemType, Primitive, Schema, Value};
-use super::{
-    CDR_ENCODING, EXPERIMENT_METADATA, FLOAT64_MULTI_ARRAY_DEFINITION, JOINT_STATE_DEFINITION, ROS2MSG_ENCODING,
-    RUN_END_METADATA,
-};
+use super::{CDR_ENCODING, EXPERIMENT_METADATA, FLOAT64_MULTI_ARRAY_DEFINITION, JOINT_STATE_DEFINITION, ROS2MSG_ENCODING, RUN_END_METADATA};
 use crate::error::{check_run, read_error, Result};
 use crate::topics::{Role, TopicMap};
 use crate::LogRead;
@@ -94,10 +91,7 @@ fn plan_role(schema: &Schema, role: Role, topic: &str, fixed_names: &[String]) -
         (f.elem == ElemType::Primitive(Primitive::String) && f.arity != Arity::Single).then_some(p)
     });
     if names.is_none() && fixed_names.is_empty() {
-        return Err(format!(
-            "{topic} ({ty}) has no joint names: give them in the topic map, e.g. {}={topic}[joint1;joint2]",
-            role.key()
-        ));
+        return Err(format!("{topic} ({ty}) has no joint names: give them in the topic map, e.g. {}={topic}[joint1;joint2]", role.key()));
     }
     // stamp
     let stamp = schema.message_at("header.stamp").and_then(|_| schema.path("header.stamp").map(|(p, _)| p));
@@ -141,9 +135,7 @@ impl Extractor {
         };
         let stamp = self.stamp.as_ref().and_then(|p| match v.at(p) {
             Some(Value::Message(f)) => match (f.first(), f.get(1)) {
-                (Some(Value::Int(sec)), Some(Value::UInt(nsec))) => {
-                    Some(sec.saturating_mul(1_000_000_000).saturating_add(i64::try_from(*nsec).unwrap_or(i64::MAX)))
-                }
+                (Some(Value::Int(sec)), Some(Value::UInt(nsec))) => Some(sec.saturating_mul(1_000_000_000).saturating_add(i64::try_from(*nsec).unwrap_or(i64::MAX))),
                 _ => None,
             },
             _ => None,
@@ -269,12 +261,9 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
 
     // the states
     let states_topic = topics.states.topic.as_str();
-    let states = data.remove(&Role::States).ok_or_else(|| {
-        err(format!(
-            "no {states_topic} messages (topics in the file: {})",
-            if other_topics.is_empty() { "none".to_string() } else { other_topics.join(", ") }
-        ))
-    })?;
+    let states = data
+        .remove(&Role::States)
+        .ok_or_else(|| err(format!("no {states_topic} messages (topics in the file: {})", if other_topics.is_empty() { "none".to_string() } else { other_topics.join(", ") })))?;
     let n_state_messages = states.len();
     let states = states.merge(states_topic, None).map_err(err)?;
     let joints = states.joints.clone();
@@ -334,11 +323,7 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
         }
     }
     if let Some(w) = warnings.iter_mut().find(|w| w.contains("linear scan recovered")) {
-        w.push_str(&format!(
-            ": {n_state_messages} {states_topic} messages, {} samples over {:.3} s",
-            run.len(),
-            run.duration()
-        ));
+        w.push_str(&format!(": {n_state_messages} {states_topic} messages, {} samples over {:.3} s", run.len(), run.duration()));
     }
     check_run(&run, label)?;
     Ok(LogRead { run, warnings })

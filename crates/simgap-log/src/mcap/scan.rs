@@ -60,11 +60,7 @@ fn read_into(r: &mut impl Read, buf: &mut Vec<u8>, n: usize) -> Result<(), Strin
 /// A message saying what is wrong and at which byte: not an MCAP file, a record whose fields
 /// overrun it, a chunk that does not decompress to its declared size or fails its CRC, a read
 /// error; or the error `on_record` returned.
-pub(crate) fn scan(
-    mut input: impl Read,
-    total: u64,
-    mut on_record: impl FnMut(Record<'_>) -> Result<(), String>,
-) -> Result<ScanEnd, String> {
+pub(crate) fn scan(mut input: impl Read, total: u64, mut on_record: impl FnMut(Record<'_>) -> Result<(), String>) -> Result<ScanEnd, String> {
     let mut magic = [0u8; 8];
     if total < 8 || input.read_exact(&mut magic).is_err() || &magic != MAGIC {
         return Err("not an MCAP file (no MCAP magic bytes at the start)".into());

@@ -242,9 +242,7 @@ impl Schema {
                         } else {
                             format!("{}/{other}", package_of(&raw.name))
                         };
-                        ElemType::Message(
-                            *index.get(&full).ok_or_else(|| format!("type '{other}' of field '{fname}' in {} is not defined in the schema", raw.name))?,
-                        )
+                        ElemType::Message(*index.get(&full).ok_or_else(|| format!("type '{other}' of field '{fname}' in {} is not defined in the schema", raw.name))?)
                     }
                 };
                 fields.push(Field { name: fname.clone(), elem, arity });
@@ -353,9 +351,9 @@ impl Schema {
             }
             values.push(match f.elem {
                 ElemType::Primitive(Primitive::F64) => Value::Floats((0..n).map(|_| r.f64(&f.name)).collect::<Result<_, _>>()?),
-                ElemType::Primitive(Primitive::F32) => Value::Floats(
-                    (0..n).map(|_| read_n::<4>(r, &f.name).map(|b| f64::from(f32::from_bits(word32(b, r.little))))).collect::<Result<_, _>>()?,
-                ),
+                ElemType::Primitive(Primitive::F32) => {
+                    Value::Floats((0..n).map(|_| read_n::<4>(r, &f.name).map(|b| f64::from(f32::from_bits(word32(b, r.little))))).collect::<Result<_, _>>()?)
+                }
                 ElemType::Primitive(Primitive::U8 | Primitive::I8 | Primitive::Bool) => Value::Bytes(r.take(n, 1, &f.name)?.to_vec()),
                 _ => Value::List((0..n).map(|_| self.decode_elem(f, r)).collect::<Result<_, _>>()?),
             });
@@ -449,15 +447,8 @@ mod tests {
     #[test]
     fn joint_state_decoded_from_its_definition_matches_the_hand_decoder() {
         let schema = Schema::parse("sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION).unwrap();
-        let msg = JointState {
-            sec: 12,
-            nanosec: 34,
-            frame_id: "base".into(),
-            name: vec!["a".into(), "bc".into()],
-            position: vec![1.0, -2.5],
-            velocity: vec![],
-            effort: vec![0.25, 4.0],
-        };
+        let msg =
+            JointState { sec: 12, nanosec: 34, frame_id: "base".into(), name: vec!["a".into(), "bc".into()], position: vec![1.0, -2.5], velocity: vec![], effort: vec![0.25, 4.0] };
         let v = schema.decode(&msg.encode_cdr()).unwrap();
         let (p, _) = schema.path("header.stamp.nanosec").unwrap();
         assert_eq!(v.at(&p), Some(&Value::UInt(34)));

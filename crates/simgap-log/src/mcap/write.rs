@@ -21,10 +21,7 @@ use mcap::records::{MessageHeader, Metadata};
 use simgap_sim::{experiment_to_map, Experiment, Run, RunEnd, Sample, Sink};
 
 use super::cdr::encode_joint_state_into;
-use super::{
-    CDR_ENCODING, EXPERIMENT_METADATA, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, OFFERED_QOS_PROFILES, ROS2MSG_ENCODING,
-    RUN_END_METADATA,
-};
+use super::{CDR_ENCODING, EXPERIMENT_METADATA, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, OFFERED_QOS_PROFILES, ROS2MSG_ENCODING, RUN_END_METADATA};
 use crate::error::{write_error, Result};
 use crate::topics::{JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC};
 
@@ -285,17 +282,7 @@ impl McapSink {
     /// [`Error::Write`](crate::Error::Write) before `begin`, after finishing, for arrays of the
     /// wrong length, or when the writer thread failed.
     #[allow(clippy::too_many_arguments)]
-    pub fn record_row(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        tau: &[f64],
-        q_ref: &[f64],
-        qd_ref: &[f64],
-        tau_ff: &[f64],
-        tau_measured: &[f64],
-    ) -> Result<()> {
+    pub fn record_row(&mut self, t: f64, q: &[f64], qd: &[f64], tau: &[f64], q_ref: &[f64], qd_ref: &[f64], tau_ff: &[f64], tau_measured: &[f64]) -> Result<()> {
         if !self.began {
             return Err(write_error(&self.path, "record before begin"));
         }
@@ -444,11 +431,7 @@ pub struct RunTopics {
 
 impl Default for RunTopics {
     fn default() -> Self {
-        RunTopics {
-            states: JOINT_STATES_TOPIC.into(),
-            reference: Some(JOINT_REFERENCE_TOPIC.into()),
-            measured_effort: Some(JOINT_EFFORT_MEASURED_TOPIC.into()),
-        }
+        RunTopics { states: JOINT_STATES_TOPIC.into(), reference: Some(JOINT_REFERENCE_TOPIC.into()), measured_effort: Some(JOINT_EFFORT_MEASURED_TOPIC.into()) }
     }
 }
 
@@ -536,14 +519,9 @@ impl McapWriter {
                 buf.clear();
                 match kind {
                     STATES => encode_joint_state_into(&mut buf, ns, &run.joints, &run.q[row(&run.q, k)], &run.qd[row(&run.qd, k)], &run.tau[row(&run.tau, k)]),
-                    REFERENCE => encode_joint_state_into(
-                        &mut buf,
-                        ns,
-                        &run.joints,
-                        &run.q_ref[row(&run.q_ref, k)],
-                        &run.qd_ref[row(&run.qd_ref, k)],
-                        &run.tau_ff[row(&run.tau_ff, k)],
-                    ),
+                    REFERENCE => {
+                        encode_joint_state_into(&mut buf, ns, &run.joints, &run.q_ref[row(&run.q_ref, k)], &run.qd_ref[row(&run.qd_ref, k)], &run.tau_ff[row(&run.tau_ff, k)])
+                    }
                     _ => encode_joint_state_into(&mut buf, ns, &run.joints, &[], &[], &run.tau_measured[row(&run.tau_measured, k)]),
                 }
                 let time = ns.max(0) as u64;
