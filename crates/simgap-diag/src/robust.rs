@@ -8,7 +8,8 @@
 //! - 50 robust standard deviations of `d` over the run (1.4826 × its median absolute value),
 //! - the step between its neighbours `|q_{k+1} − q_{k−1}|` (a real motion moves the neighbours
 //!   apart at least as much as it bends between them),
-//! - and what an acceleration of 2,000 rad/s² bends in one sample, `1000 Δt²`, and 1e-3 rad.
+//! - and what an acceleration of 2,000 rad/s² bends in one sample, `1000 Δt²`, 1e-3 rad and
+//!   five steps of the encoder (the smallest non-zero increment of the joint).
 //!
 //! It is replaced by the midpoint of its neighbours, so the fit and the predictions never see
 //! it, and reported with time and joint.
@@ -63,9 +64,12 @@ pub fn repair_glitches(run: &mut Run) -> Vec<Glitch> {
         let d: Vec<f64> = (0..rows).map(|k| if k == 0 || k + 1 == rows { 0.0 } else { q[k] - 0.5 * (q[k - 1] + q[k + 1]) }).collect();
         let mut abs: Vec<f64> = d.iter().map(|x| x.abs()).collect();
         let sigma = 1.4826 * median(&mut abs);
+        // the encoder's step: the smallest non-zero increment (a toggle of a few counts is no glitch)
+        let step = q.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > 0.0).fold(f64::INFINITY, f64::min);
+        let step = if step.is_finite() { step } else { 0.0 };
         for k in 1..rows - 1 {
             let dt = run.t[k + 1] - run.t[k - 1];
-            let floor = (1000.0 * dt * dt / 4.0).max(1e-3);
+            let floor = (1000.0 * dt * dt / 4.0).max(1e-3).max(5.0 * step);
             if d[k].abs() > (50.0 * sigma).max(floor) && d[k].abs() > (q[k + 1] - q[k - 1]).abs() {
                 let value = 0.5 * (q[k - 1] + q[k + 1]);
                 run.q[k * n + j] = value;

@@ -285,7 +285,15 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
             let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
             TermDesign::fixed(Column { joint: None, values: v })
         }
-        Term::Payload { com } => TermDesign::at_least(vec![payload_column(data, com)], 0.0),
+        Term::Payload { com } => {
+            // a payload whose torque would exceed three times the largest commanded torque is no
+            // payload this robot carried: its mass is bounded there
+            let col = payload_column(data, com);
+            let tau_max = data.iter().flat_map(|d| d.tau.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
+            let col_max = col.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let hi = if col_max > 0.0 && tau_max > 0.0 { 3.0 * tau_max / col_max } else { f64::INFINITY };
+            TermDesign { cols: vec![col], lo: vec![0.0], hi: vec![hi], ..Default::default() }
+        }
         Term::InertialError { ref prior } => {
             // every stacked parameter, in units of its scale
             let width = PARAMS_PER_LINK * dof;

@@ -210,9 +210,15 @@ impl CsvMapping {
     /// DFKI simple pendulum records (`data_measured.csv.gz`, header
     /// `time,position,velocity,torque`): q = `position`, q̇ = `velocity`, τ = `torque`. Note that
     /// in `data_measured` files `torque` is the torque **reported by the motor**, not the
-    /// commanded one (that is in `data_desired` for feedback-only controllers). Joint `shoulder`.
+    /// commanded one (that is in `data_desired` for feedback-only controllers): it is read as
+    /// both the effort and the measured torque (so nothing is assumed clamped below what the
+    /// motor delivered). Joint `shoulder`.
     pub fn dfki_simple_pendulum() -> CsvMapping {
-        CsvMapping::new("time").position(DFKI_SIMPLE_PENDULUM_JOINT, "position").velocity(DFKI_SIMPLE_PENDULUM_JOINT, "velocity").effort(DFKI_SIMPLE_PENDULUM_JOINT, "torque")
+        CsvMapping::new("time")
+            .position(DFKI_SIMPLE_PENDULUM_JOINT, "position")
+            .velocity(DFKI_SIMPLE_PENDULUM_JOINT, "velocity")
+            .effort(DFKI_SIMPLE_PENDULUM_JOINT, "torque")
+            .effort_measured(DFKI_SIMPLE_PENDULUM_JOINT, "torque")
     }
 
     /// The joints of this mapping, in position-column order.
