@@ -258,11 +258,9 @@ fn no_effect_is_physically_impossible_on_dfki_runs() {
     let rec = dp.join("experiment_records/design_C.0/20220914/sys_id");
     let load = |i: &str| {
         let path = rec.join(format!("trajectory_{i}.csv.gz"));
-        let mut r = simgap_sim::csv_log::read_csv_auto(&path).unwrap();
-        // the torque the drives report (tau_meas1/2), as /joint_effort_measured would carry it
-        let joints = simgap_sim::csv_log::DFKI_DOUBLE_PENDULUM_JOINTS;
-        let measured = simgap_sim::csv_log::CsvMapping::from_suffixes("time", &joints, &["1", "2"], "pos_meas", None, Some("tau_meas"), None, None);
-        r.tau_measured = simgap_sim::csv_log::read_csv(&path, &measured).unwrap().tau;
+        // the reader gives the torque the drives report (tau_meas1/2) as the measured torque
+        let r = simgap_log::csv::read_csv_auto(&path).unwrap();
+        assert!(!r.tau_measured.is_empty(), "the DFKI reader gives the measured torque");
         let mut r = head(r, 4.0);
         replay(&mut r, 0.002);
         r
@@ -280,7 +278,7 @@ fn no_effect_is_physically_impossible_on_dfki_runs() {
     // simple pendulum, PD system identification record: first 8 s fitted, the next 4 s held out
     let sp = root.join("dfki-simple-pendulum");
     let model = Model::from_urdf_file(sp.join("urdf/simplependul_dfki_pino_Modi.urdf")).unwrap();
-    let run = simgap_sim::csv_log::read_csv_auto(&sp.join("control_method_pd/system_identification/data_measured.csv.gz")).unwrap();
+    let run = simgap_log::csv::read_csv_auto(&sp.join("control_method_pd/system_identification/data_measured.csv.gz")).unwrap();
     let t0 = run.t[0];
     let period = run.duration() / (run.len() - 1) as f64;
     let mut fit = head(run.clone(), 8.0);

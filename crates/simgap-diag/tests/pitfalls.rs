@@ -88,7 +88,7 @@ fn dfki_double_pendulum_inertia_pitfall() {
     let data: Vec<FitData> = ["00", "03"]
         .iter()
         .map(|i| {
-            let mut r = simgap_sim::csv_log::read_csv_auto(&rec.join(format!("trajectory_{i}.csv.gz"))).unwrap();
+            let mut r = simgap_log::csv::read_csv_auto(&rec.join(format!("trajectory_{i}.csv.gz"))).unwrap();
             r.experiment = Some(Experiment {
                 controller: ControllerKind::Replay,
                 joints: r.joints.clone(),
