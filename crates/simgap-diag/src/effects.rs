@@ -22,7 +22,7 @@ pub enum Param {
     PerLink(Vec<Vec<f64>>),
 }
 
-/// One effect as the report states it (BRIEF §3.3).
+/// One effect as the report states it.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct EffectReport {
     /// Contract name.

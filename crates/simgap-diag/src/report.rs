@@ -1,4 +1,4 @@
-//! The diagnosis report (BRIEF §3.3): JSON keys are a public contract.
+//! The diagnosis report: its JSON keys are a public contract that other scripts read.
 
 use crate::effects::{EffectReport, Param};
 use crate::locate::Where;
@@ -85,7 +85,7 @@ pub struct Alternative {
     pub why: String,
 }
 
-/// The gap before and after (BRIEF §3.3 `gap`).
+/// The gap before and after (the report's `gap`).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Gap {
     /// Which figure answers "how far" for these runs: `closed_loop` or `k_step`.

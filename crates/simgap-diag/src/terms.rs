@@ -1,4 +1,4 @@
-//! Candidate terms: each unmodelled effect of BRIEF §3.2, as columns of a linear model of the
+//! Candidate terms: each unmodelled effect of the vocabulary, as columns of a linear model of the
 //! nominal residual `r = τ_cmd − (H q̈ + C q̇ + g)`, each with the bounds physics puts on its
 //! parameters (b, fc, fs − fc, ia, payload mass ≥ 0; a gain within [`GAIN_RANGE`]).
 //!
@@ -84,7 +84,7 @@ pub enum Term {
 }
 
 impl Term {
-    /// The effect's contract name (BRIEF §3.2).
+    /// The effect's contract name.
     pub fn effect_name(&self) -> &'static str {
         match self {
             Term::Viscous(_) => "viscous_friction",

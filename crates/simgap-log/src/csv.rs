@@ -1,4 +1,4 @@
-//! CSV logs with a column mapping, so that other people's files load unedited (BRIEF §3.1).
+//! CSV logs with a column mapping, so that other people's files load unedited.
 //!
 //! A [`CsvMapping`] names the time column and, per joint, the columns of measured position,
 //! velocity, commanded effort and the reference. Presets read the DFKI files in
