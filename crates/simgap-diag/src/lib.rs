@@ -889,6 +889,16 @@ fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, b
             names.join("; ")
         );
     }
+    // every horizon must improve for the gap to be called explained
+    let worse: Vec<String> =
+        k.horizons_s.iter().zip(k.before.iter().zip(&k.after)).filter(|(_, (b, a))| !(a < b)).map(|(h, (b, a))| format!("{h} s ({b:.3e} → {a:.3e} rad)")).collect();
+    if !worse.is_empty() {
+        return format!(
+            "partly explained: with {} the held-out {figure} goes {b:.3e} → {a:.3e} rad, but the k-step error is worse or equal at {}{diverged_note}",
+            names.join("; "),
+            worse.join(", ")
+        );
+    }
     format!("the gap is explained by {}; held-out {figure} {b:.3e} → {a:.3e} rad ({:.1} % of before){diverged_note}", names.join("; "), 100.0 * a / b)
 }
 
