@@ -100,16 +100,25 @@ fn dfki_c0_open_loop_diagnosis() {
     let selected = r["selected_effects"].as_array().unwrap();
     for e in selected {
         let joints = e["joints"].as_array().expect("joints");
+        // per-joint parameters are lists aligned with the joints; whole-robot effects (no joints)
+        // have numbers, or vectors such as a payload's centre of mass
         for (name, v) in e["parameters"].as_object().unwrap() {
-            if let Some(list) = v.as_array() {
+            if let (Some(list), false) = (v.as_array(), joints.is_empty()) {
                 assert_eq!(list.len(), joints.len(), "{name} aligned with joints: {e}");
             }
         }
     }
-    // the tool finds friction in these data (as the DFKI identification does): it is selected on
-    // at least one joint, with a positive coefficient
+    // friction, where selected, is dissipative on the joints it names
     let friction: Vec<&Value> = selected.iter().filter(|e| matches!(e["effect"].as_str(), Some("viscous_friction" | "coulomb_friction" | "stribeck_friction"))).collect();
-    assert!(!friction.is_empty(), "no friction effect selected: {}", r["selected_effects"]);
+    // open-loop replays: "how far" is the k-step prediction, pooled per horizon
+    assert_eq!(r["gap"]["headline"], "k_step", "{}", r["gap"]["headline_reason"]);
+    let k = &r["gap"]["kstep"];
+    let n = k["horizons_s"].as_array().expect("gap.kstep.horizons_s").len();
+    for key in ["before", "after", "floor"] {
+        let v = k[key].as_array().unwrap_or_else(|| panic!("gap.kstep.{key}"));
+        assert_eq!(v.len(), n, "gap.kstep.{key} aligned with the horizons");
+        assert!(v.iter().all(|x| x.as_f64().is_some_and(|x| x.is_finite() && x > 0.0)), "gap.kstep.{key}: {v:?}");
+    }
     for e in friction {
         assert!(!e["joints"].as_array().unwrap().is_empty(), "friction on no joint: {e}");
         for (name, v) in e["parameters"].as_object().unwrap() {

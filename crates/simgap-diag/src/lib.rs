@@ -496,6 +496,9 @@ fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run]
                 message: "no experiment (controller, joints, kp, kv, sample_period) in its metadata, sidecar or the call; expected one to predict and re-simulate it (use controller 'replay' for open-loop runs or an unknown controller)".into(),
             });
         };
+        if r.len() < 3 {
+            return Err(Error::Log { log: r.source.clone(), message: format!("{} samples; expected a log of at least a few seconds", r.len()) });
+        }
         let spacing = kstep::median_spacing(&r.t);
         let ratio = exp.sample_period / spacing;
         if !(exp.sample_period.is_finite() && exp.sample_period > 0.0) || !(0.02..=50.0).contains(&ratio) {

@@ -275,16 +275,17 @@ fn no_effect_is_physically_impossible_on_dfki_runs() {
     }
     assert_report_physical(&model, &d, &delivered, "DFKI C.0");
 
-    // simple pendulum, PD system identification record: first 8 s fitted, the next 4 s held out
+    // simple pendulum, PD system identification record (3.9 s): the first 60 % fitted, the rest held out
     let sp = root.join("dfki-simple-pendulum");
     let model = Model::from_urdf_file(sp.join("urdf/simplependul_dfki_pino_Modi.urdf")).unwrap();
     let run = simgap_log::csv::read_csv_auto(&sp.join("control_method_pd/system_identification/data_measured.csv.gz")).unwrap();
     let t0 = run.t[0];
     let period = run.duration() / (run.len() - 1) as f64;
-    let mut fit = head(run.clone(), 8.0);
+    let split = 0.6 * run.duration();
+    let mut fit = head(run.clone(), split);
     replay(&mut fit, period);
     let mut rest = run.clone();
-    let k = rest.t.iter().position(|&t| t - t0 > 8.0).unwrap_or(rest.len());
+    let k = rest.t.iter().position(|&t| t - t0 > split).unwrap_or(rest.len());
     let dof = rest.dof();
     rest.t.drain(..k);
     for m in [&mut rest.q, &mut rest.qd, &mut rest.tau, &mut rest.q_ref, &mut rest.qd_ref, &mut rest.tau_ff, &mut rest.tau_measured] {
@@ -292,7 +293,7 @@ fn no_effect_is_physically_impossible_on_dfki_runs() {
             m.drain(..k * dof);
         }
     }
-    let mut hold = head(rest, 4.0);
+    let mut hold = head(rest, 10.0);
     replay(&mut hold, period);
     let d = diagnose(&model, Formulation::EulerLagrange, &[fit], &[hold], &DiagnoseOptions::default(), &mut |_| {}).unwrap();
     println!("{}", d.report.summary());
