@@ -179,7 +179,7 @@ pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
             }
             Term::Delay { delay } => out.push(Effect::TimeDelay { delay }),
             Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
-            Term::Payload { com } => out.push(Effect::Payload { mass: th[0], com }),
+            Term::Payload { com, .. } => out.push(Effect::Payload { mass: th[0], com }),
             Term::InertialError { ref prior } => {
                 let dpi: Vec<f64> = prior.scales.iter().zip(th).map(|(s, t)| s * t).collect();
                 let deltas = (0..n).map(|j| delta_of(model, j, &dpi[PARAMS_PER_LINK * j..PARAMS_PER_LINK * (j + 1)])).filter(|d| !negligible(model, d)).collect();
@@ -245,7 +245,7 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
                 e.uncertainty.insert("delay".into(), Param::Number(f64::NAN));
             }
             Term::CoriolisStructure => {}
-            Term::Payload { com } => {
+            Term::Payload { com, .. } => {
                 e.parameters.insert("mass".into(), Param::Number(th[0]));
                 e.uncertainty.insert("mass".into(), Param::Number(ci(sd[0])));
                 e.parameters.insert("com".into(), Param::Vector(com.to_vec()));
@@ -266,6 +266,22 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
     }
     for e in &mut out {
         e.units = e.parameters.keys().map(|k| (k.clone(), param_unit(&e.effect, k).to_string())).collect();
+        // joints in model order, per-joint parameters along with them
+        let mut order: Vec<usize> = (0..e.joints.len()).collect();
+        order.sort_by_key(|&i| names.iter().position(|n| *n == e.joints[i]).unwrap_or(usize::MAX));
+        let per_link = e.parameters.values().any(|v| matches!(v, Param::PerLink(_)));
+        if !per_link && order.iter().enumerate().any(|(k, &i)| k != i) {
+            e.joints = order.iter().map(|&i| e.joints[i].clone()).collect();
+            for map in [&mut e.parameters, &mut e.uncertainty] {
+                for v in map.values_mut() {
+                    if let Param::PerJoint(list) = v {
+                        if list.len() == order.len() {
+                            *list = order.iter().map(|&i| list[i]).collect();
+                        }
+                    }
+                }
+            }
+        }
         if e.description.is_empty() {
             e.description = describe(model, e);
         }

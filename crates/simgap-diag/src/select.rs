@@ -183,7 +183,7 @@ impl<'a> Context<'a> {
                 let t = self.sample_period;
                 [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0].iter().map(|m| Term::Delay { delay: m * t }).collect()
             }
-            Family::Payload => vec![Term::Payload { com: [0.0; 3] }],
+            Family::Payload => vec![Term::Payload { com: [0.0; 3], max_mass: self.max_payload() }],
         }
     }
 
@@ -256,7 +256,7 @@ impl<'a> Context<'a> {
         let c0 = within(&c0.map(|x| if x.is_finite() { x } else { 0.0 }));
         let sse = |c: &[f64; 3]| -> f64 {
             let mut ds = rest.to_vec();
-            ds.push(design(&Term::Payload { com: within(c) }, self.data));
+            ds.push(design(&Term::Payload { com: within(c), max_mass: self.max_payload() }, self.data));
             let refs: Vec<&TermDesign> = ds.iter().collect();
             let gr = grams(p, &refs);
             let (mut g, mut cc, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
@@ -268,7 +268,17 @@ impl<'a> Context<'a> {
             let (t, _) = gr.solve(&g, &cc);
             s - 2.0 * t.dot(&cc) + t.dot(&(&g * &t))
         };
-        Term::Payload { com: within(&nelder_mead(sse, c0, 0.02, 60)) }
+        Term::Payload { com: within(&nelder_mead(sse, c0, 0.02, 60)), max_mass: self.max_payload() }
+    }
+
+    /// The largest plausible payload [kg]: twice the mass of the chain's links in the URDF.
+    fn max_payload(&self) -> f64 {
+        let total: f64 = self.prior.nominal.iter().step_by(simgap_core::PARAMS_PER_LINK).sum();
+        if total > 0.0 {
+            2.0 * total
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Designs a term (the inertial error uses the identifiable basis), from the cache when it

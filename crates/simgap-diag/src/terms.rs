@@ -73,6 +73,8 @@ pub enum Term {
     Payload {
         /// Centre of mass [m], last link frame.
         com: [f64; 3],
+        /// Largest plausible mass [kg] (twice the chain's mass: heavier is no payload).
+        max_mass: f64,
     },
     /// Corrections of every link's inertial parameters, physically consistent and regularised
     /// toward the URDF (see [`crate::inertial`]); its parameters are the stacked corrections
@@ -285,13 +287,14 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
             let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
             TermDesign::fixed(Column { joint: None, values: v })
         }
-        Term::Payload { com } => {
+        Term::Payload { com, max_mass } => {
             // a payload whose torque would exceed three times the largest commanded torque is no
             // payload this robot carried: its mass is bounded there
             let col = payload_column(data, com);
             let tau_max = data.iter().flat_map(|d| d.tau.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
             let col_max = col.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             let hi = if col_max > 0.0 && tau_max > 0.0 { 3.0 * tau_max / col_max } else { f64::INFINITY };
+            let hi = hi.min(max_mass);
             TermDesign { cols: vec![col], lo: vec![0.0], hi: vec![hi], ..Default::default() }
         }
         Term::InertialError { ref prior } => {

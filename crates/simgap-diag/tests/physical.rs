@@ -56,7 +56,7 @@ fn bounded_fits_keep_viscous_armature_stribeck_and_payload_physical() {
     for v in &mut p.y.values {
         *v = -*v;
     }
-    let terms = [Term::Viscous(0), Term::Armature(1), Term::Stribeck { joint: 0, vs: 0.1 }, Term::Gain(1), Term::Payload { com: [0.2, 0.0, 0.0] }];
+    let terms = [Term::Viscous(0), Term::Armature(1), Term::Stribeck { joint: 0, vs: 0.1 }, Term::Gain(1), Term::Payload { com: [0.2, 0.0, 0.0], max_mass: f64::INFINITY }];
     let (designs, gr, f) = fit_terms(&p, &data, &terms);
     let std = simgap_diag::fit::bootstrap_std(&gr, 20, 3);
     let fitted = simgap_diag::fit::fitted_terms(&terms, &designs, &f.theta, Some(&std));
