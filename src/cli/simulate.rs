@@ -189,14 +189,16 @@ fn log_format(path: &Path) -> anyhow::Result<&'static str> {
 
 /// Writes `run` to `path` (format by extension) through a hidden temporary file in the same
 /// folder and a rename; a CSV log's experiment goes to its sidecar file.
-fn write_log_atomically(run: &simgap::sim::Run, path: &Path) -> anyhow::Result<()> {
+fn write_log_atomically(run: &simgap::sim::Run, end: &RunEnd, path: &Path) -> anyhow::Result<()> {
     let name = path.file_name().with_context(|| format!("--out {}: not a file name", path.display()))?.to_string_lossy().to_string();
     // the temporary file keeps the extension, which chooses the format
     let tmp = path.with_file_name(format!(".partial-{}.{name}", std::process::id()));
     let csv = log_format(path)? == "csv";
     let tmp_sidecar = simgap::log::experiment::sidecar_path(&tmp);
     super::interrupt::IN_PROGRESS.lock().map(|mut v| v.extend([tmp.clone(), tmp_sidecar.clone()])).ok();
-    let result = simgap::log::write_log(run, &tmp).map_err(anyhow::Error::from).and_then(|()| {
+    // an MCAP log also says how the run ended (metadata `simgap.run_end`)
+    let written = if csv { simgap::log::write_log(run, &tmp) } else { simgap::log::write_mcap_ended(run, &tmp, end) };
+    let result = written.map_err(anyhow::Error::from).and_then(|()| {
         if csv && tmp_sidecar.exists() {
             std::fs::rename(&tmp_sidecar, simgap::log::experiment::sidecar_path(path))?;
         }
@@ -304,7 +306,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     }
     // the log, whole or up to the interruption, written atomically
     if let Some(path) = &args.out {
-        write_log_atomically(&run, path)?;
+        write_log_atomically(&run, &end, path)?;
         println!("wrote {}", path.display());
     }
     match end {

@@ -50,7 +50,7 @@ use std::path::{Path, PathBuf};
 use simgap_sim::{reorder_joints, Experiment, Run};
 
 pub use crate::error::{Error, Result};
-pub use crate::mcap::write::{write_mcap, Compression};
+pub use crate::mcap::write::{write_mcap, write_mcap_ended, Compression};
 pub use crate::mcap::{McapSink, McapWriter, RunTopics, SinkOptions};
 pub use crate::topics::{Role, TopicMap, TopicSpec};
 

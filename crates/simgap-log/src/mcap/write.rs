@@ -392,6 +392,19 @@ pub fn write_mcap(run: &Run, path: &Path) -> Result<()> {
 /// # Errors
 /// As [`write_mcap`].
 pub fn write_mcap_with_options(run: &Run, path: &Path, options: SinkOptions) -> Result<()> {
+    write_mcap_rows(run, path, options, None)
+}
+
+/// [`write_mcap`] of a simulated run, with how the run ended in the `simgap.run_end` metadata
+/// record (as the sink writes it while a run goes).
+///
+/// # Errors
+/// As [`write_mcap`].
+pub fn write_mcap_ended(run: &Run, path: &Path, end: &simgap_sim::RunEnd) -> Result<()> {
+    write_mcap_rows(run, path, SinkOptions::default(), Some(end))
+}
+
+fn write_mcap_rows(run: &Run, path: &Path, options: SinkOptions, end: Option<&simgap_sim::RunEnd>) -> Result<()> {
     let mut sink = McapSink::create_with_options(path, options)?;
     sink.set_start_ns(run.start_ns.unwrap_or(0));
     sink.begin_with(&run.joints, run.experiment.as_ref())?;
@@ -415,7 +428,10 @@ pub fn write_mcap_with_options(run: &Run, path: &Path, options: SinkOptions) -> 
             &run.tau_measured[row(&run.tau_measured, k)],
         )?;
     }
-    sink.close()
+    match end {
+        Some(end) => simgap_sim::Sink::finish(&mut sink, end).map_err(|e| crate::Error::Write { path: path.to_path_buf(), message: e.to_string() }),
+        None => sink.close(),
+    }
 }
 
 /// Topics one run is written on by [`McapWriter::write_run`].
