@@ -275,6 +275,25 @@ pub struct ScenarioScore {
     pub error: Option<String>,
 }
 
+impl ScenarioScore {
+    /// The score of a scenario that could not be generated or diagnosed.
+    fn failed(index: usize, robot: String, family: String, truth: Vec<String>, error: String) -> ScenarioScore {
+        ScenarioScore {
+            index,
+            robot,
+            family,
+            truth,
+            found: vec![],
+            exact: false,
+            in_alternatives: false,
+            kstep_ratio: f64::NAN,
+            parameter_errors: vec![],
+            holdout_ratio: f64::NAN,
+            error: Some(error),
+        }
+    }
+}
+
 fn label(s: &BTreeSet<(String, Option<String>)>) -> Vec<String> {
     s.iter()
         .map(|(e, j)| match j {
@@ -288,21 +307,7 @@ fn label(s: &BTreeSet<(String, Option<String>)>) -> Vec<String> {
 pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
     let sc = match scenario(seed, index) {
         Ok(s) => s,
-        Err(e) => {
-            return ScenarioScore {
-                index,
-                robot: String::new(),
-                family: String::new(),
-                truth: vec![],
-                found: vec![],
-                exact: false,
-                in_alternatives: false,
-                kstep_ratio: f64::NAN,
-                parameter_errors: vec![],
-                holdout_ratio: f64::NAN,
-                error: Some(e.to_string()),
-            }
-        }
+        Err(e) => return ScenarioScore::failed(index, String::new(), String::new(), vec![], e.to_string()),
     };
     let truth = truth_set(&sc.model, &sc.effects);
     match diagnose(&sc.model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &DiagnoseOptions::default(), &mut |_| {}) {
@@ -327,19 +332,7 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
                 error: None,
             }
         }
-        Err(e) => ScenarioScore {
-            index,
-            robot: sc.model.name().into(),
-            family: sc.family.into(),
-            truth: label(&truth),
-            found: vec![],
-            exact: false,
-            in_alternatives: false,
-            kstep_ratio: f64::NAN,
-            parameter_errors: vec![],
-            holdout_ratio: f64::NAN,
-            error: Some(e.to_string()),
-        },
+        Err(e) => ScenarioScore::failed(index, sc.model.name().into(), sc.family.into(), label(&truth), e.to_string()),
     }
 }
 
