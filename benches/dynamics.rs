@@ -126,7 +126,7 @@ fn batches(c: &mut Criterion) {
         let mut group = |name: &str, f: &mut dyn FnMut()| {
             let mut group = c.benchmark_group(name);
             group.throughput(Throughput::Elements(BATCH as u64)).measurement_time(Duration::from_secs(1)).warm_up_time(Duration::from_millis(300)).sample_size(20);
-            group.bench_function(id.as_str(), |b| b.iter(|| f()));
+            group.bench_function(id.as_str(), |b| b.iter(&mut *f));
             group.finish();
         };
         group("mass_matrix_batch", &mut || batch::mass_matrix_batch(model, black_box(&q), &mut h));

@@ -20,6 +20,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyFloat;
 use rayon::prelude::*;
+
+/// One block of a batch: its index and its slices of the three outputs.
+type OutBlock<'a> = (usize, ((&'a mut [f64], &'a mut [f64]), &'a mut [f64]));
 use simgap_core::{DynamicsTerms, Formulation, Model, UrdfOptions, Workspace};
 
 use crate::conv::{joint_vectors, output, require_finite, to_array, vector3, ArrayArg, Batch};
@@ -124,7 +127,7 @@ where
             let nblocks = count.div_ceil(block);
             let blocks: Vec<_> =
                 blocks_of(a, widths[0], block, nblocks).into_iter().zip(blocks_of(b, widths[1], block, nblocks)).zip(blocks_of(c, widths[2], block, nblocks)).enumerate().collect();
-            let run_block = |scratch: &mut Scratch, (i, ((a, b), c)): (usize, ((&mut [f64], &mut [f64]), &mut [f64]))| -> Result<(), StateError> {
+            let run_block = |scratch: &mut Scratch, (i, ((a, b), c)): OutBlock<'_>| -> Result<(), StateError> {
                 let first = start + i * block;
                 let states = (a.len().checked_div(widths[0])).or(b.len().checked_div(widths[1])).or(c.len().checked_div(widths[2])).unwrap_or(0);
                 for s in 0..states {
@@ -179,7 +182,7 @@ where
             let nblocks = count.div_ceil(block);
             let blocks: Vec<_> =
                 blocks_of(a, widths[0], block, nblocks).into_iter().zip(blocks_of(b, widths[1], block, nblocks)).zip(blocks_of(c, widths[2], block, nblocks)).enumerate().collect();
-            let run_block = |(i, ((a, b), c)): (usize, ((&mut [f64], &mut [f64]), &mut [f64]))| {
+            let run_block = |(i, ((a, b), c)): OutBlock<'_>| {
                 let first = start + i * block;
                 let last = (first + block).min(end);
                 kernel(&model, [input(0, first, last), input(1, first, last), input(2, first, last)], [a, b, c]);

@@ -386,7 +386,7 @@ pub fn interpolate_rows(ts: &[f64], m: &[f64], dof: usize, t: &[f64]) -> Vec<f64
     let mut i = 0;
     for &x in t {
         if ts.is_empty() {
-            out.extend(std::iter::repeat(0.0).take(dof));
+            out.extend(std::iter::repeat_n(0.0, dof));
             continue;
         }
         while i + 1 < ts.len() && ts[i + 1] <= x {
@@ -421,7 +421,7 @@ pub fn hold_rows(ts: &[f64], m: &[f64], dof: usize, t: &[f64]) -> Vec<f64> {
     let mut i = 0;
     for &x in t {
         if ts.is_empty() {
-            out.extend(std::iter::repeat(0.0).take(dof));
+            out.extend(std::iter::repeat_n(0.0, dof));
             continue;
         }
         while i + 1 < ts.len() && ts[i + 1] <= x {

@@ -134,12 +134,12 @@ impl TopicData {
         if has_velocity {
             self.velocity.extend_from_slice(&velocity);
         } else {
-            self.velocity.extend(std::iter::repeat(0.0).take(n));
+            self.velocity.extend(std::iter::repeat_n(0.0, n));
         }
         if has_effort {
             self.effort.extend_from_slice(&effort);
         } else {
-            self.effort.extend(std::iter::repeat(0.0).take(n));
+            self.effort.extend(std::iter::repeat_n(0.0, n));
         }
         self.any_stamp |= stamp != 0;
         self.msgs.push(MsgRef { stamp, log: log_ns, channel, start, len: n, has_velocity, has_effort });
