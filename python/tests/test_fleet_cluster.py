@@ -152,7 +152,6 @@ def test_a_broken_robot_day_is_recorded_with_its_error(fleet_run: tuple[list[dic
     assert len(row) == 1 and row["status"].iloc[0] == "error" and "LogError" in row["error"].iloc[0]
 
 
-@pytest.mark.xfail(strict=True, reason="known regression of this round: on one day of the payload robot the diagnosis trades elbow Coulomb friction (fc 0.47 instead of 1.7 N m) for the payload, which flags that robot as drifting too; strict, so the test fails again once the diagnosis is fixed")
 def test_exactly_the_rising_robot_drifts_and_the_payload_robot_stands_out_from_day_3(synthetic: SyntheticFleet, fleet_run: tuple[list[dict[str, Any]], str, float], tmp_path: Path) -> None:
     result = fleet.FleetResult.from_results(fleet_run[0])
     dr = result.drift()

@@ -22,7 +22,6 @@ def findings(text: str) -> list[tuple[str, ...]]:
     return [m.groups() for line in text.splitlines() if (m := FINDING.match(line))]
 
 
-@pytest.mark.xfail(strict=True, reason="known regression of this round: on one day of the payload robot the diagnosis trades elbow Coulomb friction (fc 0.47 instead of 1.7 N m) for the payload, which flags that robot as drifting too; strict, so the test fails again once the diagnosis is fixed")
 def test_example_prints_the_findings_of_the_doc(tmp_path: Path) -> None:
     proc = subprocess.run([sys.executable, "-m", "simgap.fleet.example", "--dir", str(tmp_path / "fleet"), "--html", str(tmp_path / "fleet.html")], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr

@@ -36,10 +36,12 @@
 //!
 //! **Reach** (documented rule): the centre of mass of link i stays in the ball about its joint
 //! origin of radius ρᵢ = 1.25 · max(|p_{i+1}|, |cᵢ|, 0.1 L) for a link with a child joint at
-//! `p_{i+1}`, and ρ = 1.5 · max(|c|, r_g, 0.1 L) for the last link (no child joint: its extent is
-//! judged from its URDF centre of mass `c` and radius of gyration `r_g = √(tr I_c / 2m)`), with L
-//! the length of the chain (joint-to-joint distances plus the last link's |c|). A payload's centre
-//! of mass obeys the last link's ball.
+//! `p_{i+1}`, and ρ = max(1.5 · max(|c|, r_g, 0.1 L), 1.25 · ℓ) for the last link (no child
+//! joint: its extent is judged from its URDF centre of mass `c`, its radius of gyration
+//! `r_g = √(tr I_c / 2m)`, and ℓ, the longest joint-to-joint distance of the chain: a forearm or a
+//! tool flange may be as long as the links before it, and a tool sits at its far end), with L the
+//! length of the chain (joint-to-joint distances plus the last link's |c|). A payload's centre of
+//! mass obeys the last link's ball.
 //!
 //! **Plausibility bounds**: a corrected link's mass stays within a factor [`MASS_FACTOR`] of the
 //! URDF's, and the diagonal of the Cholesky factor of its second moment about the centre of mass
@@ -232,6 +234,7 @@ pub fn link_reach(model: &Model) -> Vec<f64> {
     let com = |i: usize| joints[i].inertia.com().norm();
     let length: f64 = joints.iter().skip(1).map(|j| j.placement.translation.norm()).sum::<f64>() + if n > 0 { com(n - 1) } else { 0.0 };
     let floor = (0.1 * length).max(0.02);
+    let longest = joints.iter().skip(1).map(|j| j.placement.translation.norm()).fold(0.0f64, f64::max);
     (0..n)
         .map(|i| {
             if i + 1 < n {
@@ -239,7 +242,7 @@ pub fn link_reach(model: &Model) -> Vec<f64> {
             } else {
                 let s = &joints[i].inertia;
                 let rg = if s.mass > 0.0 { (s.inertia_about_com().trace().max(0.0) / (2.0 * s.mass)).sqrt() } else { 0.0 };
-                1.5 * com(i).max(rg).max(floor)
+                (1.5 * com(i).max(rg).max(floor)).max(1.25 * longest)
             }
         })
         .collect()

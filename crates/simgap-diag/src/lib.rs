@@ -683,15 +683,18 @@ fn refine_by_prediction(
             .map(|(i, (_, g))| (i, g.iter().filter(|t| fits_in(terms, t)).cloned().collect::<Vec<_>>()))
             .filter(|(_, g)| !g.is_empty())
             .collect();
-        let scores: Vec<f64> = tries
+        // each completed set with its nonlinear parameters re-searched jointly
+        let scored: Vec<(Vec<Term>, f64)> = tries
             .par_iter()
             .map(|(_, g)| {
                 let mut with = terms.clone();
                 with.extend(g.iter().cloned());
-                scorer.score(&with)
+                let with = select::repolish(scorer.ctx, &with);
+                let s = scorer.score(&with);
+                (with, s)
             })
             .collect();
-        let Some((k, best)) = scores.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)) else { break };
+        let Some((k, best)) = scored.iter().map(|s| s.1).enumerate().min_by(|a, b| a.1.total_cmp(&b.1)) else { break };
         if best < current * (1.0 - ADD_GAIN) {
             let (gi, g) = &tries[k];
             for t in g {
@@ -705,7 +708,7 @@ fn refine_by_prediction(
                     ),
                 });
             }
-            terms.extend(g.iter().cloned());
+            *terms = scored[k].0.clone();
             current = best;
             added += 1;
         } else {

@@ -744,6 +744,24 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     Selection { terms, fit: current, designs, nominal_cv_mse: nominal.cv_mse, log }
 }
 
+/// Re-searches the nonlinear parameter of every term of `terms` (payload centre of mass,
+/// Stribeck velocity, saturation limit, cogging periods, delay) jointly with the others, on the
+/// torque residual: a set assembled one whole effect at a time (the prediction stage's
+/// completion) otherwise keeps the value each term took when it was fitted without the rest,
+/// e.g. a payload's centre of mass pulled toward the friction it was standing in for.
+pub fn repolish(ctx: &Context<'_>, terms: &[Term]) -> Vec<Term> {
+    if !terms.iter().any(|t| family_of(t).is_some()) {
+        return terms.to_vec();
+    }
+    let p = &ctx.problem;
+    let mut terms = terms.to_vec();
+    let mut designs: Vec<TermDesign> = terms.iter().map(|t| ctx.design(t)).collect();
+    let refs: Vec<&TermDesign> = designs.iter().collect();
+    let mut current = fit(p, &grams(p, &refs));
+    polish(ctx, &mut terms, &mut designs, &mut current);
+    terms
+}
+
 /// The family a term belongs to.
 fn family_of(t: &Term) -> Option<Family> {
     match *t {
