@@ -216,6 +216,19 @@ fn no_effect_is_physically_impossible_on_synthetic_runs() {
     assert_report_physical(&model, &d, &[], "paper arm");
 }
 
+#[test]
+fn no_effect_is_physically_impossible_in_selfcheck_scenarios() {
+    // blind scenarios of the self-check (robots, hidden effects, open and closed loop)
+    for index in 0..4 {
+        let sc = simgap_diag::selfcheck::scenario(3, index).unwrap();
+        let d = diagnose(&sc.model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &DiagnoseOptions::default(), &mut |_| {}).unwrap();
+        let truth: Vec<&str> = sc.effects.iter().map(|e| e.name()).collect();
+        let found: Vec<&str> = d.report.selected_effects.iter().map(|e| e.effect.as_str()).collect();
+        println!("scenario {index} ({}, {}): hidden {truth:?}, selected {found:?}", sc.model.name(), sc.family);
+        assert_report_physical(&sc.model, &d, &[], &format!("self-check scenario {index}"));
+    }
+}
+
 fn shared_data() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
 }
