@@ -114,6 +114,14 @@ const SECOND_PATH_ABOVE: f64 = 0.5;
 /// Two sets whose prediction scores differ by less than this (relative) are a tie.
 const TIE_TOLERANCE: f64 = 0.02;
 
+/// The verdict says "explained" only when the selected effects leave at most this fraction of
+/// the held-out gap (and no horizon gets worse); above it, "partly explained".
+const EXPLAINED_BELOW: f64 = 0.5;
+
+/// Above this fraction of the held-out gap left, the verdict says "barely explained" (the HTML
+/// banner's "barely change" uses the same figure).
+const BARELY_ABOVE: f64 = 0.9;
+
 /// Everything the stages share: the model, the prepared runs, the fit context.
 struct Prepared {
     fit_runs: Vec<Run>,
@@ -162,7 +170,12 @@ impl Scorer<'_> {
             let e = kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new());
             return e.map(|e| e.rms()).unwrap_or_else(|_| vec![f64::INFINITY; self.prep.horizons.len()]);
         }
-        let (designs, gr, _) = fit_terms(&self.ctx.problem, self.ctx.data, terms);
+        let (designs, gr, all) = fit_terms(&self.ctx.problem, self.ctx.data, terms);
+        // a set whose fit on all the fit data leaves an effect at a plausibility bound (a
+        // payload at its largest mass) is no answer, however well it predicts
+        if !select::admissible(&designs, terms, &all.theta) {
+            return vec![f64::INFINITY; self.prep.horizons.len()];
+        }
         let effects_of = |f: usize| -> Vec<Effect> {
             let theta = fold_theta(&gr, f);
             effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
@@ -905,7 +918,23 @@ fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, b
             worse.join(", ")
         );
     }
-    format!("the gap is explained by {}; held-out {figure} {b:.3e} → {a:.3e} rad ({:.1} % of before){diverged_note}", names.join("; "), 100.0 * a / b)
+    // how much of the gap is gone decides the word: a small improvement is no explanation
+    let ratio = a / b;
+    if ratio > BARELY_ABOVE {
+        return format!(
+            "barely explained: with {} the held-out {figure} goes {b:.3e} → {a:.3e} rad ({:.1} % of before), a change of the size noise and small unmodelled effects make{diverged_note}",
+            names.join("; "),
+            100.0 * ratio
+        );
+    }
+    if ratio > EXPLAINED_BELOW {
+        return format!(
+            "partly explained: {} shrink the held-out {figure} {b:.3e} → {a:.3e} rad ({:.1} % of before); more than half of the gap remains{diverged_note}",
+            names.join("; "),
+            100.0 * ratio
+        );
+    }
+    format!("the gap is explained by {}; held-out {figure} {b:.3e} → {a:.3e} rad ({:.1} % of before){diverged_note}", names.join("; "), 100.0 * ratio)
 }
 
 fn describe_term(t: &Term, joints: &[String]) -> String {

@@ -521,16 +521,35 @@ pub fn physical(term: &Term, theta: &[f64]) -> bool {
     }
 }
 
+/// Whether a fitted parameter of a term sits at a plausibility bound other than zero (a payload
+/// at its largest mass, a torque gain at an end of [`GAIN_RANGE`]): the data pull further than
+/// the effect can go, so the term stands in for something else and is not an answer. A
+/// parameter at zero (no friction) is an absent effect, not a stand-in.
+pub fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
+    let tol = |b: f64| 1e-6 * b.abs().max(1e-9);
+    theta.iter().enumerate().any(|(k, &x)| {
+        let (lo, hi) = (d.lo.get(k).copied().unwrap_or(f64::NEG_INFINITY), d.hi.get(k).copied().unwrap_or(f64::INFINITY));
+        (hi.is_finite() && hi != 0.0 && x >= hi - tol(hi)) || (lo.is_finite() && lo != 0.0 && x <= lo + tol(lo))
+    })
+}
+
+/// Whether every term of a set is physical and none stands at a plausibility bound.
 fn all_physical(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
     let mut c = 0;
     for (t, d) in terms.iter().zip(designs) {
         let k = d.cols.len();
-        if !physical(t, &contract_parameters(t, &theta.as_slice()[c..c + k])) {
+        let th = &theta.as_slice()[c..c + k];
+        if !physical(t, &contract_parameters(t, th)) || at_plausibility_bound(d, th) {
             return false;
         }
         c += k;
     }
     true
+}
+
+/// [`all_physical`] for a set fitted by [`fit_terms`].
+pub fn admissible(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
+    all_physical(designs, terms, theta)
 }
 
 /// The cross-validated figure a term is judged on: its joint's for a per-joint term, the
