@@ -434,6 +434,12 @@ class Report:
         """Warnings about the logs and the answer (glitches, inferred sensors, URDF pitfalls,
         what the residual still holds)."""
     @property
+    def residual(self) -> list[dict[str, Any]]:
+        """What is left after the selected effects, per joint: ``rms`` [N·m],
+        ``share_of_torque``, ``phase_rms`` (forward, backward, near rest), ``explained_by`` (the
+        share of the residual that follows position, velocity, acceleration, torque or time on
+        held-out halves) and ``kind`` (``negligible``, ``noise-like`` or ``structured``)."""
+    @property
     def location(self) -> dict[str, Any]:
         """Where the gap lies (the report's ``where``): ``per_joint`` shares, ``worst_segments``,
         residual ``correlations``."""

@@ -362,6 +362,15 @@ impl PyReport {
         self.field(py, "notes")
     }
 
+    /// What is left after the selected effects, per joint: `rms` [N·m], `share_of_torque`,
+    /// `phase_rms` (forward, backward, near rest), `explained_by` (the share of the residual that
+    /// follows position, velocity, acceleration, torque or time on held-out halves) and `kind`
+    /// (`negligible`, `noise-like` or `structured`).
+    #[getter]
+    fn residual<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.field(py, "residual")
+    }
+
     /// Where the gap lies (the report's `where`): `per_joint` shares, `worst_segments`,
     /// residual `correlations`.
     #[getter]

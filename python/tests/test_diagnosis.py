@@ -96,6 +96,11 @@ def test_report_contract(report: simgap.Report) -> None:
     assert "where" in report and "nope" not in report
     assert report.keys() == list(data)
     assert report.verdict == data["verdict"] and report.formulation == data["formulation"]
+    # what is left, per joint, in the model's joint order
+    assert report.residual == data["residual"] and [r["joint"] for r in report.residual] == data["joints"]
+    for r in report.residual:
+        assert r["kind"] in ("negligible", "noise-like", "structured") and r["rms"] >= 0
+        assert set(r["explained_by"]) == {"position", "velocity", "acceleration", "torque", "time"}
     assert report.joints == simgap.Model.paper_arm().joint_names
     with pytest.raises(KeyError):
         report["nope"]

@@ -163,6 +163,9 @@ pub struct Report {
     /// Warnings about the logs and the answer (glitches removed, sensors inferred, URDF
     /// pitfalls the data reveal, what the residual still holds).
     pub notes: Vec<String>,
+    /// What is left: the torque residual after the selected effects on the fit runs, per joint
+    /// (noise-like, or structured and following which signal; see [`crate::residual`]).
+    pub residual: Vec<crate::residual::ResidualTest>,
     /// How far the gap shrinks on held-out runs.
     pub gap: Gap,
     /// Where the gap lies.
