@@ -125,6 +125,16 @@ impl InertialPrior {
         })
     }
 
+    /// Whether a corrected link's mass sits at a [`MASS_FACTOR`] bound (within 0.1 %): the
+    /// data pull further than a correction of this URDF can go.
+    pub fn at_mass_bound(&self, theta: &[f64]) -> bool {
+        (0..self.links()).any(|i| {
+            let m0 = self.nominal[i * PARAMS_PER_LINK];
+            let ratio = self.corrected(theta, i)[0] / m0;
+            m0 > 0.0 && (ratio <= 1.001 / MASS_FACTOR || ratio >= 0.999 * MASS_FACTOR)
+        })
+    }
+
     /// Whether the corrected links are physical: mass > 0, pseudo-inertia positive definite,
     /// centre of mass within reach (a relative tolerance of 1e-6 on each).
     pub fn is_physical(&self, theta: &[f64]) -> bool {

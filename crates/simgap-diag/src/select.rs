@@ -522,10 +522,14 @@ pub fn physical(term: &Term, theta: &[f64]) -> bool {
 }
 
 /// Whether a fitted parameter of a term sits at a plausibility bound other than zero (a payload
-/// at its largest mass, a torque gain at an end of [`GAIN_RANGE`]): the data pull further than
-/// the effect can go, so the term stands in for something else and is not an answer. A
-/// parameter at zero (no friction) is an absent effect, not a stand-in.
+/// at its largest mass, a torque gain at an end of [`GAIN_RANGE`], a corrected link's mass at a
+/// factor [`crate::inertial::MASS_FACTOR`] of the URDF's): the data pull further than the
+/// effect can go, so the term stands in for something else and is not an answer. A parameter
+/// at zero (no friction) is an absent effect, not a stand-in.
 pub fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
+    if let Some(prior) = &d.inertial {
+        return prior.at_mass_bound(theta);
+    }
     let tol = |b: f64| 1e-6 * b.abs().max(1e-9);
     theta.iter().enumerate().any(|(k, &x)| {
         let (lo, hi) = (d.lo.get(k).copied().unwrap_or(f64::NEG_INFINITY), d.hi.get(k).copied().unwrap_or(f64::INFINITY));
