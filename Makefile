@@ -1,15 +1,22 @@
 # One command runs every test, Rust and Python, on a fresh machine: `make test`.
-# It creates .venv, installs requirements-test.txt and the simgap Python package, then runs
-# cargo test (default members) and pytest.
+# It checks formatting and lints (rustfmt, clippy -D warnings), creates .venv, installs
+# requirements-test.txt and the simgap Python package, then runs cargo test (default members)
+# and pytest.
 
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: test rust-test python-test browser venv python-package demo bench compare-pinocchio clean
+.PHONY: test lint rust-test python-test browser venv python-package demo bench compare-pinocchio clean
 
-test: rust-test python-test
+test: lint rust-test python-test
+
+# Formatting and lints: `cargo fmt` as configured in rustfmt.toml, clippy with every warning an
+# error (the workspace's deliberate exceptions are in Cargo.toml, with their reasons).
+lint:
+	cargo fmt --all -- --check
+	cargo clippy --workspace --all-targets -- -D warnings
 
 # Tests build in release: they share the artefacts of the CLI build, and the diagnosis tests
 # simulate and fit real runs (20x slower unoptimised).

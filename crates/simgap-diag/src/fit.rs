@@ -13,6 +13,9 @@ pub const BLOCKS_PER_RUN: usize = 20;
 /// Bootstrap blocks per cross-validation fold (so 5 contiguous folds per run).
 pub const BLOCKS_PER_FOLD: usize = 4;
 
+/// The inertial columns' scales and their block Grams.
+type InertialGram = (Vec<f64>, Vec<DMatrix<f64>>);
+
 /// The fitting problem: residuals of all runs, joint weights and sample blocks.
 #[derive(Clone, Debug)]
 pub struct Problem {
@@ -32,7 +35,7 @@ pub struct Problem {
     pub y: Column,
     /// The block Grams of the inertial correction's columns with themselves, by their scales (the
     /// same columns recur in every fit of a selection).
-    inertial_gram: std::sync::Arc<std::sync::Mutex<Option<(Vec<f64>, Vec<DMatrix<f64>>)>>>,
+    inertial_gram: std::sync::Arc<std::sync::Mutex<Option<InertialGram>>>,
 }
 
 impl Problem {
@@ -153,7 +156,7 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
         }
     }
     let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
-    let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat(i).take(d.cols.len())).collect();
+    let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat_n(i, d.cols.len())).collect();
     let k = cols.len();
     let (mut lo, mut hi) = (Vec::with_capacity(k), Vec::with_capacity(k));
     let mut inertial = None;

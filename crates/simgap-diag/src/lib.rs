@@ -531,7 +531,7 @@ fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run]
         }
         let spacing = kstep::median_spacing(&r.t);
         let ratio = exp.sample_period / spacing;
-        if !(exp.sample_period.is_finite() && exp.sample_period > 0.0) || !(0.02..=50.0).contains(&ratio) {
+        if !(exp.sample_period.is_finite() && exp.sample_period > 0.0 && (0.02..=50.0).contains(&ratio)) {
             return Err(Error::Log {
                 log: r.source.clone(),
                 message: format!(

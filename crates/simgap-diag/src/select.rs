@@ -585,6 +585,7 @@ fn grid_penalty(t: &Term) -> f64 {
 }
 
 /// One pass of exchange moves; true when a swap was made.
+#[allow(clippy::too_many_arguments)]
 fn exchange(
     ctx: &Context<'_>,
     fams: &[Family],

@@ -126,7 +126,7 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
             RunSpec { name, controller, kp: kp.clone(), kv: kv.clone(), reference, duration }
         };
         let fit_specs: Vec<RunSpec> = (0..3).map(|i| spec(format!("s{index}-fit{i}"), 4.0, &mut rng)).collect();
-        let hold_specs = vec![spec(format!("s{index}-holdout"), 6.0, &mut rng)];
+        let hold_specs = [spec(format!("s{index}-holdout"), 6.0, &mut rng)];
         let nominal = generate(&model, Formulation::EulerLagrange, &[], &fit_specs[0], 0.0025, 1_024_000.0)?;
         let count = [0, 1, 1, 1, 1, 1, 2, 2, 2, 0][rng.random_range(0..10)];
         let mut effects: Vec<Effect> = Vec::new();
