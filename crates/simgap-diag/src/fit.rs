@@ -141,17 +141,39 @@ pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
 
 /// [`grams`] against another residual `y` (a global column over the problem's rows).
 pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams {
-    // y' = y − Σ offsets, as a global column
-    let mut y = y.clone();
-    for d in designs {
-        if let Some(off) = &d.offset {
-            for s in 0..p.samples {
-                for j in 0..p.dof {
-                    y.values[s * p.dof + j] -= off.at(s, j, p.dof);
+    grams_against_known(p, y, designs, None)
+}
+
+/// `y·y` per (block, joint) of a global column, as [`grams_against`] computes it: pass it to
+/// [`grams_against_known`] when many designs without offset are fitted against one `y`.
+pub fn block_squares(p: &Problem, y: &Column) -> Vec<f64> {
+    let mut buf = vec![0.0; p.blocks * p.dof];
+    p.dot_blocks(y, y, &mut buf);
+    buf
+}
+
+/// [`grams_against`] with `y·y` per block already known (`y_squares` from [`block_squares`]
+/// of the same `y`; used only when no design has a fixed offset, which changes `y`).
+pub fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesign], y_squares: Option<&[f64]>) -> Grams {
+    // y' = y − Σ offsets, as a global column (y itself without offsets)
+    let has_offset = designs.iter().any(|d| d.offset.is_some());
+    let shifted;
+    let y = if has_offset {
+        let mut v = y.clone();
+        for d in designs {
+            if let Some(off) = &d.offset {
+                for s in 0..p.samples {
+                    for j in 0..p.dof {
+                        v.values[s * p.dof + j] -= off.at(s, j, p.dof);
+                    }
                 }
             }
         }
-    }
+        shifted = v;
+        &shifted
+    } else {
+        y
+    };
     let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
     let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat(i).take(d.cols.len())).collect();
     let k = cols.len();
@@ -218,13 +240,18 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
         if zero[a] {
             continue;
         }
-        p.dot_blocks(cols[a], &y, &mut buf);
+        p.dot_blocks(cols[a], y, &mut buf);
         for (bl, v) in buf.iter().enumerate() {
             c[bl][a] = *v;
         }
     }
-    p.dot_blocks(&y, &y, &mut buf);
-    s.copy_from_slice(&buf);
+    match y_squares {
+        Some(known) if !has_offset => s.copy_from_slice(known),
+        _ => {
+            p.dot_blocks(y, y, &mut buf);
+            s.copy_from_slice(&buf);
+        }
+    }
     Grams { k, g, c, s, owner, dof: p.dof, lo, hi, inertial }
 }
 
