@@ -22,6 +22,9 @@ pub struct Problem {
     pub samples: usize,
     /// Block of every sample.
     pub block_of: Vec<usize>,
+    /// First sample of every block, and the number of samples last (`blocks + 1` entries):
+    /// blocks are contiguous.
+    block_start: Vec<usize>,
     /// Number of blocks.
     pub blocks: usize,
     /// Weight of each joint's rows (1 / RMS of its commanded torque).
@@ -55,36 +58,49 @@ impl Problem {
         let tau_rms: Vec<f64> = (0..dof).map(|j| rms(&|s, j| tau[s * dof + j], j)).collect();
         // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();
-        Problem { dof, samples, block_of, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
+        let block_start = (0..=blocks).map(|b| block_of.partition_point(|&x| x < b)).collect();
+        Problem { dof, samples, block_of, block_start, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
     }
 
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
     fn dot_blocks(&self, a: &Column, b: &Column, out: &mut [f64]) {
         out.fill(0.0);
         let dof = self.dof;
+        // blocks are contiguous ranges of samples: each sum runs over its range in order
+        let ranges = self.block_start.windows(2).enumerate().map(|(bl, r)| (bl, r[0]..r[1]));
         match (a.joint, b.joint) {
             (Some(ja), Some(jb)) => {
                 if ja == jb {
                     let w2 = self.weights[ja].powi(2);
-                    for s in 0..self.samples {
-                        out[self.block_of[s] * dof + ja] += w2 * a.values[s] * b.values[s];
+                    for (bl, r) in ranges {
+                        let mut acc = 0.0;
+                        for (x, y) in a.values[r.clone()].iter().zip(&b.values[r]) {
+                            acc += w2 * x * y;
+                        }
+                        out[bl * dof + ja] = acc;
                     }
                 }
             }
             (Some(j), None) | (None, Some(j)) => {
                 let (pj, g) = if a.joint.is_some() { (a, b) } else { (b, a) };
                 let w2 = self.weights[j].powi(2);
-                for s in 0..self.samples {
-                    out[self.block_of[s] * dof + j] += w2 * pj.values[s] * g.values[s * dof + j];
+                for (bl, r) in ranges {
+                    let mut acc = 0.0;
+                    for s in r {
+                        acc += w2 * pj.values[s] * g.values[s * dof + j];
+                    }
+                    out[bl * dof + j] = acc;
                 }
             }
             (None, None) => {
                 let w2: Vec<f64> = self.weights.iter().map(|w| w * w).collect();
-                for s in 0..self.samples {
-                    let base = self.block_of[s] * dof;
-                    let (ra, rb) = (&a.values[s * dof..(s + 1) * dof], &b.values[s * dof..(s + 1) * dof]);
-                    for j in 0..dof {
-                        out[base + j] += w2[j] * ra[j] * rb[j];
+                for (bl, r) in ranges {
+                    let acc = &mut out[bl * dof..(bl + 1) * dof];
+                    for s in r {
+                        let (ra, rb) = (&a.values[s * dof..(s + 1) * dof], &b.values[s * dof..(s + 1) * dof]);
+                        for j in 0..dof {
+                            acc[j] += w2[j] * ra[j] * rb[j];
+                        }
                     }
                 }
             }
