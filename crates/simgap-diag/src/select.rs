@@ -114,8 +114,10 @@ pub struct Context<'a> {
 /// largest commanded torque.
 struct PayloadBasis {
     /// Per row, the basis entries that are not zero in every row (a planar motion leaves
-    /// most of them zero), row-major.
+    /// most of them zero), row-major, rows by decreasing Euclidean norm.
     rows: Vec<f64>,
+    /// The norm of each of those rows.
+    norms: Vec<f64>,
     /// Which of the ten parameters those entries belong to.
     nonzero: Vec<usize>,
     design: TermDesign,
@@ -290,8 +292,17 @@ impl<'a> Context<'a> {
             let rows = payload_basis_rows(self.data);
             let cols: Vec<Column> = (0..PARAMS_PER_LINK).map(|i| Column { joint: None, values: rows.iter().skip(i).step_by(PARAMS_PER_LINK).copied().collect() }).collect();
             let nonzero: Vec<usize> = (0..PARAMS_PER_LINK).filter(|&i| cols[i].values.iter().any(|v| *v != 0.0)).collect();
-            let rows = rows.chunks_exact(PARAMS_PER_LINK).flat_map(|r| nonzero.iter().map(move |&i| r[i])).collect();
-            PayloadBasis { rows, nonzero, design: TermDesign::free(cols), tau_max: largest_command(self.data) }
+            let mut compact: Vec<(f64, Vec<f64>)> = rows
+                .chunks_exact(PARAMS_PER_LINK)
+                .map(|r| {
+                    let v: Vec<f64> = nonzero.iter().map(|&i| r[i]).collect();
+                    (v.iter().map(|x| x * x).sum::<f64>().sqrt(), v)
+                })
+                .collect();
+            compact.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let norms = compact.iter().map(|r| r.0).collect();
+            let rows = compact.into_iter().flat_map(|r| r.1).collect();
+            PayloadBasis { rows, norms, nonzero, design: TermDesign::free(cols), tau_max: largest_command(self.data) }
         });
         let mut refs: Vec<&TermDesign> = rest.iter().collect();
         refs.push(&basis.design);
@@ -314,13 +325,19 @@ impl<'a> Context<'a> {
         let mut sse = |com: &[f64; 3]| -> f64 {
             let pi = point_mass_parameters(within(com));
             // the mass bound from the column's largest entry, as the payload's design states it
-            // (the entries left out are zero: the same sums)
+            // (the entries left out are zero: the same sums); |row·π| <= ‖row‖ ‖π‖, so once
+            // that bound falls below the largest entry found, no later row can exceed it
             let pi_nz: Vec<f64> = basis.nonzero.iter().map(|&i| pi[i]).collect();
-            let col_max = if pi_nz.is_empty() {
-                0.0
-            } else {
-                basis.rows.chunks_exact(pi_nz.len()).map(|row| row.iter().zip(&pi_nz).map(|(a, b)| a * b).sum::<f64>()).fold(0.0f64, |m, v| m.max(v.abs()))
-            };
+            let pi_norm = pi_nz.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let mut col_max = 0.0f64;
+            if !pi_nz.is_empty() {
+                for (row, norm) in basis.rows.chunks_exact(pi_nz.len()).zip(&basis.norms) {
+                    if norm * pi_norm * (1.0 + 1e-9) < col_max {
+                        break;
+                    }
+                    col_max = col_max.max(row.iter().zip(&pi_nz).map(|(a, b)| a * b).sum::<f64>().abs());
+                }
+            }
             solver.hi[k] = payload_mass_bound(col_max, basis.tau_max, max_mass);
             // the payload column's inner products: Y π against the rest, itself and the residual
             for a in 0..k {
