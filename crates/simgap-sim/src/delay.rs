@@ -9,9 +9,10 @@
 //! ```
 //!
 //! (the fractional part interpolates between the two commands the delayed hold straddles), and
-//! before the first sample the first command. The simulator ([`crate::simulate`]), the k-step
-//! prediction and the torque-residual fit of the diagnosis all form the delayed command here,
-//! so that they agree to the last bit, also at exact multiples of the sample period.
+//! before the first sample the first command. The simulator
+//! ([`simulate`](crate::simulate::simulate)), the k-step prediction and the torque-residual fit
+//! of the diagnosis all form the delayed command here, so that they agree to the last bit,
+//! also at exact multiples of the sample period.
 
 /// A delay split into whole samples and a fraction of a sample (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
