@@ -12,8 +12,8 @@ use simgap_sim::{simulate_experiment, ControllerKind, Effect, Experiment, Fourie
 
 const PERIOD: f64 = 0.0025;
 
-/// Delays [s]: none, exact multiples of the period written as decimals (whose division by
-/// the period is not an integer in floating point), and fractions of a sample.
+/// Delays [s]: none, exact multiples of the period written as decimals (0.0175 / 0.0025 is
+/// 7.000000000000001 in floating point), and fractions of a sample.
 const DELAYS: [f64; 6] = [0.0, 0.0025, 0.0075, 0.0175, 0.0035, 0.00625];
 
 fn joints(model: &Model) -> Vec<String> {

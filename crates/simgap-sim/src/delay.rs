@@ -26,8 +26,8 @@ pub struct DelayLine {
 impl DelayLine {
     /// The delay line of `delay` seconds for commands every `period` seconds. A ratio
     /// `delay / period` within 1e-9 of an integer is that integer, so that a delay written as
-    /// a multiple of the period (`0.0075` for three samples of `0.0025`) delays by whole
-    /// samples despite the rounding of the division. A delay that is zero, negative, NaN, or
+    /// a multiple of the period delays by whole samples despite the rounding of the division
+    /// (`0.0175 / 0.0025` is 7.000000000000001 in floating point). A delay that is zero, negative, NaN, or
     /// a period that is not positive, is no delay.
     pub fn new(delay: f64, period: f64) -> DelayLine {
         let ratio = delay / period;
@@ -92,10 +92,11 @@ mod tests {
 
     #[test]
     fn exact_multiples_of_the_period_delay_by_whole_samples() {
-        for (m, period) in [(1usize, 0.0025), (3, 0.0025), (7, 0.002), (2, 0.001)] {
-            // 0.0075 / 0.0025 = 2.9999999999999996 in floating point
-            let line = DelayLine::new(m as f64 * period, period);
-            assert_eq!((line.whole(), line.frac()), (m, 0.0), "{m} × {period}");
+        // 0.0175 / 0.0025 = 7.000000000000001 and 0.035 / 0.0025 = 14.000000000000002 in
+        // floating point
+        for (delay, period, m) in [(0.0025, 0.0025, 1usize), (0.0075, 0.0025, 3), (0.0175, 0.0025, 7), (0.035, 0.0025, 14), (0.014, 0.002, 7)] {
+            let line = DelayLine::new(delay, period);
+            assert_eq!((line.whole(), line.frac()), (m, 0.0), "{delay} / {period}");
         }
     }
 
