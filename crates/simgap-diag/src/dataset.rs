@@ -2,7 +2,7 @@
 //! inverse-dynamics residual `r = τ_cmd − (H q̈ + C q̇ + g)`.
 
 use simgap_core::{bias_torques_into, inverse_dynamics_regressor_into, mass_matrix_into, Formulation, Model, Workspace, PARAMS_PER_LINK};
-use simgap_sim::Run;
+use simgap_sim::{DelayLine, Run};
 
 use crate::differentiate::Smoother;
 use crate::error::{Error, Result};
@@ -200,12 +200,8 @@ impl FitData {
 
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the
     /// simulator applies it: with `delay = m T + r`, `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`
-    /// (before the first sample, the first command).
+    /// (before the first sample, the first command; see [`simgap_sim::DelayLine`]).
     pub fn delayed_torque(&self, k: usize, delay: f64, period: f64, j: usize) -> f64 {
-        let ratio = delay / period;
-        let m = ratio.floor() as usize;
-        let r = ratio - m as f64;
-        let at = |i: isize| -> f64 { self.raw.tau[(i.max(0) as usize) * self.dof + j] };
-        (1.0 - r) * at(k as isize - m as isize) + r * at(k as isize - m as isize - 1)
+        DelayLine::new(delay, period).delayed(k, |i| self.raw.tau[i * self.dof + j])
     }
 }

@@ -25,6 +25,9 @@ pub struct Problem {
     pub samples: usize,
     /// Block of every sample.
     pub block_of: Vec<usize>,
+    /// First sample of every block, and the number of samples last (`blocks + 1` entries):
+    /// blocks are contiguous.
+    block_start: Vec<usize>,
     /// Number of blocks.
     pub blocks: usize,
     /// Weight of each joint's rows (1 / RMS of its commanded torque).
@@ -58,36 +61,49 @@ impl Problem {
         let tau_rms: Vec<f64> = (0..dof).map(|j| rms(&|s, j| tau[s * dof + j], j)).collect();
         // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();
-        Problem { dof, samples, block_of, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
+        let block_start = (0..=blocks).map(|b| block_of.partition_point(|&x| x < b)).collect();
+        Problem { dof, samples, block_of, block_start, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
     }
 
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
     fn dot_blocks(&self, a: &Column, b: &Column, out: &mut [f64]) {
         out.fill(0.0);
         let dof = self.dof;
+        // blocks are contiguous ranges of samples: each sum runs over its range in order
+        let ranges = self.block_start.windows(2).enumerate().map(|(bl, r)| (bl, r[0]..r[1]));
         match (a.joint, b.joint) {
             (Some(ja), Some(jb)) => {
                 if ja == jb {
                     let w2 = self.weights[ja].powi(2);
-                    for s in 0..self.samples {
-                        out[self.block_of[s] * dof + ja] += w2 * a.values[s] * b.values[s];
+                    for (bl, r) in ranges {
+                        let mut acc = 0.0;
+                        for (x, y) in a.values[r.clone()].iter().zip(&b.values[r]) {
+                            acc += w2 * x * y;
+                        }
+                        out[bl * dof + ja] = acc;
                     }
                 }
             }
             (Some(j), None) | (None, Some(j)) => {
                 let (pj, g) = if a.joint.is_some() { (a, b) } else { (b, a) };
                 let w2 = self.weights[j].powi(2);
-                for s in 0..self.samples {
-                    out[self.block_of[s] * dof + j] += w2 * pj.values[s] * g.values[s * dof + j];
+                for (bl, r) in ranges {
+                    let mut acc = 0.0;
+                    for s in r {
+                        acc += w2 * pj.values[s] * g.values[s * dof + j];
+                    }
+                    out[bl * dof + j] = acc;
                 }
             }
             (None, None) => {
                 let w2: Vec<f64> = self.weights.iter().map(|w| w * w).collect();
-                for s in 0..self.samples {
-                    let base = self.block_of[s] * dof;
-                    let (ra, rb) = (&a.values[s * dof..(s + 1) * dof], &b.values[s * dof..(s + 1) * dof]);
-                    for j in 0..dof {
-                        out[base + j] += w2[j] * ra[j] * rb[j];
+                for (bl, r) in ranges {
+                    let acc = &mut out[bl * dof..(bl + 1) * dof];
+                    for s in r {
+                        let (ra, rb) = (&a.values[s * dof..(s + 1) * dof], &b.values[s * dof..(s + 1) * dof]);
+                        for j in 0..dof {
+                            acc[j] += w2[j] * ra[j] * rb[j];
+                        }
                     }
                 }
             }
@@ -144,17 +160,39 @@ pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
 
 /// [`grams`] against another residual `y` (a global column over the problem's rows).
 pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams {
-    // y' = y − Σ offsets, as a global column
-    let mut y = y.clone();
-    for d in designs {
-        if let Some(off) = &d.offset {
-            for s in 0..p.samples {
-                for j in 0..p.dof {
-                    y.values[s * p.dof + j] -= off.at(s, j, p.dof);
+    grams_against_known(p, y, designs, None)
+}
+
+/// `y·y` per (block, joint) of a global column, as [`grams_against`] computes it: pass it to
+/// [`grams_against_known`] when many designs without offset are fitted against one `y`.
+pub fn block_squares(p: &Problem, y: &Column) -> Vec<f64> {
+    let mut buf = vec![0.0; p.blocks * p.dof];
+    p.dot_blocks(y, y, &mut buf);
+    buf
+}
+
+/// [`grams_against`] with `y·y` per block already known (`y_squares` from [`block_squares`]
+/// of the same `y`; used only when no design has a fixed offset, which changes `y`).
+pub fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesign], y_squares: Option<&[f64]>) -> Grams {
+    // y' = y − Σ offsets, as a global column (y itself without offsets)
+    let has_offset = designs.iter().any(|d| d.offset.is_some());
+    let shifted;
+    let y = if has_offset {
+        let mut v = y.clone();
+        for d in designs {
+            if let Some(off) = &d.offset {
+                for s in 0..p.samples {
+                    for j in 0..p.dof {
+                        v.values[s * p.dof + j] -= off.at(s, j, p.dof);
+                    }
                 }
             }
         }
-    }
+        shifted = v;
+        &shifted
+    } else {
+        y
+    };
     let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
     let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat_n(i, d.cols.len())).collect();
     let k = cols.len();
@@ -221,13 +259,18 @@ pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams 
         if zero[a] {
             continue;
         }
-        p.dot_blocks(cols[a], &y, &mut buf);
+        p.dot_blocks(cols[a], y, &mut buf);
         for (bl, v) in buf.iter().enumerate() {
             c[bl][a] = *v;
         }
     }
-    p.dot_blocks(&y, &y, &mut buf);
-    s.copy_from_slice(&buf);
+    match y_squares {
+        Some(known) if !has_offset => s.copy_from_slice(known),
+        _ => {
+            p.dot_blocks(y, y, &mut buf);
+            s.copy_from_slice(&buf);
+        }
+    }
     Grams { k, g, c, s, owner, dof: p.dof, lo, hi, inertial }
 }
 

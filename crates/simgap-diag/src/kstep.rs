@@ -21,7 +21,7 @@
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
 use simgap_sim::sensor::Sensor;
-use simgap_sim::{applied_torque, controller_from_experiment, effective_substeps, ControllerKind, Effect, Plant, Run, SensorParams, SimParams};
+use simgap_sim::{applied_torque, controller_from_experiment, effective_substeps, ControllerKind, DelayLine, Effect, Plant, Run, SensorParams, SimParams};
 
 use crate::differentiate::Smoother;
 use crate::error::Result;
@@ -252,7 +252,7 @@ pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], pr: 
     let params = if params.q0.len() == n { params } else { SimParams { q0: Vec::new(), ..params } };
     let substeps = effective_substeps(&plant, &params);
     let h_max = pr.period / substeps as f64;
-    let delay = plant.delay();
+    let line = DelayLine::new(plant.delay(), pr.period);
     let mut pws = plant.workspace();
     let mut rk4 = simgap_sim::integrate::Rk4::new(2 * n);
     let mut sensor = Sensor::new(&pr.sensor, model, pr.period)?;
@@ -294,15 +294,17 @@ pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], pr: 
             }
             history.extend_from_slice(&cmd);
             // the delayed command held over the sample, as the simulator forms it
-            if delay > 0.0 {
-                delayed_command(run, &history, k0, k, delay, pr.period, &mut delayed);
+            if !line.is_zero() {
+                delayed_command(run, &history, k0, k, &line, &mut delayed);
             } else {
                 delayed.copy_from_slice(&cmd);
             }
             applied_torque(plant.effects(), &delayed, &mut applied);
             // integrate over this sample interval with the held torque
+            // (an interval that exceeds the period by rounding of the stamps takes the
+            // simulator's substeps, not one more)
             let dt = run.t[k + 1] - run.t[k];
-            let steps = ((dt / h_max).ceil() as usize).clamp(1, 10_000);
+            let steps = ((dt / h_max * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000);
             let h = dt / steps as f64;
             let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
                 let (q, qd) = y.split_at(n);
@@ -340,25 +342,12 @@ pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], pr: 
     Ok(out)
 }
 
-/// The command held over sample `k` after `delay` seconds: with `delay = m T + r`,
-/// `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`; commands before `k0` come from the log, before the
-/// log's start the first logged one (as the simulator does).
-fn delayed_command(run: &Run, history: &[f64], k0: usize, k: usize, delay: f64, period: f64, out: &mut [f64]) {
+/// The command held over sample `k` through the delay line `line` (see [`DelayLine`]):
+/// commands from `k0` on are this window's (`history`, row `k − k0`), before it the log's,
+/// before the log's start the first logged one (as the simulator does).
+fn delayed_command(run: &Run, history: &[f64], k0: usize, k: usize, line: &DelayLine, out: &mut [f64]) {
     let n = out.len();
-    let ratio = delay / period;
-    let ratio = if (ratio - ratio.round()).abs() < 1e-9 { ratio.round() } else { ratio };
-    let m = ratio.floor() as usize;
-    let r = ratio - m as f64;
-    let at = |i: isize, j: usize| -> f64 {
-        if i >= k0 as isize {
-            history[(i as usize - k0) * n + j]
-        } else {
-            run.tau[(i.max(0) as usize) * n + j]
-        }
-    };
-    for (j, o) in out.iter_mut().enumerate() {
-        *o = (1.0 - r) * at(k as isize - m as isize, j) + r * at(k as isize - m as isize - 1, j);
-    }
+    line.delayed_row(k, |i| if i >= k0 { &history[(i - k0) * n..(i - k0 + 1) * n] } else { &run.tau[i * n..(i + 1) * n] }, out);
 }
 
 /// Predicts every window of every run with one set of effects; returns the pooled errors.

@@ -13,9 +13,9 @@ use simgap_core::PARAMS_PER_LINK;
 use crate::dataset::FitData;
 use std::sync::Arc;
 
-use crate::fit::{contract_parameters, fit, fit_terms, grams, grams_against, Fit, Problem};
+use crate::fit::{block_squares, contract_parameters, fit, fit_terms, grams, grams_against_known, Fit, Grams, Problem};
 use crate::inertial::InertialPrior;
-use crate::terms::{design, Column, Term, TermDesign, GAIN_RANGE};
+use crate::terms::{design, largest_command, payload_basis_rows, payload_mass_bound, point_mass_parameters, Column, Term, TermDesign, GAIN_RANGE};
 
 /// Thresholds of the selection.
 #[derive(Clone, Debug)]
@@ -52,6 +52,20 @@ pub enum Family {
     Delay,
     /// Payload centre of mass re-linearised.
     Payload,
+}
+
+impl Family {
+    /// A member of the family: every member occupies the same slot (see [`Term::slot`]).
+    fn member(&self) -> Term {
+        match *self {
+            Family::Fixed(ref t) => t.clone(),
+            Family::Stribeck(joint) => Term::Stribeck { joint, vs: 1.0 },
+            Family::Saturation(joint) => Term::Saturation { joint, limit: 1.0 },
+            Family::Cogging(joint) => Term::Cogging { joint, periods: 1.0 },
+            Family::Delay => Term::Delay { delay: 0.0 },
+            Family::Payload => Term::Payload { com: [0.0; 3], max_mass: f64::INFINITY },
+        }
+    }
 }
 
 /// All candidate families for a model with `dof` joints.
@@ -91,6 +105,23 @@ pub struct Context<'a> {
     pub sample_period: f64,
     /// Designs already built, by term (the same grid members recur at every step).
     cache: std::sync::Mutex<std::collections::HashMap<String, std::sync::Arc<TermDesign>>>,
+    /// The payload's basis, built at its first search.
+    payload: std::sync::OnceLock<PayloadBasis>,
+}
+
+/// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
+/// their combination by [`point_mass_parameters`]), row-major and as free columns, and the
+/// largest commanded torque.
+struct PayloadBasis {
+    /// Per row, the basis entries that are not zero in every row (a planar motion leaves
+    /// most of them zero), row-major, rows by decreasing Euclidean norm.
+    rows: Vec<f64>,
+    /// The norm of each of those rows.
+    norms: Vec<f64>,
+    /// Which of the ten parameters those entries belong to.
+    nonzero: Vec<usize>,
+    design: TermDesign,
+    tau_max: f64,
 }
 
 impl<'a> Context<'a> {
@@ -108,7 +139,7 @@ impl<'a> Context<'a> {
             .collect();
         let mut prior = prior.clone();
         prior.identifiable = inertial_basis.ncols();
-        let mut ctx = Context { data, problem, inertial_basis, prior: Arc::new(prior), saturation_floor, sample_period, cache: Default::default() };
+        let mut ctx = Context { data, problem, inertial_basis, prior: Arc::new(prior), saturation_floor, sample_period, cache: Default::default(), payload: Default::default() };
         if ctx.inertial_basis.ncols() > 0 {
             let w = ctx.choose_prior_weight();
             let mut prior = (*ctx.prior).clone();
@@ -254,21 +285,72 @@ impl<'a> Context<'a> {
             }
         };
         let c0 = within(&c0.map(|x| if x.is_finite() { x } else { 0.0 }));
-        let sse = |c: &[f64; 3]| -> f64 {
-            let mut ds = rest.to_vec();
-            ds.push(design(&Term::Payload { com: within(c), max_mass: self.max_payload() }, self.data));
-            let refs: Vec<&TermDesign> = ds.iter().collect();
-            let gr = grams(p, &refs);
-            let (mut g, mut cc, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
-            for b in 0..gr.g.len() {
-                g += &gr.g[b];
-                cc += &gr.c[b];
-                s += gr.s[b];
+        let max_mass = self.max_payload();
+        // the Grams of `rest` and of the ten basis columns, once: the payload's inner products
+        // are then linear and quadratic forms in π(c) (equal to the column's own up to rounding)
+        let basis = self.payload.get_or_init(|| {
+            let rows = payload_basis_rows(self.data);
+            let cols: Vec<Column> = (0..PARAMS_PER_LINK).map(|i| Column { joint: None, values: rows.iter().skip(i).step_by(PARAMS_PER_LINK).copied().collect() }).collect();
+            let nonzero: Vec<usize> = (0..PARAMS_PER_LINK).filter(|&i| cols[i].values.iter().any(|v| *v != 0.0)).collect();
+            let mut compact: Vec<(f64, Vec<f64>)> = rows
+                .chunks_exact(PARAMS_PER_LINK)
+                .map(|r| {
+                    let v: Vec<f64> = nonzero.iter().map(|&i| r[i]).collect();
+                    (v.iter().map(|x| x * x).sum::<f64>().sqrt(), v)
+                })
+                .collect();
+            compact.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let norms = compact.iter().map(|r| r.0).collect();
+            let rows = compact.into_iter().flat_map(|r| r.1).collect();
+            PayloadBasis { rows, norms, nonzero, design: TermDesign::free(cols), tau_max: largest_command(self.data) }
+        });
+        let mut refs: Vec<&TermDesign> = rest.iter().collect();
+        refs.push(&basis.design);
+        let full = grams(p, &refs);
+        let k = full.k - PARAMS_PER_LINK;
+        let (mut g_full, mut c_full, mut s) = (DMatrix::zeros(full.k, full.k), DVector::zeros(full.k), 0.0);
+        for b in 0..full.g.len() {
+            g_full += &full.g[b];
+            c_full += &full.c[b];
+            s += full.s[b];
+        }
+        let (mut lo, mut hi) = (full.lo[..k].to_vec(), full.hi[..k].to_vec());
+        lo.push(0.0);
+        hi.push(f64::INFINITY);
+        let mut solver = Grams { k: k + 1, g: Vec::new(), c: Vec::new(), s: Vec::new(), dof: p.dof, owner: Vec::new(), lo, hi, inertial: full.inertial.clone() };
+        let mut g = DMatrix::zeros(k + 1, k + 1);
+        g.view_mut((0, 0), (k, k)).copy_from(&g_full.view((0, 0), (k, k)));
+        let mut c = DVector::zeros(k + 1);
+        c.rows_mut(0, k).copy_from(&c_full.rows(0, k));
+        let mut sse = |com: &[f64; 3]| -> f64 {
+            let pi = point_mass_parameters(within(com));
+            // the mass bound from the column's largest entry, as the payload's design states it
+            // (the entries left out are zero: the same sums); |row·π| <= ‖row‖ ‖π‖, so once
+            // that bound falls below the largest entry found, no later row can exceed it
+            let pi_nz: Vec<f64> = basis.nonzero.iter().map(|&i| pi[i]).collect();
+            let pi_norm = pi_nz.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let mut col_max = 0.0f64;
+            if !pi_nz.is_empty() {
+                for (row, norm) in basis.rows.chunks_exact(pi_nz.len()).zip(&basis.norms) {
+                    if norm * pi_norm * (1.0 + 1e-9) < col_max {
+                        break;
+                    }
+                    col_max = col_max.max(row.iter().zip(&pi_nz).map(|(a, b)| a * b).sum::<f64>().abs());
+                }
             }
-            let (t, _) = gr.solve(&g, &cc);
-            s - 2.0 * t.dot(&cc) + t.dot(&(&g * &t))
+            solver.hi[k] = payload_mass_bound(col_max, basis.tau_max, max_mass);
+            // the payload column's inner products: Y π against the rest, itself and the residual
+            for a in 0..k {
+                let v: f64 = (0..PARAMS_PER_LINK).map(|i| pi[i] * g_full[(a, k + i)]).sum();
+                g[(a, k)] = v;
+                g[(k, a)] = v;
+            }
+            g[(k, k)] = (0..PARAMS_PER_LINK).map(|i| pi[i] * (0..PARAMS_PER_LINK).map(|l| pi[l] * g_full[(k + i, k + l)]).sum::<f64>()).sum();
+            c[k] = (0..PARAMS_PER_LINK).map(|i| pi[i] * c_full[k + i]).sum();
+            let (t, _) = solver.solve(&g, &c);
+            s - 2.0 * t.dot(&c) + t.dot(&(&g * &t))
         };
-        Term::Payload { com: within(&nelder_mead(sse, c0, 0.02, 60)), max_mass: self.max_payload() }
+        Term::Payload { com: within(&nelder_mead(&mut sse, c0, 0.02, 60)), max_mass }
     }
 
     /// The largest plausible payload [kg]: twice the mass of the chain's links in the URDF.
@@ -305,7 +387,7 @@ impl<'a> Context<'a> {
 }
 
 /// Minimises `f` over 3-vectors by Nelder–Mead from `x0` with initial step `step`.
-fn nelder_mead(f: impl Fn(&[f64; 3]) -> f64, x0: [f64; 3], step: f64, iters: usize) -> [f64; 3] {
+fn nelder_mead(mut f: impl FnMut(&[f64; 3]) -> f64, x0: [f64; 3], step: f64, iters: usize) -> [f64; 3] {
     let mut pts: Vec<([f64; 3], f64)> = (0..4)
         .map(|i| {
             let mut x = x0;
@@ -396,7 +478,12 @@ fn inertial_basis(p: &Problem, data: &[FitData], scales: &[f64]) -> DMatrix<f64>
 
 /// Least-squares fit of one design against a residual column: (θ, weighted SSE).
 fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
-    let gr = grams_against(p, resid, &[d]);
+    screen_fit_known(p, d, resid, None)
+}
+
+/// [`screen_fit`] with `resid·resid` per block known (see [`grams_against_known`]).
+fn screen_fit_known(p: &Problem, d: &TermDesign, resid: &Column, resid_squares: Option<&[f64]>) -> (DVector<f64>, f64) {
+    let gr = grams_against_known(p, resid, &[d], resid_squares);
     let (mut g, mut c, mut s) = (DMatrix::zeros(gr.k, gr.k), DVector::zeros(gr.k), 0.0);
     for b in 0..gr.g.len() {
         g += &gr.g[b];
@@ -411,9 +498,14 @@ fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64
 fn screen_best(ctx: &Context<'_>, cands: &[Term], resid: &Column) -> (Term, f64) {
     let p = &ctx.problem;
     let mut best = (cands[0].clone(), f64::INFINITY);
+    // resid·resid once for the members without a fixed offset
+    let mut squares: Option<Vec<f64>> = None;
     for t in cands {
         let d = ctx.design_shared(t);
-        let (th, sse) = screen_fit(p, &d, resid);
+        if d.offset.is_none() && squares.is_none() {
+            squares = Some(block_squares(p, resid));
+        }
+        let (th, sse) = screen_fit_known(p, &d, resid, squares.as_deref());
         // a Stribeck member without a static level above the Coulomb level is Coulomb friction
         if matches!(t, Term::Stribeck { .. }) && !(th[1] > 0.0) {
             continue;
@@ -606,7 +698,13 @@ fn exchange(
         let refs: Vec<&TermDesign> = rest.iter().collect();
         let f0 = fit(p, &grams(p, &refs));
         let resid = residual_after(p, &rest, &f0.theta);
-        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of_with(f, &resid, &rest)).filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i]).collect();
+        // (a family whose slot is taken is not searched: its best member could not join)
+        let mut cands: Vec<Term> = fams
+            .iter()
+            .filter(|f| !slot_taken(&rest_terms, &f.member()))
+            .map(|f| ctx.best_of_with(f, &resid, &rest))
+            .filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i])
+            .collect();
         if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == "inertia") && !matches!(terms[i], Term::InertialError { .. }) {
             let t = ctx.inertial_term();
             if !slot_taken(&rest_terms, &t) {
@@ -674,7 +772,8 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     while terms.len() < opts.max_terms {
         let resid = residual_after(p, &designs, &current.theta);
         // best member of every family, then the inertial error, evaluated jointly with the set
-        let mut cands: Vec<Term> = fams.iter().map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
+        let mut cands: Vec<Term> =
+            fams.iter().filter(|f| !slot_taken(&terms, &f.member())).map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
         if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == "inertia") {
             cands.push(ctx.inertial_term());
         }

@@ -201,24 +201,49 @@ fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> 
     Column { joint: Some(j), values: v }
 }
 
+/// The ten inertial parameters `(1, c, |c|² 1 − c cᵀ)` of a unit point mass at `com` [m],
+/// in the regressor's order (mass, first moment, rotational inertia about the joint frame).
+pub fn point_mass_parameters(com: [f64; 3]) -> [f64; PARAMS_PER_LINK] {
+    let c = Vector3::from(com);
+    [1.0, c.x, c.y, c.z, c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y]
+}
+
 /// The torque of a unit point mass at `com` on the last link (its ten inertial parameters
-/// `(1, c, |c|² 1 − c cᵀ)` through the regressor), as a global column.
+/// [`point_mass_parameters`] through the regressor), as a global column.
 pub fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
+    let pi = point_mass_parameters(com);
+    let rows = payload_basis_rows(data);
+    Column { joint: None, values: rows.chunks_exact(PARAMS_PER_LINK).map(|row| row.iter().zip(&pi).map(|(a, b)| a * b).sum()).collect() }
+}
+
+/// The last link's ten regressor entries of every row (sample × joint, over runs), row-major:
+/// a payload's column is their combination by [`point_mass_parameters`].
+pub fn payload_basis_rows(data: &[FitData]) -> Vec<f64> {
     let dof = data[0].dof;
     let last = dof - 1;
-    let c = Vector3::from(com);
-    let pi = [1.0, c.x, c.y, c.z, c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y];
     let width = PARAMS_PER_LINK * dof;
-    let mut v = Vec::new();
+    let mut v = Vec::with_capacity(data.iter().map(|d| d.len() * dof * PARAMS_PER_LINK).sum());
     for d in data {
         for s in 0..d.len() {
             for j in 0..dof {
-                let row = &d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last..(s * dof + j) * width + PARAMS_PER_LINK * (last + 1)];
-                v.push(row.iter().zip(&pi).map(|(a, b)| a * b).sum());
+                v.extend_from_slice(&d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last..(s * dof + j) * width + PARAMS_PER_LINK * (last + 1)]);
             }
         }
     }
-    Column { joint: None, values: v }
+    v
+}
+
+/// The largest commanded torque over the fit runs [N·m] (what bounds a payload's mass).
+pub fn largest_command(data: &[FitData]) -> f64 {
+    data.iter().flat_map(|d| d.tau.iter()).fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
+/// Upper bound of a payload's mass [kg] for a unit-mass column whose largest entry is
+/// `col_max` [N·m/kg]: a payload whose torque would exceed three times the largest commanded
+/// torque `tau_max` is no payload this robot carried, and none is heavier than `max_mass`.
+pub fn payload_mass_bound(col_max: f64, tau_max: f64, max_mass: f64) -> f64 {
+    let hi = if col_max > 0.0 && tau_max > 0.0 { 3.0 * tau_max / col_max } else { f64::INFINITY };
+    hi.min(max_mass)
 }
 
 /// The linear first guess of a payload: mass and first moment of the last link, as four
@@ -288,13 +313,9 @@ pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
             TermDesign::fixed(Column { joint: None, values: v })
         }
         Term::Payload { com, max_mass } => {
-            // a payload whose torque would exceed three times the largest commanded torque is no
-            // payload this robot carried: its mass is bounded there
             let col = payload_column(data, com);
-            let tau_max = data.iter().flat_map(|d| d.tau.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
             let col_max = col.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            let hi = if col_max > 0.0 && tau_max > 0.0 { 3.0 * tau_max / col_max } else { f64::INFINITY };
-            let hi = hi.min(max_mass);
+            let hi = payload_mass_bound(col_max, largest_command(data), max_mass);
             TermDesign { cols: vec![col], lo: vec![0.0], hi: vec![hi], ..Default::default() }
         }
         Term::InertialError { ref prior } => {

@@ -384,7 +384,14 @@ pub fn validate_effects(effects: &[Effect], dof: usize) -> Result<()> {
 #[inline]
 pub fn smooth_sign(qd: f64, width: f64) -> f64 {
     if width > 0.0 {
-        (qd / width).tanh()
+        // beyond |x| = 19.1, tanh(x) rounds to ±1 in f64 (libm returns exactly that): the
+        // exponential is skipped on most samples of a moving joint, with the same result
+        let x = qd / width;
+        if x.abs() >= 20.0 {
+            1.0f64.copysign(x)
+        } else {
+            x.tanh()
+        }
     } else if qd > 0.0 {
         1.0
     } else if qd < 0.0 {

@@ -3,6 +3,7 @@
 //! `simgap-log` crate: the simulator and its tests never touch a file format.
 
 pub mod controller;
+pub mod delay;
 pub mod effects;
 pub mod error;
 pub mod integrate;
@@ -19,6 +20,7 @@ pub use run::{central_difference, experiment_from_map, experiment_to_map, hold_r
 pub use sink::{MemorySink, RunEnd, Sink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, ZeroTorque};
+pub use delay::DelayLine;
 pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH, EFFECT_NAMES};
 pub use integrate::Integrator;
 pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Report};

@@ -22,6 +22,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};
 
 use crate::controller::{controller_from_experiment, Controller};
+use crate::delay::DelayLine;
 use crate::effects::{applied_torque, armature, friction_slope_bound, Effect, DEFAULT_COULOMB_WIDTH};
 use crate::error::{Error, Result};
 use crate::integrate::{Dopri5, Integrator, Rk4};
@@ -201,14 +202,11 @@ fn step_loop(
         Integrator::Adaptive { rtol, atol } => Some(Dopri5::new(2 * n, rtol, atol)),
         Integrator::Rk4 => None,
     };
-    // delay line: delay = m T + r; ring buffer of the last m + 2 commands
-    let ratio = plant.delay() / period;
-    let ratio = if (ratio - ratio.round()).abs() < 1e-9 { ratio.round() } else { ratio };
-    // a delay longer than the run holds the first command throughout: the line never needs
-    // more slots than the run has samples (a delay of 1e9 s allocates nothing more)
-    let m = (ratio.floor() as usize).min(intervals + 1);
-    let frac = if m == intervals + 1 { 0.0 } else { ratio - m as f64 };
-    let depth = m + 2;
+    // delay line (see `crate::delay`): a ring buffer of the last m + 2 commands; a delay
+    // longer than the run holds the first command throughout, so the line never needs more
+    // slots than the run has samples (a delay of 1e9 s allocates nothing more)
+    let line = DelayLine::new(plant.delay(), period);
+    let depth = line.whole().min(intervals + 1) + 2;
     let mut history = vec![0.0; depth * n];
     let limits = plant.effort_limits();
     let width = params.coulomb_width;
@@ -244,19 +242,11 @@ fn step_loop(
         if k == intervals {
             break;
         }
-        // delay line: slot k mod depth holds τ_cmd,k; earlier than the start = τ_cmd,0
+        // delay line: slot i mod depth holds τ_cmd,i (the taps of sample k are at most
+        // depth − 1 samples old, or sample 0, whose slot is not yet overwritten then)
         let slot = k % depth;
         history[slot * n..(slot + 1) * n].copy_from_slice(&tau_cmd);
-        if k == 0 {
-            for s in 1..depth {
-                history.copy_within(0..n, s * n);
-            }
-        }
-        let newer = (k + depth - m) % depth;
-        let older = (k + depth - m - 1) % depth;
-        for i in 0..n {
-            tau_delayed[i] = (1.0 - frac) * history[newer * n + i] + frac * history[older * n + i];
-        }
+        line.delayed_row(k, |i| &history[(i % depth) * n..(i % depth + 1) * n], &mut tau_delayed);
         // actuators: saturation, gain, offset, then the model's effort limits
         applied_torque(plant.effects(), &tau_delayed, &mut tau_app);
         if params.torque_limits_from_model {
