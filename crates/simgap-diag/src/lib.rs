@@ -761,6 +761,17 @@ struct Refined {
     score: f64,
 }
 
+/// A set tried by the shooting stage: its two-fold cross-validation.
+struct Tried {
+    name: String,
+    terms: Vec<Term>,
+    designs: Vec<TermDesign>,
+    /// The fits on each half of the fit runs.
+    halves: Vec<nalgebra::DVector<f64>>,
+    cv: Vec<f64>,
+    score: f64,
+}
+
 /// The shooting stage: the selected set, the selected set with an inertial correction in place of
 /// a payload, and (open-loop fit runs only) the physically natural set of a system-
 /// identification run (inertial error of every link, Coulomb and viscous friction and rotor
@@ -823,14 +834,14 @@ fn refine_by_shooting(scorer: &Scorer<'_>, selected: &[Term], current: f64, prog
             vec![theta]
         }
     };
-    let mut tried: Vec<Refined> = Vec::new();
+    let mut tried: Vec<Tried> = Vec::new();
     for (si, (name, terms)) in sets.iter().enumerate() {
         progress(Progress { stage: "refining by multiple shooting", done: si, total: sets.len() + 1 });
         check_stop(options)?;
         let (designs, gr, _) = fit_terms(&ctx.problem, ctx.data, terms);
         let mut merged: Vec<kstep::Errors> =
             prep.fit_pred.iter().map(|pr| kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: vec![f64::NAN; pr.windows() * prep.horizons.len() * n] }).collect();
-        let mut last = None;
+        let mut halves = Vec::new();
         for half in 0..2 {
             let held = |f: usize| (f % FOLDS_PER_RUN) % 2 == half;
             let keep = |r: usize, w: usize| !held(shoot_runs[r].fold[w]);
@@ -846,7 +857,7 @@ fn refine_by_shooting(scorer: &Scorer<'_>, selected: &[Term], current: f64, prog
                     }
                 }
             }
-            last = Some(shot);
+            halves.push(shot.theta);
         }
         let mut all = kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: Vec::new() };
         for m in &merged {
@@ -854,8 +865,7 @@ fn refine_by_shooting(scorer: &Scorer<'_>, selected: &[Term], current: f64, prog
         }
         let cv = all.rms();
         let score = kstep::score(&cv, &scorer.nominal);
-        let shot = last.expect("two halves");
-        tried.push(Refined { name: name.clone(), terms: terms.clone(), designs, shot, cv, score });
+        tried.push(Tried { name: name.clone(), terms: terms.clone(), designs, halves, cv, score });
     }
     let mut notes: Vec<String> = tried
         .iter()
@@ -873,17 +883,40 @@ fn refine_by_shooting(scorer: &Scorer<'_>, selected: &[Term], current: f64, prog
     }
     // the chosen set on all fit runs
     progress(Progress { stage: "refining by multiple shooting", done: sets.len(), total: sets.len() + 1 });
-    let mut best = tried.swap_remove(bi);
+    let best = tried.swap_remove(bi);
     let keep = |_: usize, _: usize| true;
-    let (_, gr, f) = fit_terms(&ctx.problem, ctx.data, &best.terms);
+    let (_, _, f) = fit_terms(&ctx.problem, ctx.data, &best.terms);
     let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: &shoot_runs, keep: &keep, options: &sopts };
-    best.shot = shooting::fit(&problem, &starts(&best.designs, f.theta.clone()), stop)?;
-    drop(gr);
+    // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
+    let mut from = starts(&best.designs, f.theta.clone());
+    from.extend(best.halves.iter().cloned());
+    let shot = shooting::fit(&problem, &from, stop)?;
     notes.push(format!(
-        "the parameters of the selected effects are fitted by multiple shooting (normalised k-step cost {:.4} → {:.4} in {} iterations); their 95 % intervals are 1.96 σ from σ² (JᵀJ)⁻¹ of the shooting residuals, which treats the errors along a window as independent and so understates the spread",
-        best.shot.cost_start, best.shot.cost, best.shot.iterations
+        "the parameters of the selected effects are fitted by multiple shooting on all fit runs (normalised k-step cost {:.4} → {:.4} in {} iterations); their 95 % intervals are 1.96 σ from σ² (JᵀJ)⁻¹ of the shooting residuals, which treats the errors along a window as independent and so understates the spread",
+        shot.cost_start, shot.cost, shot.iterations
     ));
-    Ok((Some(best), notes))
+    // a friction, rotor inertia or payload at its lower bound 0 is no effect: left out
+    let (mut terms, mut designs, mut theta, mut std) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut none: Vec<String> = Vec::new();
+    let mut c = 0;
+    for (t, d) in best.terms.iter().zip(&best.designs) {
+        let k = d.cols.len();
+        let zero = d.inertial.is_none() && k > 0 && (0..k).all(|a| shot.theta[c + a] == 0.0 && d.lo.get(a) == Some(&0.0));
+        if zero {
+            none.push(describe_term(t, &scorer.model.joint_names().iter().map(|s| s.to_string()).collect::<Vec<_>>()));
+        } else {
+            terms.push(t.clone());
+            designs.push(d.clone());
+            theta.extend_from_slice(&shot.theta.as_slice()[c..c + k]);
+            std.extend_from_slice(&shot.std.as_slice()[c..c + k]);
+        }
+        c += k;
+    }
+    if !none.is_empty() {
+        notes.push(format!("fitted by multiple shooting at their bound 0, so left out: {}", none.join(", ")));
+    }
+    let shot = shooting::Shot { theta: nalgebra::DVector::from_vec(theta), std: nalgebra::DVector::from_vec(std), ..shot };
+    Ok((Some(Refined { name: best.name, terms, designs, shot, cv: best.cv, score: best.score }), notes))
 }
 
 /// Orders the selected effects by how much prediction worsens without each (most needed first).

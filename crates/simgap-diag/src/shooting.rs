@@ -22,8 +22,12 @@
 //!    the URDF's, principal radii at least [`inertial::MIN_RADIUS`] and the centre of mass
 //!    projected into its link's reach.
 //!
+//! The Jacobian is recomputed by forward differences every third iteration and after a failed
+//! step, and updated by Broyden's rank-one formula in between; parameters the data do not see at
+//! the start (a planar arm's out-of-plane inertia) are held where they are.
+//!
 //! **Uncertainty**: the covariance of θ is `σ² (JᵀJ)⁻¹` mapped from x to θ, with J the Jacobian
-//! of the last iteration and `σ² = ‖r‖² / (N − P)`. The errors of one window are correlated
+//! of the last iteration (pseudo-inverse over the directions the data see) and `σ² = ‖r‖² / (N − P)`. The errors of one window are correlated
 //! (they accumulate along it), so these intervals are narrower than the real spread.
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -56,7 +60,7 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Options {
-        Options { window: 0.5, points: 5, max_iterations: 12, prior_weight: 1e-2 }
+        Options { window: 0.5, points: 5, max_iterations: 10, prior_weight: 1e-2 }
     }
 }
 
@@ -333,6 +337,12 @@ impl<'a> Evaluator<'a> {
     }
 }
 
+/// Iterations between fresh finite-difference Jacobians.
+const REFRESH: usize = 3;
+
+/// Relative decrease of the cost below which an iteration counts as small (two in a row stop).
+const TOLERANCE: f64 = 2e-3;
+
 fn stopped(stop: Option<&AtomicBool>) -> Result<()> {
     match stop {
         Some(s) if s.load(Ordering::Relaxed) => Err(Error::Interrupted),
@@ -370,41 +380,62 @@ pub fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicB
     let mut small = 0;
     let mut iterations = 0;
     let mut jac = DMatrix::<f64>::zeros(r.len(), nx);
+    // a fresh finite-difference Jacobian every REFRESH iterations (and after a failed step),
+    // Broyden's rank-one update in between
+    let mut fresh_due = true;
+    let mut since_fresh = 0;
+    // parameters the data do not see at the first Jacobian (a planar arm's out-of-plane
+    // inertia) are held: their columns are not recomputed
+    let mut active: Vec<bool> = vec![true; nx];
+    let mut first = true;
     for _ in 0..problem.options.max_iterations {
         stopped(stop)?;
         iterations += 1;
-        // forward differences, a step away from a bound
-        let cols: Vec<Result<Vec<f64>>> = (0..nx)
-            .into_par_iter()
-            .map(|a| {
-                let mut x2 = x.clone();
-                let mut h = 1e-6 * x[a].abs().max(1.0);
-                if x[a] + h > layout.hi[a] {
-                    h = -h;
+        if fresh_due || since_fresh >= REFRESH {
+            let idx: Vec<usize> = (0..nx).filter(|&a| active[a]).collect();
+            let cols: Vec<Result<Vec<f64>>> = idx
+                .par_iter()
+                .map(|&a| {
+                    // forward differences, a step away from a bound
+                    let mut x2 = x.clone();
+                    let mut h = 1e-6 * x[a].abs().max(1.0);
+                    if x[a] + h > layout.hi[a] {
+                        h = -h;
+                    }
+                    x2[a] += h;
+                    let r2 = ev.residuals(&x2)?;
+                    Ok(r2.iter().zip(&r).map(|(b, a0)| (b - a0) / h).collect())
+                })
+                .collect();
+            evaluations += idx.len();
+            for (col, &a) in cols.into_iter().zip(&idx) {
+                for (i, v) in col?.iter().enumerate() {
+                    jac[(i, a)] = *v;
                 }
-                x2[a] += h;
-                let r2 = ev.residuals(&x2)?;
-                Ok(r2.iter().zip(&r).map(|(b, a0)| (b - a0) / h).collect())
-            })
-            .collect();
-        evaluations += nx;
-        for (a, col) in cols.into_iter().enumerate() {
-            let col = col?;
-            for (i, v) in col.iter().enumerate() {
-                jac[(i, a)] = *v;
             }
+            if first {
+                // seen by the data: a column (per unit of the parameter's magnitude) above 1e-7 of the largest
+                let seen: Vec<f64> = (0..nx).map(|a| jac.view((0, a), (ev.rows, 1)).norm() * x[a].abs().max(1e-2)).collect();
+                let top = seen.iter().cloned().fold(0.0, f64::max);
+                for a in 0..nx {
+                    active[a] = seen[a] > 1e-7 * top;
+                }
+                first = false;
+            }
+            fresh_due = false;
+            since_fresh = 0;
         }
         let rv = DVector::from_column_slice(&r);
         let grad = jac.transpose() * &rv;
         let hess = jac.transpose() * &jac;
-        // parameters held at a bound the descent direction pushes against
-        let free: Vec<usize> = (0..nx).filter(|&a| !((x[a] <= layout.lo[a] && grad[a] > 0.0) || (x[a] >= layout.hi[a] && grad[a] < 0.0))).collect();
+        // parameters held at a bound the descent direction pushes against, or unseen
+        let free: Vec<usize> = (0..nx).filter(|&a| active[a] && !((x[a] <= layout.lo[a] && grad[a] > 0.0) || (x[a] >= layout.hi[a] && grad[a] < 0.0))).collect();
         if free.is_empty() {
             break;
         }
         let hmax = free.iter().map(|&a| hess[(a, a)]).fold(0.0, f64::max).max(1e-300);
         let mut improved = false;
-        for _ in 0..8 {
+        for _ in 0..6 {
             stopped(stop)?;
             let m = DMatrix::from_fn(free.len(), free.len(), |i, j| hess[(free[i], free[j])] + if i == j { lambda * (hess[(free[i], free[i])] + 1e-9 * hmax) } else { 0.0 });
             let b = DVector::from_fn(free.len(), |i, _| -grad[free[i]]);
@@ -421,17 +452,35 @@ pub fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicB
             evaluations += 1;
             let f2 = r2.iter().map(|v| v * v).sum::<f64>();
             if f2.is_finite() && f2 < f {
-                small = if f - f2 <= 1e-3 * f { small + 1 } else { 0 };
+                small = if f - f2 <= TOLERANCE * f { small + 1 } else { 0 };
+                // Broyden: J ← J + (Δr − J Δx) Δxᵀ / ‖Δx‖²
+                let dx = DVector::from_fn(nx, |a, _| x2[a] - x[a]);
+                let nn = dx.norm_squared();
+                if nn > 0.0 {
+                    let dr = DVector::from_fn(r.len(), |i, _| r2[i] - r[i]);
+                    let u = (dr - &jac * &dx) / nn;
+                    jac += u * dx.transpose();
+                }
                 x = x2;
                 r = r2;
                 f = f2;
                 lambda = (lambda / 4.0).max(1e-9);
                 improved = true;
+                since_fresh += 1;
                 break;
             }
             lambda *= 4.0;
         }
-        if !improved || small >= 2 {
+        if !improved {
+            // a step that fails on an updated Jacobian gets a fresh one; on a fresh one, stop
+            if since_fresh == 0 {
+                break;
+            }
+            fresh_due = true;
+            lambda = (lambda / 256.0).max(1e-9);
+            continue;
+        }
+        if small >= 2 {
             break;
         }
     }
