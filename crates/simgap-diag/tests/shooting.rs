@@ -19,7 +19,14 @@ use simgap_sim::{ControllerKind, Effect, Experiment, Run, SensorParams};
 /// to `jitter` sample periods (as a logger on a busy computer stamps samples).
 fn replay_with_jittered_stamps(mut run: Run, period: f64, jitter: f64, rng: &mut impl Rng) -> Run {
     let dof = run.dof();
-    run.experiment = Some(Experiment { controller: ControllerKind::Replay, joints: run.joints.clone(), kp: vec![0.0; dof], kv: vec![0.0; dof], sample_period: period, extra: Default::default() });
+    run.experiment = Some(Experiment {
+        controller: ControllerKind::Replay,
+        joints: run.joints.clone(),
+        kp: vec![0.0; dof],
+        kv: vec![0.0; dof],
+        sample_period: period,
+        extra: Default::default(),
+    });
     for t in run.t.iter_mut().skip(1) {
         *t += jitter * period * rng.random_range(-1.0..1.0);
     }
@@ -65,7 +72,14 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
 
     let rel = |th: &[f64]| -> Vec<f64> { th.iter().zip(&truth).map(|(a, b)| (a - b).abs() / b).collect() };
     let (e_torque, e_shot) = (rel(torque_fit.theta.as_slice()), rel(shot.theta.as_slice()));
-    println!("truth {truth:?}\ntorque fit {:?} (relative error {e_torque:?})\nshooting {:?} (relative error {e_shot:?}), cost {} → {} in {} iterations", torque_fit.theta.as_slice(), shot.theta.as_slice(), shot.cost_start, shot.cost, shot.iterations);
+    println!(
+        "truth {truth:?}\ntorque fit {:?} (relative error {e_torque:?})\nshooting {:?} (relative error {e_shot:?}), cost {} → {} in {} iterations",
+        torque_fit.theta.as_slice(),
+        shot.theta.as_slice(),
+        shot.cost_start,
+        shot.cost,
+        shot.iterations
+    );
     let worst = |e: &[f64]| e.iter().cloned().fold(0.0, f64::max);
     assert!(worst(&e_torque) > 0.05, "the jittered stamps should bias the torque-residual fit: {e_torque:?}");
     assert!(worst(&e_shot) < 0.5 * worst(&e_torque), "shooting {e_shot:?} against torque fit {e_torque:?}");
@@ -101,7 +115,14 @@ fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let load = |i: &str| {
         let mut r = simgap_log::csv::read_csv_auto(&rec.join(format!("trajectory_{i}.csv.gz"))).unwrap();
         let dof = r.dof();
-        r.experiment = Some(Experiment { controller: ControllerKind::Replay, joints: r.joints.clone(), kp: vec![0.0; dof], kv: vec![0.0; dof], sample_period: 0.002, extra: Default::default() });
+        r.experiment = Some(Experiment {
+            controller: ControllerKind::Replay,
+            joints: r.joints.clone(),
+            kp: vec![0.0; dof],
+            kv: vec![0.0; dof],
+            sample_period: 0.002,
+            extra: Default::default(),
+        });
         r
     };
     let fit: Vec<Run> = ["00", "01", "03", "04"].iter().map(|i| load(i)).collect();
@@ -132,14 +153,17 @@ fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
                 assert!(*m >= 0.0 && *m <= 2.0 * model.total_mass() + 1e-9, "payload mass {m}");
             }
             "inertial_error" => {
-                let (Some(Param::PerJoint(dm)), Some(Param::PerLink(dc)), Some(Param::PerLink(di))) = (e.parameters.get("delta_mass"), e.parameters.get("delta_com"), e.parameters.get("delta_inertia")) else {
+                let (Some(Param::PerJoint(dm)), Some(Param::PerLink(dc)), Some(Param::PerLink(di))) =
+                    (e.parameters.get("delta_mass"), e.parameters.get("delta_com"), e.parameters.get("delta_inertia"))
+                else {
                     panic!("inertial_error without deltas: {e:?}")
                 };
                 for (a, j) in e.joints.iter().enumerate() {
                     let i = model.joint_index(j).unwrap();
                     let old = &model.joints()[i].inertia;
                     let d = simgap_sim::LinkDelta { joint: i, mass: dm[a], com: [dc[a][0], dc[a][1], dc[a][2]], inertia: std::array::from_fn(|b| di[a][b]) };
-                    let ic = old.inertia_about_com() + nalgebra::Matrix3::new(d.inertia[0], d.inertia[1], d.inertia[2], d.inertia[1], d.inertia[3], d.inertia[4], d.inertia[2], d.inertia[4], d.inertia[5]);
+                    let ic = old.inertia_about_com()
+                        + nalgebra::Matrix3::new(d.inertia[0], d.inertia[1], d.inertia[2], d.inertia[1], d.inertia[3], d.inertia[4], d.inertia[2], d.inertia[4], d.inertia[5]);
                     let s = simgap_core::SpatialInertia::from_com(old.mass + d.mass, old.com() + nalgebra::Vector3::from(d.com), ic);
                     assert!(s.mass > 0.0, "link of {j}: mass {}", s.mass);
                     assert!(simgap_diag::inertial::link_is_physical(&simgap_core::inertial_parameters(&s), reach[i] * 1.000001), "link of {j} not physical: {s:?}");
