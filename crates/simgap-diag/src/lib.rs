@@ -19,12 +19,18 @@
 //!    cross-validated k-step prediction error on the fit runs ([`kstep`]): each fold of each fit
 //!    run is predicted by the effects fitted without it. A term stays only if prediction needs
 //!    it; the whole-run closed-loop gap never drives selection.
-//! 5. **screen**: every candidate alone, scored by prediction on the fit runs and, for the
+//! 5. **refine by multiple shooting** (open-loop fit runs): the selected set, the selected set
+//!    with an inertial correction in place of a payload, and the natural set of a system-
+//!    identification run (inertial error of every link, Coulomb and viscous friction and rotor
+//!    inertia on every joint) are fitted to k-step prediction ([`shooting`]) and scored by
+//!    two-fold cross-validated prediction of the fit runs; the best replaces the selection when it
+//!    predicts better.
+//! 6. **screen**: every candidate alone, scored by prediction on the fit runs and, for the
 //!    report, on the held-out runs.
-//! 6. **how far**: the held-out runs, never used to fit or to select, are predicted k steps
+//! 7. **how far**: the held-out runs, never used to fit or to select, are predicted k steps
 //!    ahead and re-simulated in closed loop ([`resim`]) with the nominal model and with the
 //!    selected set; `gap.headline` says which of the two figures answers "how far" for them.
-//! 7. **report**: alternatives the data cannot tell apart, notes, the verdict ([`report`]).
+//! 8. **report**: alternatives the data cannot tell apart, notes, the verdict ([`report`]).
 
 pub mod bench;
 pub mod dataset;
