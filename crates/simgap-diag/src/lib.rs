@@ -794,8 +794,9 @@ struct Tried {
 /// The shooting stage, for open-loop fit runs: the selected set, the selected set with an
 /// inertial correction in place of a payload, and the physically natural set of a system-
 /// identification run (inertial error of every link, Coulomb and viscous friction and rotor
-/// inertia on every joint), each fitted by multiple shooting ([`shooting`]) from its
-/// torque-residual fit and from the URDF's inertia.
+/// inertia on every joint), each fitted by multiple shooting ([`shooting`]) from the start of
+/// lowest cost among its torque-residual fit, the same with the URDF's inertia, and the answers
+/// of the sets tried before it (shared terms kept, the others at 0).
 ///
 /// Feedback runs keep the torque-residual fit: their torque residual is well conditioned (the
 /// controller keeps the motion near its reference, accelerations are smooth), while in a k-step
@@ -868,6 +869,25 @@ fn refine_by_shooting(
             vec![theta]
         }
     };
+    // θ of `to` from the answer `theta` of the set `from`: shared terms keep their values, the
+    // others start at 0 (no friction, no rotor inertia, the URDF's inertia), so that a larger set
+    // starts where a smaller one ended
+    let transfer = |from: &Tried, theta: &nalgebra::DVector<f64>, to: &[Term], to_designs: &[TermDesign]| -> nalgebra::DVector<f64> {
+        let k: usize = to_designs.iter().map(|d| d.cols.len()).sum();
+        let mut out = nalgebra::DVector::zeros(k);
+        let mut c = 0;
+        for (t, d) in to.iter().zip(to_designs) {
+            let mut cf = 0;
+            for (tf, df) in from.terms.iter().zip(&from.designs) {
+                if tf == t && df.cols.len() == d.cols.len() {
+                    out.rows_mut(c, d.cols.len()).copy_from(&theta.rows(cf, d.cols.len()));
+                }
+                cf += df.cols.len();
+            }
+            c += d.cols.len();
+        }
+        out
+    };
     let mut tried: Vec<Tried> = Vec::new();
     for (si, (name, terms)) in sets.iter().enumerate() {
         progress(Progress { stage: "refining by multiple shooting", done: si, total: sets.len() + 1 });
@@ -880,7 +900,9 @@ fn refine_by_shooting(
             let held = |f: usize| (f % FOLDS_PER_RUN) % 2 == half;
             let keep = |r: usize, w: usize| !held(shoot_runs[r].fold[w]);
             let problem = shooting::Problem { model, formulation, terms, designs: &designs, runs: &shoot_runs, keep: &keep, options: &sopts };
-            let shot = shooting::fit(&problem, &starts(&designs, theta_without(&gr, &held)), stop)?;
+            let mut from = starts(&designs, theta_without(&gr, &held));
+            from.extend(tried.iter().map(|t| transfer(t, &t.halves[half], terms, &designs)));
+            let shot = shooting::fit(&problem, &from, stop)?;
             let eff = effects::to_effects(model, &fitted_terms(terms, &designs, &shot.theta, None));
             let errs: Vec<kstep::Errors> =
                 prep.fit_pred.par_iter().map(|pr| kstep::predict(model, formulation, &eff, pr, &prep.horizons, &|w| held(pr.fold[w]))).collect::<Result<_>>()?;
