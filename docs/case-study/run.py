@@ -252,6 +252,49 @@ def effects_text(rep):
     return "; ".join(out)
 
 
+def links_text(rep, urdf):
+    """Per corrected link: mass, distance of the centre of mass from the joint axis, m·c, inertia
+    about the axis through the centre of mass, and about the joint axis (I_c + m d²), from the
+    report's `inertial_error` deltas and the URDF's links."""
+    import xml.etree.ElementTree as ET
+    import math
+    sel = [e for e in rep.get("selected_effects") or [] if e.get("effect") == "inertial_error"]
+    if not sel or not urdf:
+        return ""
+    root = ET.parse(urdf).getroot()
+    links = {l.get("name"): l for l in root.findall("link")}
+    out = []
+    e = sel[0]
+    p = e.get("parameters") or {}
+    for k, jn in enumerate(e.get("joints") or []):
+        j = next((j for j in root.findall("joint") if j.get("name") == jn), None)
+        if j is None:
+            continue
+        ax = [float(x) for x in (j.find("axis").get("xyz") if j.find("axis") is not None else "1 0 0").split()]
+        n = math.sqrt(sum(a * a for a in ax))
+        ax = [a / n for a in ax]
+        inert = links[j.find("child").get("link")].find("inertial")
+        o = inert.find("origin")
+        if o is not None and any(float(x) != 0.0 for x in (o.get("rpy") or "0 0 0").split()):
+            out.append(f"{jn}: rotated inertial frame, not computed")
+            continue
+        m0 = float(inert.find("mass").get("value"))
+        c0 = [float(x) for x in (o.get("xyz") if o is not None else "0 0 0").split()]
+        ia = inert.find("inertia").attrib
+        i0 = [float(ia.get(x, 0)) for x in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+        m = m0 + p["delta_mass"][k]
+        c = [a + b for a, b in zip(c0, p["delta_com"][k])]
+        i6 = [a + b for a, b in zip(i0, p["delta_inertia"][k])]
+        im = [[i6[0], i6[1], i6[2]], [i6[1], i6[3], i6[4]], [i6[2], i6[4], i6[5]]]
+        i_axis = sum(ax[r] * im[r][s] * ax[s] for r in range(3) for s in range(3))
+        along = sum(a * b for a, b in zip(c, ax))
+        d = math.sqrt(max(sum(x * x for x in c) - along * along, 0.0))
+        out.append(f"{jn}'s link {m:.3f} kg, centre of mass {d:.3f} m from the axis (m·c {m * d:.3f} kg·m), "
+                   f"inertia about the axis {i_axis:.4f} kg·m² through the centre of mass, {i_axis + m * d * d:.4f} kg·m² "
+                   f"through the joint")
+    return "; ".join(out)
+
+
 def alternatives_text(rep):
     alts = rep.get("alternatives") or []
     if not alts:
@@ -282,7 +325,8 @@ def table(title, rows, notes):
           "measured state and driven by the logged torque (replay) or by the re-simulated controller (PD); lower is "
           "better. Floor: constant-velocity extrapolation. Diagnosis: wall-clock seconds of `simgap diagnose`.\n")
     for r in rows:
-        print(f"- **{r['held']}**: selected: {r['selected']}. Alternatives: {r['alts']}. "
+        links = f" Corrected links: {r['links']}." if r.get("links") else ""
+        print(f"- **{r['held']}**: selected: {r['selected']}.{links} Alternatives: {r['alts']}. "
               f"DFKI's corrected URDF alone (its masses and inertias, without its rotor and friction terms): "
               f"{fmt(r['dfki_inertia_only'][0])} / {fmt(r['dfki_inertia_only'][1])} rad at 0.1 / 0.5 s.")
         glitches = [n for n in r["notes"] if ": glitch at t = " in n or "more glitch samples replaced" in n]
@@ -293,7 +337,7 @@ def table(title, rows, notes):
         print(f"- {n}")
 
 
-def row(rep, held, dfki_pred, fit_names, held_name, secs):
+def row(rep, held, dfki_pred, fit_names, held_name, secs, urdf=None):
     k, hs = run_kstep(rep["gap"]["kstep"], held)
     dk, dhs = run_kstep(dfki_pred, held) if dfki_pred else (None, None)
     v = {}
@@ -301,7 +345,7 @@ def row(rep, held, dfki_pred, fit_names, held_name, secs):
         v[h] = [at(k, "before", h, hs), at(k, "after", h, hs), at(dk, "after", h, dhs) if dk else float("nan"), at(k, "floor", h, hs)]
     inertia_only = [at(dk, "before", h, dhs) for h in (0.1, 0.5)] if dk else [float("nan")] * 2
     return {"held": held_name, "fit": fit_names, "secs": secs, "v01": v[0.1], "v05": v[0.5],
-            "selected": effects_text(rep), "alts": alternatives_text(rep), "dfki_inertia_only": inertia_only,
+            "selected": effects_text(rep), "links": links_text(rep, urdf), "alts": alternatives_text(rep), "dfki_inertia_only": inertia_only,
             "verdict": rep.get("verdict", ""), "notes": rep.get("notes") or []}
 
 
@@ -329,7 +373,7 @@ def double_c0(args):
         fit = [r for j, r in enumerate(runs) if j != i]
         rep, secs = diagnose(args, urdf, fit, [runs[i]], exp, f"c0_hold{i}")
         dp = predict(args, dfki_urdf, [runs[i]], dfki_eff, exp, f"c0_hold{i}_dfki")
-        rows.append(row(rep, runs[i], dp, ", ".join(f"0{j}" for j in range(5) if j != i), f"trajectory_0{i}", secs))
+        rows.append(row(rep, runs[i], dp, ", ".join(f"0{j}" for j in range(5) if j != i), f"trajectory_0{i}", secs, urdf))
     table("Double pendulum C.0 (open loop, leave one run out)", rows, notes)
     return rows
 
@@ -349,7 +393,7 @@ def double_a0(args):
     dp = predict(args, dfki_urdf, [held], dfki_eff, exp, "a0_dfki")
     notes = [f"DFKI identified model = `model_2.0`: corrected URDF (COM inertias {icom[0]:.5f}, {icom[1]:.5f} kg·m²) + `"
              + "` + `".join(dfki_eff) + "`. The re-simulated PD controller (Kp 20, Kd 0.6) closes the loop in every window."]
-    rows = [row(rep, held, dp, "first half (0–37.5 s)", "second half (37.5–75 s)", secs)]
+    rows = [row(rep, held, dp, "first half (0–37.5 s)", "second half (37.5–75 s)", secs, urdf)]
     table("Double pendulum A.0 (PD tracking, time split)", rows, notes)
     return rows
 

@@ -192,7 +192,7 @@ pub fn parameters_of_log_cholesky(phi: &[f64]) -> [f64; PARAMS_PER_LINK] {
 }
 
 /// `∂π/∂φ` (10 × 10, column k = derivative along φ_k).
-fn jacobian_log_cholesky(phi: &[f64]) -> nalgebra::SMatrix<f64, 10, 10> {
+pub(crate) fn jacobian_log_cholesky(phi: &[f64]) -> nalgebra::SMatrix<f64, 10, 10> {
     let u = u_of(phi);
     let e = phi[0].exp();
     let mut out = nalgebra::SMatrix::<f64, 10, 10>::zeros();
@@ -259,7 +259,7 @@ pub fn link_reach(model: &Model) -> Vec<f64> {
 }
 
 /// Projects the centre of mass `t` of log-Cholesky parameters into the ball of radius `reach`.
-fn project_reach(phi: &mut [f64], reach: f64) {
+pub(crate) fn project_reach(phi: &mut [f64], reach: f64) {
     let n = (phi[7] * phi[7] + phi[8] * phi[8] + phi[9] * phi[9]).sqrt();
     if n > reach {
         for v in &mut phi[7..10] {
