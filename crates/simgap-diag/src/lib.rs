@@ -471,7 +471,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 with.extend(g.1.iter().filter(|t| fits_in(&selection.terms, t)).cloned());
                 scorer.score(&with) >= final_score * (1.0 - ADD_GAIN)
             };
+            let selected_it = |e: &str| selection.terms.iter().any(|t| t.effect_name() == e);
             match effect.and_then(|e| alone(e).map(|a| (e, a))) {
+                Some((e, _)) if selected_it(e) => notes.push(format!("{note}; the selected {e} corrects it")),
                 Some(("armature", a)) if a >= 1.0 - ADD_GAIN => {}
                 Some((e, _)) if !selection.terms.is_empty() && needless(e) => {}
                 Some((e, a)) => notes.push(format!("{note}; fitted alone, {e} predicts the fit runs at {a:.2} of the nominal model's cross-validated k-step error")),
