@@ -44,7 +44,9 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     }
     let _ = writeln!(s, "\nfamily                    scenarios   right              median held-out k-step after/before at 0.5 s");
     for (family, (count, right, ratio)) in &sum.by_family {
-        let _ = writeln!(s, "  {family:<24} {count:>9}   {right:>4}  ({})     {ratio:.4}", pct(*right, *count));
+        // a family whose scenarios hide no difference has no ratio
+        let ratio = if ratio.is_finite() { format!("{ratio:.4}") } else { "  –".into() };
+        let _ = writeln!(s, "  {family:<24} {count:>9}   {right:>4}  ({})     {ratio}", pct(*right, *count));
     }
     let (delays, found) = sum.delays_found;
     let _ = writeln!(s, "\nhidden time delays found: {found} of {delays} ({})", pct(found, delays).trim());
