@@ -1,5 +1,7 @@
-//! The self-check: random blind scenarios (robot, hidden effects, references, controllers),
-//! diagnosed like real logs and scored against the hidden truth.
+//! The self-check: blind scenarios (robot, hidden effects, references, controllers; random ones
+//! and named families, [`scenario`]), diagnosed like real logs and scored against the hidden
+//! truth by each family's rule ([`run_scenario`]); for found effects whose truth is known, whether
+//! the true parameter lies within the reported 95 % interval ([`Summary::coverage`]).
 
 use std::collections::{BTreeMap, BTreeSet};
 
