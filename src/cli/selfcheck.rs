@@ -32,7 +32,8 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let _ = writeln!(s, "simgap selfcheck: {n} blind scenarios, seed {seed}");
-    let _ = writeln!(s, "\nhidden effects   scenarios   true set selected exactly   or among the alternatives");
+    let _ = writeln!(s, "\nrandom scenarios (closed_loop, open_loop)");
+    let _ = writeln!(s, "hidden effects   scenarios   true set selected exactly   or among the alternatives");
     for (k, (count, exact, right)) in &sum.by_count {
         let label = match k {
             0 => "none".to_string(),
@@ -41,9 +42,18 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
         };
         let _ = writeln!(s, "  {label:<14} {count:>9}   {exact:>4}  ({})              {right:>4}  ({})", pct(*exact, *count), pct(*right, *count));
     }
-    let _ = writeln!(s, "\nfamily          scenarios   right (or alternative)   median held-out k-step after/before (longest horizon)");
+    let _ = writeln!(s, "\nfamily                    scenarios   right              median held-out k-step after/before at 0.5 s");
     for (family, (count, right, ratio)) in &sum.by_family {
-        let _ = writeln!(s, "  {family:<14} {count:>9}   {right:>4}  ({})         {ratio:.4}", pct(*right, *count));
+        // a family whose scenarios hide no difference has no ratio
+        let ratio = if ratio.is_finite() { format!("{ratio:.4}") } else { "  –".into() };
+        let _ = writeln!(s, "  {family:<24} {count:>9}   {right:>4}  ({})     {ratio}", pct(*right, *count));
+    }
+    let (delays, found) = sum.delays_found;
+    let _ = writeln!(s, "\nhidden time delays found: {found} of {delays} ({})", pct(found, delays).trim());
+    let (inside, count) = sum.coverage;
+    let _ = writeln!(s, "true parameter within the reported 95 % interval: {inside} of {count} ({})", pct(inside, count).trim());
+    for (name, (inside, count)) in &sum.coverage_variants {
+        let _ = writeln!(s, "  with the {} interval alone: {inside} of {count} ({})", name.replace('_', " "), pct(*inside, *count).trim());
     }
     let _ = writeln!(s, "\nconfusion (rows: hidden effect, columns: selected effect; a scenario counts once per pair)");
     let mut cols: Vec<String> = sum.confusion.values().flat_map(|m| m.keys().cloned()).collect();
@@ -96,8 +106,18 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     if interrupted {
         eprintln!("interrupted: scoring the {} scenarios that finished", scores.len());
     }
-    for s in scores.iter().filter(|s| !s.exact) {
-        eprintln!("  scenario {:>3} ({}): hidden {:?}, selected {:?}{}", s.index, s.robot, s.truth, s.found, s.error.as_deref().map(|e| format!(" — {e}")).unwrap_or_default());
+    for s in scores.iter().filter(|s| !s.right || !s.rule.is_empty()) {
+        eprintln!(
+            "  scenario {:>3} ({}, {}): {}, hidden {:?}, selected {:?}{}{}",
+            s.index,
+            s.family,
+            s.robot,
+            if s.right { "right" } else { "wrong" },
+            s.truth,
+            s.found,
+            if s.rule.is_empty() { String::new() } else { format!("; {}", s.rule) },
+            s.error.as_deref().map(|e| format!(" — {e}")).unwrap_or_default()
+        );
     }
     let sum = summarise(&scores);
     print!("{}", table(&sum, scores.len(), args.seed));

@@ -4,8 +4,8 @@
 use std::collections::BTreeMap;
 
 use rand::{Rng, SeedableRng};
-use simgap_core::{mass_matrix, Formulation, Model, Workspace};
-use simgap_sim::{simulate_experiment, ControllerKind, Effect, Experiment, Fourier, PiecewiseSetpoints, Reference, Run, SensorParams, SimParams, Step};
+use simgap_core::{inverse_dynamics_into, mass_matrix, Formulation, Model, Workspace};
+use simgap_sim::{simulate_experiment, ControllerKind, Effect, Experiment, Fourier, PiecewiseSetpoints, Reference, Run, Sampled, SensorParams, SimParams, Step};
 
 use crate::error::Result;
 
@@ -23,6 +23,23 @@ pub enum RefSpec {
     },
     /// A sum of sinusoids.
     Fourier(Fourier),
+    /// A sum of sinusoids tracked with feed-forward: the nominal model's computed torque
+    /// `H(q_ref) q̈_ref + C(q_ref, q̇_ref) q̇_ref + g(q_ref)` added to the feedback command, held per
+    /// sample and logged as the run's `tau_ff`.
+    FeedForward(Fourier),
+}
+
+/// q̈ of a sum of sinusoids at `t`: `−Σ_k a_ik (2π f_ik)² sin(2π f_ik t + φ_ik)`.
+fn fourier_acceleration(f: &Fourier, t: f64, out: &mut [f64]) {
+    use std::f64::consts::TAU;
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = 0.0;
+        for (k, (&a, &fr)) in f.amplitudes[i].iter().zip(&f.frequencies[i]).enumerate() {
+            let phase = f.phases.get(i).and_then(|p| p.get(k)).copied().unwrap_or(0.0);
+            let w = TAU * fr;
+            *o -= a * w * w * (w * t + phase).sin();
+        }
+    }
 }
 
 /// One generated run.
@@ -49,17 +66,68 @@ pub struct RunSpec {
 /// # Errors
 /// Simulator errors (including divergence).
 pub fn generate(model: &Model, formulation: Formulation, effects: &[Effect], spec: &RunSpec, sample_period: f64, counts_per_rev: f64) -> Result<Run> {
+    generate_with_width(model, formulation, effects, spec, sample_period, counts_per_rev, simgap_sim::DEFAULT_COULOMB_WIDTH)
+}
+
+/// [`generate`] with the plant's `sign(q̇)` in Coulomb and Stribeck friction smoothed as
+/// `tanh(q̇ / coulomb_width)` [rad/s] (a friction shape the diagnosis's vocabulary does not hold
+/// when the width differs much from the default).
+///
+/// # Errors
+/// Simulator errors (including divergence).
+pub fn generate_with_width(
+    model: &Model,
+    formulation: Formulation,
+    effects: &[Effect],
+    spec: &RunSpec,
+    sample_period: f64,
+    counts_per_rev: f64,
+    coulomb_width: f64,
+) -> Result<Run> {
     let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     let exp = Experiment { controller: spec.controller, joints, kp: spec.kp.clone(), kv: spec.kv.clone(), sample_period, extra: BTreeMap::new() };
     let reference: Box<dyn Reference> = match &spec.reference {
         RefSpec::Step(t) => Box::new(Step { target: t.clone() }),
         RefSpec::Piecewise { times, targets } => Box::new(PiecewiseSetpoints { times: times.clone(), targets: targets.clone() }),
         RefSpec::Fourier(f) => Box::new(f.clone()),
+        RefSpec::FeedForward(f) => {
+            // the reference and its computed torque on the controller's sample grid
+            let n = model.dof();
+            let steps = (spec.duration / sample_period).round() as usize;
+            let mut ws = Workspace::new(model);
+            let (mut q, mut qd, mut qdd, mut tau) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            let mut s = Sampled { t: Vec::with_capacity(steps + 1), q: Vec::new(), qd: Vec::new(), tau_ff: Vec::new() };
+            for k in 0..=steps {
+                let t = k as f64 * sample_period;
+                f.eval(t, &mut q, &mut qd);
+                fourier_acceleration(f, t, &mut qdd);
+                inverse_dynamics_into(model, &mut ws, &q, &qd, &qdd, &mut tau);
+                s.t.push(t);
+                s.q.extend_from_slice(&q);
+                s.qd.extend_from_slice(&qd);
+                s.tau_ff.extend_from_slice(&tau);
+            }
+            Box::new(s)
+        }
     };
     let sensor = SensorParams { counts_per_rev: Some(counts_per_rev), ..SensorParams::default() };
-    let params = SimParams { duration: spec.duration, sample_period, sensor, ..SimParams::default() };
+    let params = SimParams { duration: spec.duration, sample_period, sensor, coulomb_width, ..SimParams::default() };
     let mut run = simulate_experiment(model, formulation, effects, &exp, reference.as_ref(), &params, None)?;
     run.source = spec.name.clone();
+    if let RefSpec::FeedForward(f) = &spec.reference {
+        // a recorder logs the feed-forward it added
+        let n = model.dof();
+        let mut ws = Workspace::new(model);
+        let (mut q, mut qd, mut qdd, mut tau) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        run.tau_ff = Vec::with_capacity(run.len() * n);
+        for k in 0..run.len() {
+            let t = run.t[k] - run.t[0];
+            f.eval(t, &mut q, &mut qd);
+            fourier_acceleration(f, t, &mut qdd);
+            inverse_dynamics_into(model, &mut ws, &q, &qd, &qdd, &mut tau);
+            run.tau_ff.extend_from_slice(&tau);
+        }
+    }
     Ok(run)
 }
 

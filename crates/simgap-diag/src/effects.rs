@@ -31,7 +31,8 @@ pub struct EffectReport {
     pub joints: Vec<String>,
     /// Parameters.
     pub parameters: BTreeMap<String, Param>,
-    /// Half-widths of 95 % intervals, same layout as `parameters`.
+    /// Half-widths of 95 % intervals, same layout as `parameters` (resampling spread and the
+    /// pipeline's shared error, [`crate::uncertainty`]; `NaN` for values searched on a grid).
     pub uncertainty: BTreeMap<String, Param>,
     /// The unit of each parameter (`N·m·s/rad`, `kg`, `-`, …).
     pub units: BTreeMap<String, String>,
@@ -63,7 +64,8 @@ pub struct FittedTerm {
     pub term: Term,
     /// Its free parameters.
     pub theta: Vec<f64>,
-    /// Bootstrap standard deviations.
+    /// Standard deviations: ±1.96 of them is the parameter's 95 % interval (see
+    /// [`crate::uncertainty`]).
     pub std: Vec<f64>,
 }
 

@@ -51,6 +51,7 @@ pub mod select;
 pub mod selfcheck;
 pub mod shooting;
 pub mod terms;
+pub mod uncertainty;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -110,6 +111,11 @@ pub struct Diagnosis {
     pub holdout_corrected: Vec<Option<Run>>,
     /// Fit data (smoothed states and residuals), for plots.
     pub fit_data: Vec<FitData>,
+    /// The selected effects with the 95 % half-widths of each interval method on its own
+    /// (`block_bootstrap`, `fold_jackknife`, `resampling` = the larger of the two; the report
+    /// adds the pipeline's shared error, [`uncertainty`]), for the self-check's coverage
+    /// comparison.
+    pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
 }
 
 /// Removing a term keeps it out when prediction worsens by less than this (relative).
@@ -340,15 +346,29 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
     selection.designs = designs;
     selection.fit = sel_fit;
-    let fitted = match &refined {
-        Some(r) => fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std)),
+    let (fitted, interval_variants) = match &refined {
+        // shooting's own spread (see [`shooting::Shot::std`])
+        Some(r) => (fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std)), Vec::new()),
         None => {
-            let sel_std = bootstrap_std(&sel_grams, 100, 7);
-            fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std))
+            let boot_std = bootstrap_std(&sel_grams, 100, 7);
+            let jack_std = fit::jackknife_std(&sel_grams);
+            let sel_effects = effects::to_effects(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, None));
+            // the pipeline's shared error, from the fit runs re-simulated with the fitted effects
+            let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs) };
+            let bias = uncertainty::pipeline_bias(model, formulation, &synthetic, &selection.terms, &selection.fit.theta, &options.prepare);
+            let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
+            let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
+            // the same effects with the half-widths of each interval method alone, for the self-check
+            let resampling = uncertainty::interval_std(&boot_std, &jack_std, None);
+            let variants: Vec<(&'static str, Vec<EffectReport>)> = [("block_bootstrap", &boot_std), ("fold_jackknife", &jack_std), ("resampling", &resampling)]
+                .into_iter()
+                .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
+                .collect();
+            (fitted, variants)
         }
     };
-    let mut selected_effects = effects::to_reports(model, &fitted);
     let sel_effects = effects::to_effects(model, &fitted);
+    let mut selected_effects = effects::to_reports(model, &fitted);
     // report order: by how much each effect's removal would worsen prediction
     rank_selected(&scorer, &selection.terms, &mut selected_effects);
 
@@ -382,7 +402,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         tick(progress, "screening candidates on held-out runs");
         check_stop(options)?;
         let (designs, gr, f) = fit_terms(p, data, terms);
-        let std = bootstrap_std(&gr, 50, 11);
+        // resampling spread only: the pipeline's shared error is measured for the selected set
+        let std = fit::resampling_std(&gr, &bootstrap_std(&gr, 50, 11));
         let fitted_c = fitted_terms(terms, &designs, &f.theta, Some(&std));
         let rep = effects::to_reports(model, &fitted_c).into_iter().next();
         let eff = effects::to_effects(model, &fitted_c);
@@ -549,6 +570,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         holdout_nominal: hold_nominal.into_iter().map(|g| g.1).collect(),
         holdout_corrected: hold_after.into_iter().map(|g| g.1).collect(),
         fit_data: data,
+        interval_variants,
     })
 }
 

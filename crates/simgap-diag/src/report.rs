@@ -16,7 +16,8 @@ pub struct Candidate {
     pub joints: Vec<String>,
     /// Fitted parameters (as in `selected_effects`).
     pub parameters: BTreeMap<String, Param>,
-    /// 95 % bootstrap half-widths.
+    /// 95 % half-widths from resampling alone (the larger of the block bootstrap and the
+    /// delete-one-fold jackknife); unlike `selected_effects`, without the pipeline's shared error.
     pub uncertainty: BTreeMap<String, Param>,
     /// Fraction of the nominal cross-validated torque residual it removes (fit runs).
     pub cv_residual_reduction: f64,
