@@ -155,7 +155,7 @@ pub fn double_pendulum() -> Model {
     let link = |m: f64, r: f64, i: f64| SpatialInertia::from_com(m, Vector3::new(0.0, 0.0, -r), Matrix3::from_diagonal(&Vector3::new(i, i, 0.2 * i)));
     let limits = JointLimits { lower: -std::f64::consts::PI, upper: std::f64::consts::PI, effort: 6.0, velocity: 20.0 };
     let mut shoulder = Joint::new("shoulder", JointKind::Revolute, Vector3::y(), Transform::IDENTITY, "upper_link", link(0.6, 0.3, 0.004));
-    shoulder.limits = limits.clone();
+    shoulder.limits = limits;
     let placement = Transform { rotation: Matrix3::identity(), translation: Vector3::new(0.0, 0.0, -0.3) };
     let mut elbow = Joint::new("elbow", JointKind::Revolute, Vector3::y(), placement, "lower_link", link(0.6, 0.2, 0.002));
     elbow.limits = limits;

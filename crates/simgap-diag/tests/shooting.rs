@@ -68,7 +68,7 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
     let runs = shooting::shooting_runs(&fit_pred, prepare.window, &options);
     let keep = |_: usize, _: usize| true;
     let sp = shooting::Problem { model: &model, formulation, terms: &terms, designs: &designs, runs: &runs, keep: &keep, options: &options };
-    let shot = shooting::fit(&sp, &[torque_fit.theta.clone()], None).unwrap();
+    let shot = shooting::fit(&sp, std::slice::from_ref(&torque_fit.theta), None).unwrap();
 
     let rel = |th: &[f64]| -> Vec<f64> { th.iter().zip(&truth).map(|(a, b)| (a - b).abs() / b).collect() };
     let (e_torque, e_shot) = (rel(torque_fit.theta.as_slice()), rel(shot.theta.as_slice()));
