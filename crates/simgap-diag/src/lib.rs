@@ -348,7 +348,11 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     selection.fit = sel_fit;
     let (fitted, interval_variants) = match &refined {
         // shooting's own spread (see [`shooting::Shot::std`])
-        Some(r) => (fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std)), Vec::new()),
+        Some(r) => {
+            let fitted = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std));
+            let variants = vec![("multiple_shooting", effects::to_reports(model, &fitted))];
+            (fitted, variants)
+        }
         None => {
             let boot_std = bootstrap_std(&sel_grams, 100, 7);
             let jack_std = fit::jackknife_std(&sel_grams);
