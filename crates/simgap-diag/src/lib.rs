@@ -804,6 +804,25 @@ fn refine_by_prediction(
             })
             .collect();
         let Some((k, best)) = scored.iter().map(|s| s.1).enumerate().min_by(|a, b| a.1.total_cmp(&b.1)) else { break };
+        // a delay that the torque residual did not select must beat what it gains on the fit
+        // runs re-simulated without any effect (the pipeline's own timing bias, e.g. restart
+        // states smoothed across torque steps)
+        if best < current * (1.0 - ADD_GAIN) && groups[tries[k].0].0 == "time_delay" {
+            if let Some(null) = null_score(scorer, &tries[k].1, options) {
+                if best / current > null * (1.0 - ADD_GAIN) {
+                    log.push(select::Step {
+                        term: tries[k].1[0].clone(),
+                        cv_mse: f64::NAN,
+                        accepted: false,
+                        reason: format!(
+                            "not added: a delay improves prediction of the fit runs to {:.4} of the set without it, and of the same runs re-simulated with no effect at all to {null:.4}: the gain is the pipeline's, not the robot's",
+                            best / current
+                        ),
+                    });
+                    break;
+                }
+            }
+        }
         if best < current * (1.0 - ADD_GAIN) {
             let (gi, g) = &tries[k];
             for t in g {
@@ -1037,6 +1056,23 @@ fn refine_by_shooting(
     }
     let shot = shooting::Shot { theta: nalgebra::DVector::from_vec(theta), std: nalgebra::DVector::from_vec(std), ..shot };
     Ok((Some(Refined { name: best.name, terms, designs, shot, cv: best.cv, score: best.score }), notes))
+}
+
+/// The null test of an effect added by prediction: the cross-validated k-step score of `terms`
+/// against the nominal model on the fit runs re-simulated with the nominal model (no effect
+/// hidden, the same torques, references and sensors). An effect that improves those runs too
+/// compensates a bias of the pipeline, not of the robot. `None` when a run cannot be re-simulated.
+fn null_score(scorer: &Scorer<'_>, terms: &[Term], options: &DiagnoseOptions) -> Option<f64> {
+    let synthetic = uncertainty::synthetic_runs(scorer.model, scorer.formulation, &[], &scorer.prep.fit_runs);
+    if synthetic.len() != scorer.prep.fit_runs.len() {
+        return None;
+    }
+    let prep = prepare(scorer.model, scorer.formulation, &synthetic, &scorer.prep.hold_runs, options).ok()?;
+    let scales = select::parameter_scales(scorer.model);
+    let ctx = Context::new(&prep.data, sample_period(&prep.fit_runs), &scales);
+    let mut null = Scorer { model: scorer.model, formulation: scorer.formulation, ctx: &ctx, prep: &prep, nominal: Vec::new(), memo: Default::default() };
+    null.nominal = null.cv(&[]);
+    Some(null.score(terms))
 }
 
 /// Orders the selected effects by how much prediction worsens without each (most needed first).
