@@ -629,8 +629,9 @@ pub fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
     })
 }
 
-/// Whether every term of a set is physical and none stands at a plausibility bound.
-fn all_physical(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
+/// Whether every term of a set (its designs and joint parameters, as [`fit_terms`] gives them)
+/// is physical and none stands at a plausibility bound.
+pub fn admissible(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
     let mut c = 0;
     for (t, d) in terms.iter().zip(designs) {
         let k = d.cols.len();
@@ -641,11 +642,6 @@ fn all_physical(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) ->
         c += k;
     }
     true
-}
-
-/// [`all_physical`] for a set fitted by [`fit_terms`].
-pub fn admissible(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
-    all_physical(designs, terms, theta)
 }
 
 /// The cross-validated figure a term is judged on: its joint's for a per-joint term, the
@@ -718,7 +714,7 @@ fn exchange(
             let f = fit(p, &grams(p, &refs));
             let mut all = rest_terms.clone();
             all.push(c.clone());
-            if !all_physical(&ds, &all, &f.theta) {
+            if !admissible(&ds, &all, &f.theta) {
                 continue;
             }
             // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
@@ -785,7 +781,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
             let f = fit(p, &grams(p, &refs));
             let mut all = terms.clone();
             all.push(c.clone());
-            if !all_physical(&ds, &all, &f.theta) {
+            if !admissible(&ds, &all, &f.theta) {
                 continue;
             }
             evaluated.push((c, f, ds));
@@ -850,7 +846,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
             let f = fit(p, &grams(p, &refs));
             let mut rest = terms.clone();
             rest.remove(i);
-            if !all_physical(&ds, &rest, &f.theta) {
+            if !admissible(&ds, &rest, &f.theta) {
                 continue;
             }
             if f.cv_mse - current.cv_mse < opts.min_relative_gain * f.cv_mse {
@@ -916,7 +912,7 @@ fn polish(ctx: &Context<'_>, terms: &mut [Term], designs: &mut [TermDesign], cur
             let f = fit(p, &grams(p, &refs));
             let mut all = terms.to_vec();
             all[i] = cand.clone();
-            if f.cv_mse < current.cv_mse && all_physical(&ds, &all, &f.theta) {
+            if f.cv_mse < current.cv_mse && admissible(&ds, &all, &f.theta) {
                 terms[i] = cand;
                 designs[i] = ds.swap_remove(i);
                 *current = f;

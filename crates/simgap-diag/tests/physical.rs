@@ -6,8 +6,9 @@
 //! The DFKI part needs `../shared/data` next to the repository; without it, it prints why and
 //! passes.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use common::{replay, shared_data};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use simgap_core::{inertial_parameters, Formulation, Model, SpatialInertia};
 use simgap_diag::bench::{demo_specs, generate};
@@ -16,7 +17,7 @@ use simgap_diag::inertial::{link_is_physical, link_reach};
 use simgap_diag::select::{parameter_scales, Context};
 use simgap_diag::terms::Term;
 use simgap_diag::{align_run, diagnose, effects, DiagnoseOptions, EffectReport, FitData, Param, PrepareOptions};
-use simgap_sim::{ControllerKind, Effect, Experiment, LinkDelta, Run};
+use simgap_sim::{Effect, LinkDelta, Run};
 
 /// Fit data of the paper arm's demo runs with hidden `effects`.
 fn paper_arm_data(effects: &[Effect]) -> (Model, Vec<FitData>, Vec<Run>, Vec<Run>) {
@@ -229,10 +230,6 @@ fn no_effect_is_physically_impossible_in_selfcheck_scenarios() {
     }
 }
 
-fn shared_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
-}
-
 /// The first `seconds` of a run.
 fn head(mut run: Run, seconds: f64) -> Run {
     let dof = run.dof();
@@ -244,18 +241,6 @@ fn head(mut run: Run, seconds: f64) -> Run {
         }
     }
     run
-}
-
-fn replay(run: &mut Run, period: f64) {
-    let dof = run.dof();
-    run.experiment = Some(Experiment {
-        controller: ControllerKind::Replay,
-        joints: run.joints.clone(),
-        kp: vec![0.0; dof],
-        kv: vec![0.0; dof],
-        sample_period: period,
-        extra: Default::default(),
-    });
 }
 
 #[test]

@@ -4,7 +4,9 @@
 //! The DFKI part needs `../shared/data` next to the repository; without it, it prints why and
 //! passes.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::{replay, shared_data};
 
 use rand::{Rng, SeedableRng};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};
@@ -96,10 +98,6 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
     }
 }
 
-fn shared_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
-}
-
 #[test]
 fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let root = shared_data();
@@ -114,15 +112,7 @@ fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let rec = dp.join("experiment_records/design_C.0/20220914/sys_id");
     let load = |i: &str| {
         let mut r = simgap_log::csv::read_csv_auto(&rec.join(format!("trajectory_{i}.csv.gz"))).unwrap();
-        let dof = r.dof();
-        r.experiment = Some(Experiment {
-            controller: ControllerKind::Replay,
-            joints: r.joints.clone(),
-            kp: vec![0.0; dof],
-            kv: vec![0.0; dof],
-            sample_period: 0.002,
-            extra: Default::default(),
-        });
+        replay(&mut r, 0.002);
         r
     };
     let fit: Vec<Run> = ["00", "01", "03", "04"].iter().map(|i| load(i)).collect();
