@@ -307,15 +307,17 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
                 vec![Effect::CoulombFriction { fc }]
             }
             "per_joint_gains" => {
-                // gains at least 0.1 apart, so that no two are equal (equal gains are the
+                // distinct gains from a grid of twelve (0.60–0.85 and 1.15–1.40 in steps of 0.05),
+                // drawn without replacement and jittered by at most ±0.01, so any two are at
+                // least 0.03 apart even on the seven-joint arm (equal gains are the
                 // `equivalence` family)
-                let mut k: Vec<f64> = Vec::new();
-                while k.len() < n {
-                    let x = if rng.random_bool(0.5) { rng.random_range(0.6..0.85) } else { rng.random_range(1.15..1.4) };
-                    if k.iter().all(|y| (x - y).abs() >= 0.1) {
-                        k.push(x);
-                    }
-                }
+                let mut grid: Vec<f64> = (0..6).map(|i| 0.6 + 0.05 * i as f64).chain((0..6).map(|i| 1.15 + 0.05 * i as f64)).collect();
+                let k: Vec<f64> = (0..n)
+                    .map(|_| {
+                        let g = grid.swap_remove(rng.random_range(0..grid.len()));
+                        g + rng.random_range(-0.01..0.01)
+                    })
+                    .collect();
                 vec![Effect::TorqueGain { k }]
             }
             "delay" => vec![Effect::TimeDelay { delay: rng.random_range(1..=3) as f64 * 0.0025 }],
