@@ -415,6 +415,77 @@ pub fn predict_cv(
     Ok(all)
 }
 
+/// Per fold, how a set predicts against a reference on the same windows: the geometric mean
+/// over horizons of `rms_set / rms_reference` over the windows of that fold (`fold[w]` is the
+/// fold of window `w`, in the order of `set.sq`). Folds where either has no window are left out.
+pub fn fold_ratios(set: &Errors, reference: &Errors, fold: &[usize]) -> Vec<f64> {
+    let (hs, n) = (set.horizons, set.dof);
+    if set.sq.len() != reference.sq.len() || set.windows() != fold.len() {
+        return Vec::new();
+    }
+    let folds = fold.iter().copied().max().map_or(0, |m| m + 1);
+    // per fold, per horizon: (Σ‖e_set‖², Σ‖e_ref‖², windows)
+    let mut acc = vec![(0.0, 0.0, 0usize); folds * hs];
+    for (w, &f) in fold.iter().enumerate() {
+        for h in 0..hs {
+            let row = (w * hs + h) * n..(w * hs + h + 1) * n;
+            let (a, b) = (&set.sq[row.clone()], &reference.sq[row]);
+            if a[0].is_finite() && b[0].is_finite() {
+                let e = &mut acc[f * hs + h];
+                e.0 += a.iter().sum::<f64>();
+                e.1 += b.iter().sum::<f64>();
+                e.2 += 1;
+            }
+        }
+    }
+    (0..folds)
+        .filter_map(|f| {
+            let rms: Vec<(f64, f64)> = acc[f * hs..(f + 1) * hs].iter().filter(|e| e.2 > 0).map(|e| (e.0.sqrt(), e.1.sqrt())).collect();
+            if rms.is_empty() {
+                return None;
+            }
+            let (a, b): (Vec<f64>, Vec<f64>) = rms.into_iter().unzip();
+            let r = score(&a, &b);
+            r.is_finite().then_some(r)
+        })
+        .collect()
+}
+
+/// Whether a set's prediction gain over a reference holds across the folds of the fit runs
+/// (from the per-fold ratios of [`fold_ratios`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FoldTest {
+    /// Upper confidence bound of the ratio: `exp(m + 2 s / √F)` with `m` and `s` the mean and
+    /// standard deviation of `ln ratio` over the `F` folds (infinite with fewer than two).
+    pub bound: f64,
+    /// The largest per-fold ratio (the fold the set helps least or hurts most).
+    pub worst: f64,
+    /// The geometric mean of the per-fold ratios.
+    pub mean: f64,
+}
+
+impl FoldTest {
+    /// The test of per-fold ratios `ratios`.
+    pub fn of(ratios: &[f64]) -> FoldTest {
+        let logs: Vec<f64> = ratios.iter().filter(|r| **r > 0.0 && r.is_finite()).map(|r| r.ln()).collect();
+        if logs.len() < 2 {
+            return FoldTest { bound: f64::INFINITY, worst: f64::INFINITY, mean: f64::NAN };
+        }
+        let f = logs.len() as f64;
+        let m = logs.iter().sum::<f64>() / f;
+        let var = logs.iter().map(|l| (l - m) * (l - m)).sum::<f64>() / (f - 1.0);
+        FoldTest { bound: (m + 2.0 * (var / f).sqrt()).exp(), worst: logs.iter().copied().fold(f64::NEG_INFINITY, f64::max).exp(), mean: m.exp() }
+    }
+
+    /// The gain holds: its upper bound is below 1 (better in every part of the runs, not by
+    /// the luck of a few windows), or no fold is worse by more than `tolerance` (relative) and
+    /// the mean ratio is below `1 − gain` (an effect that acts in a few folds only, e.g. a
+    /// saturation reached there, and changes nothing elsewhere).
+    pub fn holds(&self, tolerance: f64, gain: f64) -> bool {
+        self.bound < 1.0 || (self.worst <= 1.0 + tolerance && self.mean < 1.0 - gain)
+    }
+}
+
 /// One number for comparing models by prediction: the geometric mean over horizons of
 /// `rms_h / reference_h` (lower is better; 1 = as good as the reference).
 pub fn score(rms: &[f64], reference: &[f64]) -> f64 {
@@ -481,4 +552,59 @@ pub fn evaluate(model: &Model, formulation: Formulation, effects: &[Effect], run
             })
             .collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{fold_ratios, Errors, FoldTest};
+
+    /// Errors of `windows` windows, one horizon, one joint, window `w` with squared error `f(w)`.
+    fn errors(windows: usize, f: impl Fn(usize) -> f64) -> Errors {
+        Errors { horizons: 1, dof: 1, sq: (0..windows).map(f).collect() }
+    }
+
+    #[test]
+    fn fold_ratio_of_a_set_against_itself_is_one_in_every_fold() {
+        let e = errors(20, |w| 1e-4 * (1.0 + w as f64));
+        let fold: Vec<usize> = (0..20).map(|w| w / 4).collect();
+        let r = fold_ratios(&e, &e, &fold);
+        assert_eq!(r.len(), 5);
+        assert!(r.iter().all(|x| (x - 1.0).abs() < 1e-12), "{r:?}");
+    }
+
+    #[test]
+    fn fold_ratio_is_the_rms_ratio_within_each_fold() {
+        // half the RMS error in fold 0, the same in fold 1
+        let a = errors(4, |w| if w < 2 { 0.25e-2 } else { 1e-2 });
+        let b = errors(4, |_| 1e-2);
+        let r = fold_ratios(&a, &b, &[0, 0, 1, 1]);
+        assert!((r[0] - 0.5).abs() < 1e-12 && (r[1] - 1.0).abs() < 1e-12, "{r:?}");
+    }
+
+    #[test]
+    fn a_gain_in_every_fold_holds() {
+        let t = FoldTest::of(&[0.80, 0.82, 0.78, 0.81, 0.79]);
+        assert!(t.bound < 1.0 && t.holds(0.02, 0.02), "{t:?}");
+    }
+
+    #[test]
+    fn a_gain_some_folds_pay_for_does_not_hold() {
+        // better on average (geometric mean 0.93) but worse in two folds
+        let t = FoldTest::of(&[0.6, 1.3, 0.7, 1.2, 0.9]);
+        assert!(t.mean < 0.98 && t.bound > 1.0 && t.worst > 1.02, "{t:?}");
+        assert!(!t.holds(0.02, 0.02));
+    }
+
+    #[test]
+    fn an_effect_acting_in_one_fold_and_nowhere_else_holds() {
+        // a saturation reached in one fold only: the others predict as before
+        let t = FoldTest::of(&[1.0, 1.0, 0.5, 1.0, 1.001]);
+        assert!(t.bound > 1.0, "{t:?}");
+        assert!(t.holds(0.02, 0.02), "{t:?}");
+    }
+
+    #[test]
+    fn one_fold_is_no_test() {
+        assert!(!FoldTest::of(&[0.5]).holds(0.02, 0.02));
+    }
 }

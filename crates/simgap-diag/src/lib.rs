@@ -157,46 +157,77 @@ struct Scorer<'a> {
     ctx: &'a Context<'a>,
     prep: &'a Prepared,
     nominal: Vec<f64>,
-    /// Cross-validated errors of the sets scored so far (the selection revisits sets).
-    memo: std::sync::Mutex<std::collections::HashMap<String, Vec<f64>>>,
+    /// Cross-validated errors of the sets scored so far (the selection revisits sets); `None`
+    /// for a set that is no answer (inadmissible, or a prediction that failed).
+    memo: std::sync::Mutex<std::collections::HashMap<String, Option<std::sync::Arc<kstep::Errors>>>>,
 }
 
 impl Scorer<'_> {
+    fn new<'a>(model: &'a Model, formulation: Formulation, ctx: &'a Context<'a>, prep: &'a Prepared) -> Scorer<'a> {
+        let mut s = Scorer { model, formulation, ctx, prep, nominal: Vec::new(), memo: Default::default() };
+        s.nominal = s.cv(&[]);
+        s
+    }
+
     /// Cross-validated k-step RMS per horizon on the fit runs: each fold predicted by the terms
-    /// fitted without it.
+    /// fitted without it (infinite for a set that is no answer).
     fn cv(&self, terms: &[Term]) -> Vec<f64> {
+        self.cv_errors(terms).map_or_else(|| vec![f64::INFINITY; self.prep.horizons.len()], |e| e.rms())
+    }
+
+    /// The cross-validated errors of every fit window (see [`Scorer::cv`]), memoised.
+    fn cv_errors(&self, terms: &[Term]) -> Option<std::sync::Arc<kstep::Errors>> {
         let mut key: Vec<String> = terms.iter().map(|t| format!("{t:?}")).collect();
         key.sort();
         let key = key.join("|");
         if let Some(v) = self.memo.lock().ok().and_then(|m| m.get(&key).cloned()) {
             return v;
         }
-        let v = self.cv_uncached(terms);
+        let v = self.cv_uncached(terms).map(std::sync::Arc::new);
         if let Ok(mut m) = self.memo.lock() {
             m.insert(key, v.clone());
         }
         v
     }
 
-    fn cv_uncached(&self, terms: &[Term]) -> Vec<f64> {
+    fn cv_uncached(&self, terms: &[Term]) -> Option<kstep::Errors> {
         let folds = self.prep.fit_runs.len() * FOLDS_PER_RUN;
         if terms.is_empty() {
-            let e = kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new());
-            return e.map(|e| e.rms()).unwrap_or_else(|_| vec![f64::INFINITY; self.prep.horizons.len()]);
+            return kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new()).ok();
         }
         let (designs, gr, all) = fit_terms(&self.ctx.problem, self.ctx.data, terms);
         // a set whose fit on all the fit data leaves an effect at a plausibility bound (a
         // payload at its largest mass) is no answer, however well it predicts
         if !select::admissible(&designs, terms, &all.theta) {
-            return vec![f64::INFINITY; self.prep.horizons.len()];
+            return None;
         }
         let effects_of = |f: usize| -> Vec<Effect> {
             let theta = fold_theta(&gr, f);
             effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
         };
-        match kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of) {
-            Ok(e) => e.rms(),
-            Err(_) => vec![f64::INFINITY; self.prep.horizons.len()],
+        kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of).ok()
+    }
+
+    /// The fold of every fit window, in the order of [`Scorer::cv_errors`].
+    fn folds(&self) -> Vec<usize> {
+        self.prep.fit_pred.iter().flat_map(|pr| pr.fold.iter().copied()).collect()
+    }
+
+    /// The fold test ([`kstep::FoldTest`]) of windows' errors `errors` against the nominal
+    /// model's.
+    fn against_nominal(&self, errors: &kstep::Errors) -> kstep::FoldTest {
+        match self.cv_errors(&[]) {
+            Some(nominal) => kstep::FoldTest::of(&kstep::fold_ratios(errors, &nominal, &self.folds())),
+            None => kstep::FoldTest::of(&[]),
+        }
+    }
+
+    /// The fold test of the set `with` against the set `without`: whether what `with` adds
+    /// helps in every part of the fit runs, not in a few windows only.
+    fn gain_test(&self, with: &[Term], without: &[Term]) -> kstep::FoldTest {
+        match (self.cv_errors(with), self.cv_errors(without)) {
+            (Some(a), Some(b)) => kstep::FoldTest::of(&kstep::fold_ratios(&a, &b, &self.folds())),
+            _ => kstep::FoldTest::of(&[]),
         }
     }
 
@@ -282,8 +313,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         .collect();
 
     // prune by prediction: cross-validated k-step error on the fit runs
-    let mut scorer = Scorer { model, formulation, ctx: &ctx, prep: &prep, nominal: Vec::new(), memo: Default::default() };
-    scorer.nominal = scorer.cv(&[]);
+    let scorer = Scorer::new(model, formulation, &ctx, &prep);
     let total_steps = groups.len() * 2 + selection.terms.len() + 4;
     let mut step = 0usize;
     let mut tick = |progress: &mut dyn FnMut(Progress), stage: &'static str| {
@@ -350,7 +380,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         // shooting's own spread (see [`shooting::Shot::std`])
         Some(r) => {
             let fitted = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std));
-            let variants = vec![("multiple_shooting", effects::to_reports(model, &fitted))];
+            let own = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.own_std));
+            let variants = vec![("multiple_shooting", effects::to_reports(model, &own))];
             (fitted, variants)
         }
         None => {
@@ -718,17 +749,24 @@ fn prune_and_complete(
     let score_b = if score_a > SECOND_PATH_ABOVE { refine_by_prediction(scorer, groups, alone_score, &mut path_b.0, &mut path_b.1, progress, options)? } else { f64::INFINITY };
     let (best, score) = if score_b < score_a * (1.0 - PRUNE_TOLERANCE) { (path_b, score_b) } else { (path_a, score_a) };
     let (mut terms, mut log) = best;
-    if score >= 1.0 - ADD_GAIN {
+    // the improvement must be large enough and hold across the folds of the fit runs
+    let test = scorer.cv_errors(&terms).map_or_else(|| kstep::FoldTest::of(&[]), |e| scorer.against_nominal(&e));
+    let why = if score >= 1.0 - ADD_GAIN {
+        Some(format!(
+            "dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, not better by {:.0} %",
+            100.0 * ADD_GAIN
+        ))
+    } else if !terms.is_empty() && !test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
+        Some(format!(
+            "dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, but not in every part of them: fold by fold, the upper 2-standard-error bound of that ratio is {:.3} and the worst fold's {:.3}",
+            test.bound, test.worst
+        ))
+    } else {
+        None
+    };
+    if let Some(why) = why {
         for t in terms.drain(..) {
-            log.push(select::Step {
-                term: t,
-                cv_mse: f64::NAN,
-                accepted: false,
-                reason: format!(
-                    "dropped: the best set found predicts the fit runs at {score:.4} of the nominal model's cross-validated k-step error, not better by {:.0} %",
-                    100.0 * ADD_GAIN
-                ),
-            });
+            log.push(select::Step { term: t, cv_mse: f64::NAN, accepted: false, reason: why.clone() });
         }
     }
     sel.log.extend(log);
@@ -766,14 +804,22 @@ fn refine_by_prediction(
                 })
                 .collect();
             let (i, best) = without.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).expect("non-empty");
-            if best <= current * (1.0 + PRUNE_TOLERANCE) {
+            // a term that helps, but not in every part of the fit runs, goes too
+            let rest: Vec<Term> = terms.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, t)| t.clone()).collect();
+            let weak = best <= current * (1.0 + PRUNE_TOLERANCE);
+            let test = if weak { None } else { Some(scorer.gain_test(terms, &rest)) };
+            let inconsistent = test.filter(|t| !t.holds(PRUNE_TOLERANCE, ADD_GAIN));
+            if weak || inconsistent.is_some() {
                 let term = terms.remove(i);
-                log.push(select::Step {
-                    term,
-                    cv_mse: f64::NAN,
-                    accepted: false,
-                    reason: format!("pruned by prediction: without it the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (with it {current:.4})"),
-                });
+                let reason = if let Some(t) = inconsistent {
+                    format!(
+                        "pruned by prediction: with it the fit runs' cross-validated k-step error is {current:.4} of the nominal model's (without it {best:.4}), but not in every part of them: fold by fold, the upper 2-standard-error bound of that gain is {:.3} and the worst fold's {:.3}",
+                        t.bound, t.worst
+                    )
+                } else {
+                    format!("pruned by prediction: without it the fit runs' cross-validated k-step error is {best:.4} of the nominal model's (with it {current:.4})")
+                };
+                log.push(select::Step { term, cv_mse: f64::NAN, accepted: false, reason });
                 current = best;
             } else {
                 break;
@@ -804,24 +850,30 @@ fn refine_by_prediction(
             })
             .collect();
         let Some((k, best)) = scored.iter().map(|s| s.1).enumerate().min_by(|a, b| a.1.total_cmp(&b.1)) else { break };
-        // a delay that the torque residual did not select must beat what it gains on the fit
-        // runs re-simulated without any effect (the pipeline's own timing bias, e.g. restart
-        // states smoothed across torque steps)
-        if best < current * (1.0 - ADD_GAIN) && groups[tries[k].0].0 == "time_delay" {
-            if let Some(null) = null_score(scorer, &tries[k].1, options) {
+        // an effect that the torque residual did not select must beat what it gains on the fit
+        // runs re-simulated with the set before it (the pipeline's own bias: e.g. restart states
+        // smoothed across torque steps, which a delay compensates, or a smoothed q̈, which a
+        // rotor inertia compensates)
+        if best < current * (1.0 - ADD_GAIN) {
+            if let Some(null) = null_ratio(scorer, terms, &scored[k].0, options) {
                 if best / current > null * (1.0 - ADD_GAIN) {
                     log.push(select::Step {
                         term: tries[k].1[0].clone(),
                         cv_mse: f64::NAN,
                         accepted: false,
                         reason: format!(
-                            "not added: a delay improves prediction of the fit runs to {:.4} of the set without it, and of the same runs re-simulated with no effect at all to {null:.4}: the gain is the pipeline's, not the robot's",
+                            "not added: {} improves prediction of the fit runs to {:.4} of the set without it, and of the same runs re-simulated with that set to {null:.4}: the gain is the pipeline's, not the robot's",
+                            groups[tries[k].0].0,
                             best / current
                         ),
                     });
                     break;
                 }
             }
+        }
+        // what the effect adds must hold fold by fold (the backward step would prune it)
+        if best < current * (1.0 - ADD_GAIN) && !scorer.gain_test(&scored[k].0, terms).holds(PRUNE_TOLERANCE, ADD_GAIN) {
+            break;
         }
         if best < current * (1.0 - ADD_GAIN) {
             let (gi, g) = &tries[k];
@@ -852,8 +904,11 @@ struct Refined {
     name: String,
     terms: Vec<Term>,
     designs: Vec<TermDesign>,
-    /// The fit on all fit runs.
+    /// The fit on all fit runs; its `std` is the reported spread (shooting's own, the halves'
+    /// disagreement and the torque-residual fit's, combined).
     shot: shooting::Shot,
+    /// Shooting's own standard deviations, `σ² (JᵀJ)⁻¹` alone.
+    own_std: nalgebra::DVector<f64>,
     /// Cross-validated k-step RMS per horizon on the fit runs [rad].
     cv: Vec<f64>,
     /// Its score against the nominal model ([`kstep::score`]).
@@ -869,6 +924,8 @@ struct Tried {
     halves: Vec<nalgebra::DVector<f64>>,
     cv: Vec<f64>,
     score: f64,
+    /// Whether its gain over the nominal model holds fold by fold.
+    test: kstep::FoldTest,
 }
 
 /// The shooting stage, for open-loop fit runs: the selected set, the selected set with an
@@ -1001,18 +1058,26 @@ fn refine_by_shooting(
         }
         let cv = all.rms();
         let score = kstep::score(&cv, &scorer.nominal);
-        tried.push(Tried { name: name.clone(), terms: terms.clone(), designs, halves, cv, score });
+        let test = scorer.against_nominal(&all);
+        tried.push(Tried { name: name.clone(), terms: terms.clone(), designs, halves, cv, score, test });
     }
     let mut notes: Vec<String> = tried
         .iter()
         .map(|r| {
             format!(
-                "multiple shooting ({} s windows restarted from the measured state, errors at {} instants per window; two-fold cross-validation over alternate fifths of every fit run): {} predicts the fit runs at {:.4} of the nominal model's k-step error (torque-residual fit of the selected set: {current:.4})",
-                sopts.window, sopts.points, r.name, r.score
+                "multiple shooting ({} s windows restarted from the measured state, errors at {} instants per window; two-fold cross-validation over alternate fifths of every fit run): {} predicts the fit runs at {:.4} of the nominal model's k-step error (fold by fold: upper 2-standard-error bound {:.3}, worst fold {:.3}; torque-residual fit of the selected set: {current:.4})",
+                sopts.window, sopts.points, r.name, r.score, r.test.bound, r.test.worst
             )
         })
         .collect();
     let Some(bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { return Ok((None, notes)) };
+    if tried[bi].score < current * (1.0 - ADD_GAIN) && !tried[bi].test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
+        notes.push(format!(
+            "multiple shooting: {} predicts the fit runs at {:.4} of the nominal model's k-step error, but not in every part of them (fold by fold, the upper 2-standard-error bound of that ratio is {:.3} and the worst fold's {:.3}): the torque-residual answer is kept",
+            tried[bi].name, tried[bi].score, tried[bi].test.bound, tried[bi].test.worst
+        ));
+        return Ok((None, notes));
+    }
     if !(tried[bi].score < current * (1.0 - ADD_GAIN)) {
         notes.push(format!(
             "multiple shooting does not predict the fit runs better than the torque-residual fit by {:.0} %: the torque-residual parameters are kept",
@@ -1029,13 +1094,27 @@ fn refine_by_shooting(
     // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
     let mut from = starts(&best.designs, f.theta.clone());
     from.extend(best.halves.iter().cloned());
-    let shot = shooting::fit(&problem, &from, stop)?;
+    let mut shot = shooting::fit(&problem, &from, stop)?;
     notes.push(format!(
-        "the parameters of the selected effects are fitted by multiple shooting on all fit runs (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ from σ² (JᵀJ)⁻¹ of the shooting residuals, which treats the errors along a window as independent and so understates the spread",
+        "the parameters of the selected effects are fitted by multiple shooting on all fit runs (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals, a quarter of the squared difference of the two halves' answers, and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes)",
         shot.cost_start, shot.cost, shot.iterations
     ));
+    // the reported spread: σ² (JᵀJ)⁻¹ alone treats the errors along a window as independent
+    // and misses what the whole record shares (the self-check found 38 % coverage with it);
+    // the two halves' disagreement (σ of a full-data answer ≈ |θ₁ − θ₂| / 2) and the other
+    // method's answer add what it misses (shooting's own σ is kept as an interval variant)
+    let shot_std = shot.std.clone();
+    for i in 0..shot.theta.len() {
+        let half = match (best.halves.first(), best.halves.get(1)) {
+            (Some(a), Some(b)) if a.len() == shot.theta.len() && b.len() == shot.theta.len() => 0.5 * (a[i] - b[i]),
+            _ => 0.0,
+        };
+        let method = f.theta.get(i).map_or(0.0, |t| shot.theta[i] - t);
+        let total = (shot.std[i].powi(2) + half.powi(2) + method.powi(2)).sqrt();
+        shot.std[i] = if total.is_finite() { total } else { shot.std[i] };
+    }
     // a friction, rotor inertia or payload at its lower bound 0 is no effect: left out
-    let (mut terms, mut designs, mut theta, mut std) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut terms, mut designs, mut theta, mut std, mut own_std) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut none: Vec<String> = Vec::new();
     let mut c = 0;
     for (t, d) in best.terms.iter().zip(&best.designs) {
@@ -1048,6 +1127,7 @@ fn refine_by_shooting(
             designs.push(d.clone());
             theta.extend_from_slice(&shot.theta.as_slice()[c..c + k]);
             std.extend_from_slice(&shot.std.as_slice()[c..c + k]);
+            own_std.extend_from_slice(&shot_std.as_slice()[c..c + k]);
         }
         c += k;
     }
@@ -1055,24 +1135,31 @@ fn refine_by_shooting(
         notes.push(format!("fitted by multiple shooting at their bound 0, so left out: {}", none.join(", ")));
     }
     let shot = shooting::Shot { theta: nalgebra::DVector::from_vec(theta), std: nalgebra::DVector::from_vec(std), ..shot };
-    Ok((Some(Refined { name: best.name, terms, designs, shot, cv: best.cv, score: best.score }), notes))
+    Ok((Some(Refined { name: best.name, terms, designs, shot, own_std: nalgebra::DVector::from_vec(own_std), cv: best.cv, score: best.score }), notes))
 }
 
-/// The null test of an effect added by prediction: the cross-validated k-step score of `terms`
-/// against the nominal model on the fit runs re-simulated with the nominal model (no effect
-/// hidden, the same torques, references and sensors). An effect that improves those runs too
-/// compensates a bias of the pipeline, not of the robot. `None` when a run cannot be re-simulated.
-fn null_score(scorer: &Scorer<'_>, terms: &[Term], options: &DiagnoseOptions) -> Option<f64> {
-    let synthetic = uncertainty::synthetic_runs(scorer.model, scorer.formulation, &[], &scorer.prep.fit_runs);
+/// The null test of an effect added by prediction: how much the set `with` improves on the set
+/// `base` (the ratio of their cross-validated k-step scores) on the fit runs re-simulated with
+/// `base`'s effects fitted on the fit runs (the same torques, references and sensors, and
+/// nothing else hidden). An effect that improves those runs as much compensates a bias of the
+/// pipeline, not of the robot. `None` when a run cannot be re-simulated.
+fn null_ratio(scorer: &Scorer<'_>, base: &[Term], with: &[Term], options: &DiagnoseOptions) -> Option<f64> {
+    let effects = if base.is_empty() {
+        Vec::new()
+    } else {
+        let (designs, _, f) = fit_terms(&scorer.ctx.problem, scorer.ctx.data, base);
+        effects::to_effects(scorer.model, &fitted_terms(base, &designs, &f.theta, None))
+    };
+    let synthetic = uncertainty::synthetic_runs(scorer.model, scorer.formulation, &effects, &scorer.prep.fit_runs);
     if synthetic.len() != scorer.prep.fit_runs.len() {
         return None;
     }
     let prep = prepare(scorer.model, scorer.formulation, &synthetic, &scorer.prep.hold_runs, options).ok()?;
     let scales = select::parameter_scales(scorer.model);
     let ctx = Context::new(&prep.data, sample_period(&prep.fit_runs), &scales);
-    let mut null = Scorer { model: scorer.model, formulation: scorer.formulation, ctx: &ctx, prep: &prep, nominal: Vec::new(), memo: Default::default() };
-    null.nominal = null.cv(&[]);
-    Some(null.score(terms))
+    let null = Scorer::new(scorer.model, scorer.formulation, &ctx, &prep);
+    let r = null.score(with) / null.score(base);
+    r.is_finite().then_some(r)
 }
 
 /// Orders the selected effects by how much prediction worsens without each (most needed first).
@@ -1176,7 +1263,20 @@ fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone
             let mut others: Vec<usize> =
                 (0..groups.len()).filter(|&i| i != si && !names.iter().any(|n| n == groups[i].0) && alone_score[i] <= alone_score[si] * (1.0 + 5.0 * TIE_TOLERANCE)).collect();
             others.sort_by(|a, b| alone_score[*a].total_cmp(&alone_score[*b]));
-            for i in others.into_iter().take(2) {
+            others.truncate(2);
+            // the exact equivalents of an inertial correction are always tried: a payload (a
+            // point mass on the last link) and a torque gain equal on every joint (all links
+            // scaled), whatever they score alone
+            if name == "inertial_error" {
+                for partner in ["payload", "torque_gain"] {
+                    if let Some(i) = groups.iter().position(|g| g.0 == partner) {
+                        if !others.contains(&i) && !names.iter().any(|n| n == partner) {
+                            others.push(i);
+                        }
+                    }
+                }
+            }
+            for i in others {
                 swaps.push((name.clone(), i));
             }
         }

@@ -589,7 +589,7 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
         "urdf_inertia_pitfall" => {
             let links = d.report.selected_effects.iter().find(|e| e.effect == "inertial_error").map_or(0, |e| e.joints.len());
             let ok = (exact && links == sc.model.dof()) || in_alternatives;
-            (ok, format!("an inertial correction of all {} links (found one of {links})", sc.model.dof()))
+            (ok, format!("an inertial correction of all {} links (the selected one corrects {links})", sc.model.dof()))
         }
         "passive_joint" => {
             let passive = names[0].to_string();
