@@ -876,9 +876,8 @@ fn refine_by_prediction(
             .collect();
         let Some((k, best)) = scored.iter().map(|s| s.1).enumerate().min_by(|a, b| a.1.total_cmp(&b.1)) else { break };
         // an effect that the torque residual did not select must beat what it gains on the fit
-        // runs re-simulated with the set before it (the pipeline's own bias: e.g. restart states
-        // smoothed across torque steps, which a delay compensates, or a smoothed q̈, which a
-        // rotor inertia compensates)
+        // runs re-simulated with the set before it (the pipeline's own bias, e.g. restart states
+        // smoothed across torque steps, which a delay compensates)
         if best < current * (1.0 - ADD_GAIN) {
             if let Some(null) = null_ratio(scorer, terms, &scored[k].0, options) {
                 if best / current > null * (1.0 - ADD_GAIN) {
