@@ -42,6 +42,25 @@ fn fourier_acceleration(f: &Fourier, t: f64, out: &mut [f64]) {
     }
 }
 
+/// The sinusoids `f` sampled at `times` [s] with their computed torque
+/// `H(q) q̈ + C(q, q̇) q̇ + g(q)` by `model` as the feed-forward.
+fn computed_torque(model: &Model, f: &Fourier, times: impl Iterator<Item = f64>) -> Sampled {
+    let n = model.dof();
+    let mut ws = Workspace::new(model);
+    let (mut q, mut qd, mut qdd, mut tau) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut s = Sampled { t: Vec::new(), q: Vec::new(), qd: Vec::new(), tau_ff: Vec::new() };
+    for t in times {
+        f.eval(t, &mut q, &mut qd);
+        fourier_acceleration(f, t, &mut qdd);
+        inverse_dynamics_into(model, &mut ws, &q, &qd, &qdd, &mut tau);
+        s.t.push(t);
+        s.q.extend_from_slice(&q);
+        s.qd.extend_from_slice(&qd);
+        s.tau_ff.extend_from_slice(&tau);
+    }
+    s
+}
+
 /// One generated run.
 #[derive(Clone, Debug)]
 pub struct RunSpec {
@@ -92,22 +111,8 @@ pub fn generate_with_width(
         RefSpec::Fourier(f) => Box::new(f.clone()),
         RefSpec::FeedForward(f) => {
             // the reference and its computed torque on the controller's sample grid
-            let n = model.dof();
             let steps = (spec.duration / sample_period).round() as usize;
-            let mut ws = Workspace::new(model);
-            let (mut q, mut qd, mut qdd, mut tau) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            let mut s = Sampled { t: Vec::with_capacity(steps + 1), q: Vec::new(), qd: Vec::new(), tau_ff: Vec::new() };
-            for k in 0..=steps {
-                let t = k as f64 * sample_period;
-                f.eval(t, &mut q, &mut qd);
-                fourier_acceleration(f, t, &mut qdd);
-                inverse_dynamics_into(model, &mut ws, &q, &qd, &qdd, &mut tau);
-                s.t.push(t);
-                s.q.extend_from_slice(&q);
-                s.qd.extend_from_slice(&qd);
-                s.tau_ff.extend_from_slice(&tau);
-            }
-            Box::new(s)
+            Box::new(computed_torque(model, f, (0..=steps).map(|k| k as f64 * sample_period)))
         }
     };
     let sensor = SensorParams { counts_per_rev: Some(counts_per_rev), ..SensorParams::default() };
@@ -116,17 +121,8 @@ pub fn generate_with_width(
     run.source = spec.name.clone();
     if let RefSpec::FeedForward(f) = &spec.reference {
         // a recorder logs the feed-forward it added
-        let n = model.dof();
-        let mut ws = Workspace::new(model);
-        let (mut q, mut qd, mut qdd, mut tau) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        run.tau_ff = Vec::with_capacity(run.len() * n);
-        for k in 0..run.len() {
-            let t = run.t[k] - run.t[0];
-            f.eval(t, &mut q, &mut qd);
-            fourier_acceleration(f, t, &mut qdd);
-            inverse_dynamics_into(model, &mut ws, &q, &qd, &qdd, &mut tau);
-            run.tau_ff.extend_from_slice(&tau);
-        }
+        let t0 = run.t.first().copied().unwrap_or(0.0);
+        run.tau_ff = computed_torque(model, f, run.t.iter().map(|t| t - t0)).tau_ff;
     }
     Ok(run)
 }

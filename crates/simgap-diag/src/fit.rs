@@ -446,16 +446,18 @@ pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
     (sum2 / n - (&sum / n).component_mul(&(&sum / n))).map(|v| v.max(0.0).sqrt())
 }
 
-/// The parameters fitted without each contiguous fold ([`BLOCKS_PER_FOLD`] blocks: a fifth of a
-/// fit run), each under the terms' physical constraints.
+/// The parameters fitted without the contiguous folds `held(fold)` ([`BLOCKS_PER_FOLD`] blocks
+/// each: a fifth of a fit run), under the terms' physical constraints (`|_| false`: all the fit
+/// data).
+pub fn theta_without(gr: &Grams, held: &dyn Fn(usize) -> bool) -> DVector<f64> {
+    let (g, c, _) = sum_blocks(gr, |b, _| !held(b / BLOCKS_PER_FOLD));
+    gr.solve(&g, &c).0
+}
+
+/// The parameters fitted without each contiguous fold ([`theta_without`]).
 pub fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
     let folds = gr.g.len() / gr.dof / BLOCKS_PER_FOLD;
-    (0..folds)
-        .map(|f| {
-            let (g, c, _) = sum_blocks(gr, |b, _| b / BLOCKS_PER_FOLD != f);
-            gr.solve(&g, &c).0
-        })
-        .collect()
+    (0..folds).map(|f| theta_without(gr, &|g| g == f)).collect()
 }
 
 /// The 97.5 % quantile of Student's t with `nu` degrees of freedom (the half-width of a
@@ -507,8 +509,13 @@ pub fn jackknife_std(gr: &Grams) -> DVector<f64> {
 /// bootstrap `boot`: the resampling spread, without the pipeline's shared error (see
 /// [`crate::uncertainty`]).
 pub fn resampling_std(gr: &Grams, boot: &DVector<f64>) -> DVector<f64> {
-    let jack = jackknife_std(gr);
-    DVector::from_fn(gr.k, |i, _| if jack[i].is_finite() { jack[i].max(boot[i]) } else { boot[i] })
+    larger_spread(boot, &jackknife_std(gr))
+}
+
+/// Per parameter, the larger of the block bootstrap's `boot` and the jackknife's `jack` (the
+/// bootstrap's where the jackknife has none).
+pub fn larger_spread(boot: &DVector<f64>, jack: &DVector<f64>) -> DVector<f64> {
+    DVector::from_fn(boot.len(), |i, _| if jack[i].is_finite() { jack[i].max(boot[i]) } else { boot[i] })
 }
 
 /// A term's parameters as the effect states them, from its fitted column coefficients: the

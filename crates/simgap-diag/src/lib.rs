@@ -157,6 +157,8 @@ struct Scorer<'a> {
     ctx: &'a Context<'a>,
     prep: &'a Prepared,
     nominal: Vec<f64>,
+    /// The fold of every fit window, in the order of [`Scorer::cv_errors`].
+    folds: Vec<usize>,
     /// Cross-validated errors of the sets scored so far (the selection revisits sets); `None`
     /// for a set that is no answer (inadmissible, or a prediction that failed).
     memo: std::sync::Mutex<std::collections::HashMap<String, Option<std::sync::Arc<kstep::Errors>>>>,
@@ -164,7 +166,8 @@ struct Scorer<'a> {
 
 impl Scorer<'_> {
     fn new<'a>(model: &'a Model, formulation: Formulation, ctx: &'a Context<'a>, prep: &'a Prepared) -> Scorer<'a> {
-        let mut s = Scorer { model, formulation, ctx, prep, nominal: Vec::new(), memo: Default::default() };
+        let folds = prep.fit_pred.iter().flat_map(|pr| pr.fold.iter().copied()).collect();
+        let mut s = Scorer { model, formulation, ctx, prep, nominal: Vec::new(), folds, memo: Default::default() };
         s.nominal = s.cv(&[]);
         s
     }
@@ -208,16 +211,11 @@ impl Scorer<'_> {
         kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of).ok()
     }
 
-    /// The fold of every fit window, in the order of [`Scorer::cv_errors`].
-    fn folds(&self) -> Vec<usize> {
-        self.prep.fit_pred.iter().flat_map(|pr| pr.fold.iter().copied()).collect()
-    }
-
     /// The fold test ([`kstep::FoldTest`]) of windows' errors `errors` against the nominal
     /// model's.
     fn against_nominal(&self, errors: &kstep::Errors) -> kstep::FoldTest {
         match self.cv_errors(&[]) {
-            Some(nominal) => kstep::FoldTest::of(&kstep::fold_ratios(errors, &nominal, &self.folds())),
+            Some(nominal) => kstep::FoldTest::of(&kstep::fold_ratios(errors, &nominal, &self.folds)),
             None => kstep::FoldTest::of(&[]),
         }
     }
@@ -226,7 +224,7 @@ impl Scorer<'_> {
     /// helps in every part of the fit runs, not in a few windows only.
     fn gain_test(&self, with: &[Term], without: &[Term]) -> kstep::FoldTest {
         match (self.cv_errors(with), self.cv_errors(without)) {
-            (Some(a), Some(b)) => kstep::FoldTest::of(&kstep::fold_ratios(&a, &b, &self.folds())),
+            (Some(a), Some(b)) => kstep::FoldTest::of(&kstep::fold_ratios(&a, &b, &self.folds)),
             _ => kstep::FoldTest::of(&[]),
         }
     }
@@ -241,21 +239,7 @@ impl Scorer<'_> {
 /// Parameters fitted without fold `f` (contiguous fifth of a fit run), under the terms'
 /// physical constraints.
 fn fold_theta(gr: &Grams, f: usize) -> nalgebra::DVector<f64> {
-    theta_without(gr, &|g| g == f)
-}
-
-/// Parameters fitted without the folds `held(fold)`, under the terms' physical constraints.
-fn theta_without(gr: &Grams, held: &dyn Fn(usize) -> bool) -> nalgebra::DVector<f64> {
-    let mut g = nalgebra::DMatrix::zeros(gr.k, gr.k);
-    let mut c = nalgebra::DVector::zeros(gr.k);
-    for b in 0..gr.g.len() {
-        if !held((b / gr.dof) / fit::BLOCKS_PER_FOLD) {
-            g += &gr.g[b];
-            c += &gr.c[b];
-        }
-    }
-    // the same physical constraints as the full fit
-    gr.solve(&g, &c).0
+    fit::theta_without(gr, &|g| g == f)
 }
 
 fn check_stop(options: &DiagnoseOptions) -> Result<()> {
@@ -394,7 +378,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
             let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
             // the same effects with the half-widths of each interval method alone, for the self-check
-            let resampling = uncertainty::interval_std(&boot_std, &jack_std, None);
+            let resampling = fit::larger_spread(&boot_std, &jack_std);
             let variants: Vec<(&'static str, Vec<EffectReport>)> = [("block_bootstrap", &boot_std), ("fold_jackknife", &jack_std), ("resampling", &resampling)]
                 .into_iter()
                 .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
@@ -830,9 +814,12 @@ fn refine_by_prediction(
                 .collect();
             let (i, best) = without.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).expect("non-empty");
             // a term that helps, but not in every part of the fit runs, goes too
-            let rest: Vec<Term> = terms.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, t)| t.clone()).collect();
             let weak = best <= current * (1.0 + PRUNE_TOLERANCE);
-            let test = if weak { None } else { Some(scorer.gain_test(terms, &rest)) };
+            let test = (!weak).then(|| {
+                let mut rest = terms.clone();
+                rest.remove(i);
+                scorer.gain_test(terms, &rest)
+            });
             let inconsistent = test.filter(|t| !t.holds(PRUNE_TOLERANCE, ADD_GAIN));
             if weak || inconsistent.is_some() {
                 let term = terms.remove(i);
@@ -1061,7 +1048,7 @@ fn refine_by_shooting(
             let held = |f: usize| (f % FOLDS_PER_RUN) % 2 == half;
             let keep = |r: usize, w: usize| !held(shoot_runs[r].fold[w]);
             let problem = shooting::Problem { model, formulation, terms, designs: &designs, runs: &shoot_runs, keep: &keep, options: &sopts };
-            let mut from = starts(&designs, theta_without(&gr, &held));
+            let mut from = starts(&designs, fit::theta_without(&gr, &held));
             from.extend(tried.iter().map(|t| transfer(t, &t.halves[half], terms, &designs)));
             let shot = shooting::fit(&problem, &from, stop)?;
             let eff = effects::to_effects(model, &fitted_terms(terms, &designs, &shot.theta, None));
@@ -1128,11 +1115,12 @@ fn refine_by_shooting(
     // the two halves' disagreement (σ of a full-data answer ≈ |θ₁ − θ₂| / 2) and the other
     // method's answer add what it misses (shooting's own σ is kept as an interval variant)
     let shot_std = shot.std.clone();
+    let halves = match (best.halves.first(), best.halves.get(1)) {
+        (Some(a), Some(b)) if a.len() == shot.theta.len() && b.len() == shot.theta.len() => Some((a, b)),
+        _ => None,
+    };
     for i in 0..shot.theta.len() {
-        let half = match (best.halves.first(), best.halves.get(1)) {
-            (Some(a), Some(b)) if a.len() == shot.theta.len() && b.len() == shot.theta.len() => 0.5 * (a[i] - b[i]),
-            _ => 0.0,
-        };
+        let half = halves.map_or(0.0, |(a, b)| 0.5 * (a[i] - b[i]));
         let method = f.theta.get(i).map_or(0.0, |t| shot.theta[i] - t);
         let total = (shot.std[i].powi(2) + half.powi(2) + method.powi(2)).sqrt();
         shot.std[i] = if total.is_finite() { total } else { shot.std[i] };
@@ -1337,22 +1325,25 @@ fn alternatives(scorer: &Scorer<'_>, groups: &[(&'static str, Vec<Term>)], alone
                 swaps.push((name.clone(), i));
             }
         }
-        let scored: Vec<(String, usize, f64)> = swaps
+        let scored: Vec<(String, usize, f64, bool)> = swaps
             .par_iter()
             .map(|(name, i)| {
                 let set = swapped(terms, name, &groups[*i].1);
-                (name.clone(), *i, scorer.score(&set))
+                let s = scorer.score(&set);
+                // a swap better on the whole but not fold by fold is named with that said
+                let holds = s < current * (1.0 - TIE_TOLERANCE) && scorer.gain_test(&set, terms).holds(PRUNE_TOLERANCE, ADD_GAIN);
+                (name.clone(), *i, s, holds)
             })
             .collect();
-        for (name, i, s) in scored {
+        for (name, i, s, holds) in scored {
             if s <= current * (1.0 + TIE_TOLERANCE) {
                 let effects = with(&name, groups[i].0);
                 if !out.iter().any(|a: &Alternative| a.effects == effects) {
                     let why = if s < current * (1.0 - TIE_TOLERANCE) {
-                        // better, but the exchange step found the gain not holding fold by fold
                         format!(
-                            "replacing {name} by {} predicts the fit runs better on the whole (cross-validated k-step score {s:.4} against {current:.4}) but not in every part of them",
-                            groups[i].0
+                            "replacing {name} by {} predicts the fit runs better on the whole (cross-validated k-step score {s:.4} against {current:.4}){}",
+                            groups[i].0,
+                            if holds { "" } else { " but not in every part of them" }
                         )
                     } else {
                         format!(

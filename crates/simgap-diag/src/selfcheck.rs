@@ -461,10 +461,15 @@ fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectReport]) -> Vec
     out
 }
 
+/// Whether the found value lies within its 95 % half-width of the truth.
+fn inside(c: &Comparison) -> bool {
+    (c.2 - c.1).abs() <= c.3
+}
+
 /// Of the comparisons with a reported interval: (truth inside found ± half-width, count).
 fn coverage_of(c: &[Comparison]) -> (usize, usize) {
     let with: Vec<&Comparison> = c.iter().filter(|x| x.3.is_finite()).collect();
-    (with.iter().filter(|x| (x.2 - x.1).abs() <= x.3).count(), with.len())
+    (with.iter().filter(|x| inside(x)).count(), with.len())
 }
 
 /// The score of one scenario.
@@ -622,7 +627,7 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
         rule,
         kstep_ratio,
         parameter_errors: reported.iter().map(|c| (c.0.clone(), ((c.2 - c.1) / c.1).abs())).collect(),
-        intervals: reported.iter().filter(|c| c.3.is_finite()).map(|c| (c.0.clone(), c.1, c.2, c.3, (c.2 - c.1).abs() <= c.3)).collect(),
+        intervals: reported.iter().filter(|c| c.3.is_finite()).map(|c| (c.0.clone(), c.1, c.2, c.3, inside(c))).collect(),
         interval_variants,
         holdout_ratio: d.report.gap.ratio,
         truth: label(&truth),

@@ -21,12 +21,12 @@
 //! What this does not hold: an effect the vocabulary lacks, or a wrong selection, biases the
 //! parameters in ways no refit of the selected model shows.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use simgap_core::{Formulation, Model};
 use simgap_sim::{Effect, Run, RunEnd};
 
 use crate::dataset::{FitData, PrepareOptions};
-use crate::fit::{grams, Problem};
+use crate::fit::{grams, larger_spread, theta_without, Problem};
 use crate::terms::{design, Term, TermDesign};
 
 /// The synthetic fit runs: each (model-aligned) fit run re-simulated with `effects`; runs whose
@@ -59,14 +59,7 @@ pub fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: &[Run],
     let p = Problem::new(&data);
     let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, &data)).collect();
     let refs: Vec<&TermDesign> = designs.iter().collect();
-    let gr = grams(&p, &refs);
-    let mut g = DMatrix::zeros(gr.k, gr.k);
-    let mut c = DVector::zeros(gr.k);
-    for (gb, cb) in gr.g.iter().zip(&gr.c) {
-        g += gb;
-        c += cb;
-    }
-    let (theta_star, _) = gr.solve(&g, &c);
+    let theta_star = theta_without(&grams(&p, &refs), &|_| false);
     (theta_star.len() == theta.len()).then(|| theta_star - theta)
 }
 
@@ -75,9 +68,9 @@ pub fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: &[Run],
 /// jackknife (`jack`) spreads and `b` the pipeline's error ([`pipeline_bias`]; taken as 0 where
 /// unknown).
 pub fn interval_std(boot: &DVector<f64>, jack: &DVector<f64>, bias: Option<&DVector<f64>>) -> DVector<f64> {
+    let spread = larger_spread(boot, jack);
     DVector::from_fn(boot.len(), |i, _| {
-        let s = if jack[i].is_finite() { jack[i].max(boot[i]) } else { boot[i] };
         let b = bias.and_then(|b| b.get(i).copied()).filter(|b| b.is_finite()).unwrap_or(0.0);
-        s.hypot(b)
+        spread[i].hypot(b)
     })
 }

@@ -15,20 +15,12 @@ use simgap_diag::fit::{fit_terms, fitted_terms, Problem};
 use simgap_diag::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use simgap_diag::terms::Term;
 use simgap_diag::{align_run, diagnose, effects, shooting, DiagnoseOptions, FitData, Param, PrepareOptions};
-use simgap_sim::{ControllerKind, Effect, Experiment, Run, SensorParams};
+use simgap_sim::{Effect, Run, SensorParams};
 
 /// The run as an open-loop replay of its commanded torque, its stamps written with a jitter of up
 /// to `jitter` sample periods (as a logger on a busy computer stamps samples).
 fn replay_with_jittered_stamps(mut run: Run, period: f64, jitter: f64, rng: &mut impl Rng) -> Run {
-    let dof = run.dof();
-    run.experiment = Some(Experiment {
-        controller: ControllerKind::Replay,
-        joints: run.joints.clone(),
-        kp: vec![0.0; dof],
-        kv: vec![0.0; dof],
-        sample_period: period,
-        extra: Default::default(),
-    });
+    replay(&mut run, period);
     for t in run.t.iter_mut().skip(1) {
         *t += jitter * period * rng.random_range(-1.0..1.0);
     }
