@@ -331,6 +331,15 @@ def l2(t: _ArrayLike, x: _ArrayLike) -> float:
     than two samples.
     """
 
+def effect_vocabulary() -> list[dict[str, Any]]:
+    """Every effect of the vocabulary, in the documented order.
+
+    Each entry is ``{"name": str, "whole_robot": bool, "parameters": [{"name": str,
+    "unit": {"revolute": str, "prismatic": str}, "neutral": float | None, "estimated": bool}]}``.
+    ``neutral`` is the value at which the effect is absent (``None`` where there is none);
+    ``estimated`` is false for values searched on a grid and for counts (no interval).
+    """
+
 def compare(a: Run, b: Run, window: tuple[float, float] | None = None) -> L2Report:
     """L² of the position difference a.q − b.q (eq. 127).
 

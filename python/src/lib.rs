@@ -7,6 +7,7 @@ mod diagnosis;
 mod errors;
 mod model;
 mod sim;
+mod vocabulary;
 mod worker;
 
 use pyo3::prelude::*;
@@ -28,5 +29,6 @@ fn _simgap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::compare, m)?)?;
     m.add_class::<diagnosis::PyReport>()?;
     m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(vocabulary::effect_vocabulary, m)?)?;
     Ok(())
 }

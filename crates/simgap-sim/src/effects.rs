@@ -26,6 +26,7 @@ use nalgebra::{Matrix3, Vector3};
 use simgap_core::{Model, SpatialInertia};
 
 use crate::error::{Error, Result};
+use crate::kind::EffectKind;
 
 /// Default smoothing width of `sign(q̇)` [rad/s]: `sign(q̇) ≈ tanh(q̇ / 0.01)`.
 ///
@@ -61,22 +62,6 @@ pub fn friction_slope_bound(effects: &[Effect], coulomb_width: f64, out: &mut [f
         }
     }
 }
-
-/// The names of every effect, in their documented order (part of the public contract).
-pub const EFFECT_NAMES: [&str; 12] = [
-    "viscous_friction",
-    "coulomb_friction",
-    "stribeck_friction",
-    "armature",
-    "payload",
-    "inertial_error",
-    "torque_gain",
-    "torque_offset",
-    "torque_saturation",
-    "time_delay",
-    "cogging",
-    "coriolis_structure",
-];
 
 /// A change to one link's inertia: `new = old + delta` (see [`Effect::InertialError`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -165,22 +150,27 @@ pub enum Effect {
 }
 
 impl Effect {
+    /// The effect's kind (its name in the vocabulary).
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Effect::ViscousFriction { .. } => EffectKind::ViscousFriction,
+            Effect::CoulombFriction { .. } => EffectKind::CoulombFriction,
+            Effect::StribeckFriction { .. } => EffectKind::StribeckFriction,
+            Effect::Armature { .. } => EffectKind::Armature,
+            Effect::Payload { .. } => EffectKind::Payload,
+            Effect::InertialError { .. } => EffectKind::InertialError,
+            Effect::TorqueGain { .. } => EffectKind::TorqueGain,
+            Effect::TorqueOffset { .. } => EffectKind::TorqueOffset,
+            Effect::TorqueSaturation { .. } => EffectKind::TorqueSaturation,
+            Effect::TimeDelay { .. } => EffectKind::TimeDelay,
+            Effect::Cogging { .. } => EffectKind::Cogging,
+            Effect::CoriolisStructure => EffectKind::CoriolisStructure,
+        }
+    }
+
     /// The contract name (`viscous_friction`, ..., `coriolis_structure`).
     pub fn name(&self) -> &'static str {
-        match self {
-            Effect::ViscousFriction { .. } => "viscous_friction",
-            Effect::CoulombFriction { .. } => "coulomb_friction",
-            Effect::StribeckFriction { .. } => "stribeck_friction",
-            Effect::Armature { .. } => "armature",
-            Effect::Payload { .. } => "payload",
-            Effect::InertialError { .. } => "inertial_error",
-            Effect::TorqueGain { .. } => "torque_gain",
-            Effect::TorqueOffset { .. } => "torque_offset",
-            Effect::TorqueSaturation { .. } => "torque_saturation",
-            Effect::TimeDelay { .. } => "time_delay",
-            Effect::Cogging { .. } => "cogging",
-            Effect::CoriolisStructure => "coriolis_structure",
-        }
+        self.kind().as_str()
     }
 
     /// Joints (model indices, ascending) where a per-joint effect is not neutral; the joints
@@ -283,9 +273,7 @@ impl Effect {
             Some((n, r)) => (n.trim(), r.trim()),
             None => (spec.trim(), ""),
         };
-        if !EFFECT_NAMES.contains(&name) {
-            return Err(invalid("effect", format!("unknown effect '{name}'; expected one of {}", EFFECT_NAMES.join(", "))));
-        }
+        let kind: EffectKind = name.parse()?;
         let mut params: Vec<(String, Vec<f64>)> = Vec::new();
         for part in rest.split(';').map(str::trim).filter(|p| !p.is_empty()) {
             let (k, v) = part.split_once('=').ok_or_else(|| invalid(name, format!("'{part}' is not param=values")))?;
@@ -301,19 +289,11 @@ impl Effect {
                 .collect::<Result<Vec<f64>>>()?;
             params.push((k.trim().to_string(), vals));
         }
-        let known: &[&str] = match name {
-            "viscous_friction" => &["b"],
-            "coulomb_friction" => &["fc"],
-            "stribeck_friction" => &["fc", "fs", "vs"],
-            "armature" => &["ia"],
-            "payload" => &["mass", "com"],
-            "inertial_error" => &["joint", "mass", "com", "inertia"],
-            "torque_gain" => &["k"],
-            "torque_offset" => &["offset"],
-            "torque_saturation" => &["limit"],
-            "time_delay" => &["delay"],
-            "cogging" => &["amplitude", "periods_per_rev"],
-            _ => &[],
+        // the command line names the inertial error's link by its joint, and its deltas as
+        // `mass`, `com`, `inertia`: the spellings of one link's change
+        let known: Vec<&str> = match kind {
+            EffectKind::InertialError => vec!["joint", "mass", "com", "inertia"],
+            k => k.parameters().iter().map(|p| p.name).collect(),
         };
         if let Some((k, _)) = params.iter().find(|(k, _)| !known.contains(&k.as_str())) {
             return Err(invalid(name, format!("unknown parameter '{k}'; expected {}", if known.is_empty() { "none".into() } else { known.join(", ") })));
@@ -338,13 +318,13 @@ impl Effect {
             let v = get(k)?;
             <[f64; 3]>::try_from(v.as_slice()).map_err(|_| invalid(name, format!("parameter '{k}' takes 3 numbers, got {}", v.len())))
         };
-        let effect = match name {
-            "viscous_friction" => Effect::ViscousFriction { b: per_joint("b")? },
-            "coulomb_friction" => Effect::CoulombFriction { fc: per_joint("fc")? },
-            "stribeck_friction" => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")? },
-            "armature" => Effect::Armature { ia: per_joint("ia")? },
-            "payload" => Effect::Payload { mass: scalar("mass")?, com: triple("com")? },
-            "inertial_error" => {
+        let effect = match kind {
+            EffectKind::ViscousFriction => Effect::ViscousFriction { b: per_joint("b")? },
+            EffectKind::CoulombFriction => Effect::CoulombFriction { fc: per_joint("fc")? },
+            EffectKind::StribeckFriction => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")? },
+            EffectKind::Armature => Effect::Armature { ia: per_joint("ia")? },
+            EffectKind::Payload => Effect::Payload { mass: scalar("mass")?, com: triple("com")? },
+            EffectKind::InertialError => {
                 let joint = scalar("joint")?;
                 if joint < 0.0 || joint.fract() != 0.0 {
                     return Err(invalid(name, format!("joint = {joint}; expected a joint index")));
@@ -356,12 +336,12 @@ impl Effect {
                 let delta = LinkDelta { joint: joint as usize, mass: scalar("mass").unwrap_or(0.0), com: triple("com").unwrap_or([0.0; 3]), inertia };
                 Effect::InertialError { deltas: vec![delta] }
             }
-            "torque_gain" => Effect::TorqueGain { k: per_joint("k")? },
-            "torque_offset" => Effect::TorqueOffset { offset: per_joint("offset")? },
-            "torque_saturation" => Effect::TorqueSaturation { limit: per_joint("limit")? },
-            "time_delay" => Effect::TimeDelay { delay: scalar("delay")? },
-            "cogging" => Effect::Cogging { amplitude: per_joint("amplitude")?, periods_per_rev: per_joint("periods_per_rev")? },
-            _ => Effect::CoriolisStructure,
+            EffectKind::TorqueGain => Effect::TorqueGain { k: per_joint("k")? },
+            EffectKind::TorqueOffset => Effect::TorqueOffset { offset: per_joint("offset")? },
+            EffectKind::TorqueSaturation => Effect::TorqueSaturation { limit: per_joint("limit")? },
+            EffectKind::TimeDelay => Effect::TimeDelay { delay: scalar("delay")? },
+            EffectKind::Cogging => Effect::Cogging { amplitude: per_joint("amplitude")?, periods_per_rev: per_joint("periods_per_rev")? },
+            EffectKind::CoriolisStructure => Effect::CoriolisStructure,
         };
         effect.validate(dof)?;
         Ok(effect)

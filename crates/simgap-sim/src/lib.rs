@@ -7,6 +7,7 @@ pub mod delay;
 pub mod effects;
 pub mod error;
 pub mod integrate;
+pub mod kind;
 pub mod l2;
 pub mod plant;
 pub mod reference;
@@ -21,8 +22,9 @@ pub use sink::{MemorySink, RunEnd, Sink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, ZeroTorque};
 pub use delay::DelayLine;
-pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH, EFFECT_NAMES};
+pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH};
 pub use integrate::Integrator;
+pub use kind::{EffectKind, ParamSpec, Quantity};
 pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Report};
 pub use plant::{Plant, PlantWorkspace};
 pub use reference::{reference_from_run, reference_from_run_for, Fourier, PiecewiseSetpoints, Reference, Sampled, Step};

@@ -4,7 +4,7 @@ use simgap_core::robots::paper_arm;
 use simgap_core::{gravity_torques, kinetic_energy, potential_energy, Formulation, Model, Workspace};
 use simgap_sim::effects::{friction_slope_bound, smooth_sign};
 use simgap_sim::{
-    applied_torque, friction_torque, simulate, Controller, Effect, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, Step, ZeroTorque, EFFECT_NAMES,
+    applied_torque, friction_torque, simulate, Controller, Effect, EffectKind, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, Step, ZeroTorque,
 };
 
 fn run(model: &Model, effects: &[Effect], controller: &mut dyn Controller, params: &SimParams) -> Run {
@@ -57,9 +57,9 @@ fn every_effect_name_parses() {
         "cogging:amplitude=0.3,0.1;periods_per_rev=8,8",
         "coriolis_structure",
     ];
-    for (spec, name) in specs.iter().zip(EFFECT_NAMES) {
+    for (spec, kind) in specs.iter().zip(EffectKind::ALL) {
         let e = Effect::parse(spec, 2).unwrap_or_else(|err| panic!("{spec}: {err}"));
-        assert_eq!(e.name(), name);
+        assert_eq!(e.kind(), kind);
     }
     assert_eq!(Effect::parse("viscous_friction:b=2", 2).unwrap(), Effect::ViscousFriction { b: vec![2.0, 2.0] });
     assert!(Effect::parse("viscous_friction:b=1,2,3", 2).is_err());
