@@ -3,11 +3,9 @@
 //! 2.5 ms, 1,024,000 counts/rev), all on **one thread** (a one-thread rayon pool), id
 //! `what/robot`:
 //! - `diagnose/paper_arm_demo`: the whole diagnosis `simgap demo` runs, logs in memory;
-//! - `kstep_predict/paper_arm_demo`: one k-step prediction of every window of the held-out
-//!   run with the hidden effects (horizons 0.1, 0.25, 0.5 s), the unit of work the
-//!   cross-validated scoring repeats per candidate set and fold;
-//! - `kstep_predict_cv/paper_arm_demo`: the nominal model's cross-validated prediction of the
-//!   fit runs (15 folds), as the diagnosis scores a set.
+//! - `kstep_predict/paper_arm_demo`: k-step prediction of every window of the held-out run,
+//!   nominal and with the hidden effects (horizons 0.1, 0.25, 0.5 s; `simgap_diag::predict`):
+//!   the unit of work the cross-validated scoring repeats per candidate set and fold.
 //!
 //! `cargo bench --bench diagnose` (a diagnosis takes about a second: criterion's ten samples
 //! take a minute or two).
@@ -18,9 +16,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion};
 use simgap::core::{Formulation, Model};
 use simgap::diag::bench::{demo_effects, demo_specs, generate};
-use simgap::diag::kstep::{predict, predict_cv, PredictionRun, DEFAULT_HORIZONS, FIT_WINDOWS_PER_RUN, FOLDS_PER_RUN, MAX_WINDOWS_PER_RUN};
-use simgap::diag::resim::infer_sensors;
-use simgap::diag::{diagnose, DiagnoseOptions, PrepareOptions};
+use simgap::diag::{diagnose, predict, DiagnoseOptions, PrepareOptions};
 use simgap::sim::Run;
 
 /// The demo's fit and held-out runs (seed 1).
@@ -29,10 +25,6 @@ fn demo_runs(model: &Model) -> (Vec<Run>, Vec<Run>) {
     let (fit, hold) = demo_specs(1);
     let gen = |s| generate(model, Formulation::EulerLagrange, &hidden, s, 0.0025, 1_024_000.0).expect("the demo's runs simulate");
     (fit.iter().map(gen).collect(), hold.iter().map(gen).collect())
-}
-
-fn prediction_run(run: &Run, fold_base: usize, max_windows: usize) -> PredictionRun {
-    PredictionRun::new(run.clone(), &DEFAULT_HORIZONS, PrepareOptions::default().window, infer_sensors(run).params(), fold_base, max_windows)
 }
 
 fn diagnosis(c: &mut Criterion) {
@@ -49,21 +41,13 @@ fn diagnosis(c: &mut Criterion) {
 
 fn kstep(c: &mut Criterion) {
     let model = Model::paper_arm();
-    let (fit, hold) = demo_runs(&model);
+    let (_, hold) = demo_runs(&model);
     let hidden = demo_effects();
-    let held = prediction_run(&hold[0], 0, MAX_WINDOWS_PER_RUN);
-    let fitted: Vec<PredictionRun> = fit.iter().enumerate().map(|(i, r)| prediction_run(r, i * FOLDS_PER_RUN, FIT_WINDOWS_PER_RUN)).collect();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a one-thread pool");
     let mut group = c.benchmark_group("kstep_predict");
     group.sample_size(20).measurement_time(Duration::from_secs(10));
-    group.bench_function("paper_arm_demo", |b| b.iter(|| predict(black_box(&model), Formulation::EulerLagrange, &hidden, &held, &DEFAULT_HORIZONS, &|_| true).expect("predicts")));
-    group.finish();
-    let mut group = c.benchmark_group("kstep_predict_cv");
-    group.sample_size(10).measurement_time(Duration::from_secs(10));
     group.bench_function("paper_arm_demo", |b| {
-        b.iter(|| {
-            pool.install(|| predict_cv(black_box(&model), Formulation::EulerLagrange, &fitted, &DEFAULT_HORIZONS, fit.len() * FOLDS_PER_RUN, &|_| Vec::new()).expect("predicts"))
-        })
+        b.iter(|| pool.install(|| predict(black_box(&model), Formulation::EulerLagrange, &hidden, &hold, &[0.1, 0.25, 0.5], PrepareOptions::default().window).expect("predicts")))
     });
     group.finish();
 }

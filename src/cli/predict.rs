@@ -64,7 +64,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         }
         runs.push(run);
     }
-    let k = simgap::diag::kstep::evaluate(&model, args.formulation, &effects, &runs, &args.horizon, simgap::diag::PrepareOptions::default().window)?;
+    let k = simgap::diag::predict(&model, args.formulation, &effects, &runs, &args.horizon, simgap::diag::PrepareOptions::default().window)?;
     println!(
         "k-step prediction of {} log(s) by '{}'{} ({} windows)",
         runs.len(),

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use simgap_sim::Run;
 
-use crate::dataset::FitData;
+use crate::prepare::dataset::FitData;
 
 /// Per-joint figures.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -103,7 +103,7 @@ fn phase(run: &Run, k0: usize, k1: usize) -> &'static str {
 
 /// Builds the `where` section from the fit data, the measured runs and their nominal
 /// simulations.
-pub fn locate(joints: &[String], data: &[FitData], measured: &[Run], nominal: &[Option<Run>]) -> Where {
+pub(crate) fn locate(joints: &[String], data: &[FitData], measured: &[Run], nominal: &[Option<Run>]) -> Where {
     let n = joints.len();
     // simulation gap per joint and worst windows
     let mut sq = vec![0.0; n];

@@ -16,20 +16,24 @@
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
 
+pub(crate) mod effects;
+
+pub use effects::{EffectReport, Param};
+
 use std::sync::Arc;
 
 use nalgebra::Vector3;
 use simgap_core::PARAMS_PER_LINK;
 
-use crate::dataset::FitData;
-use crate::inertial::InertialPrior;
+use crate::lsq::inertial::InertialPrior;
+use crate::prepare::dataset::FitData;
 
 /// Width [rad/s] of the tanh that smooths sign(q̇) in fitting and in simulation.
-pub const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
+pub(crate) const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
 
 /// One candidate term.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Term {
+pub(crate) enum Term {
     /// Viscous friction on a joint.
     Viscous(usize),
     /// Coulomb friction on a joint.
@@ -77,7 +81,7 @@ pub enum Term {
         max_mass: f64,
     },
     /// Corrections of every link's inertial parameters, physically consistent and regularised
-    /// toward the URDF (see [`crate::inertial`]); its parameters are the stacked corrections
+    /// toward the URDF (see [`crate::lsq::inertial`]); its parameters are the stacked corrections
     /// Δπ in units of `prior.scales`.
     InertialError {
         /// URDF parameters, scales, reach of every link and prior weight.
@@ -87,7 +91,7 @@ pub enum Term {
 
 impl Term {
     /// The effect's contract name.
-    pub fn effect_name(&self) -> &'static str {
+    pub(crate) fn effect_name(&self) -> &'static str {
         match self {
             Term::Viscous(_) => "viscous_friction",
             Term::Coulomb(_) => "coulomb_friction",
@@ -105,7 +109,7 @@ impl Term {
     }
 
     /// The joint of a per-joint term.
-    pub fn joint(&self) -> Option<usize> {
+    pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
             Term::Viscous(j) | Term::Coulomb(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) => Some(j),
             Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
@@ -115,7 +119,7 @@ impl Term {
 
     /// Identity of the slot the term occupies: at most one term per slot is selected
     /// (Coulomb and Stribeck share one; payload and inertial error share one).
-    pub fn slot(&self) -> (&'static str, Option<usize>) {
+    pub(crate) fn slot(&self) -> (&'static str, Option<usize>) {
         let name = match self {
             Term::Coulomb(_) | Term::Stribeck { .. } => "dry_friction",
             Term::Payload { .. } | Term::InertialError { .. } => "inertia",
@@ -128,7 +132,7 @@ impl Term {
 /// A column of the design: per-joint (values per sample, on that joint's rows) or global
 /// (values per sample and joint, row-major).
 #[derive(Clone, Debug)]
-pub struct Column {
+pub(crate) struct Column {
     /// `Some(j)`: nonzero only on joint j's rows.
     pub joint: Option<usize>,
     /// Values: length = samples (per-joint) or samples × dof (global).
@@ -138,7 +142,7 @@ pub struct Column {
 impl Column {
     /// Value at (sample, joint).
     #[inline]
-    pub fn at(&self, s: usize, j: usize, dof: usize) -> f64 {
+    pub(crate) fn at(&self, s: usize, j: usize, dof: usize) -> f64 {
         match self.joint {
             Some(jj) => {
                 if jj == j {
@@ -156,7 +160,7 @@ impl Column {
 /// (coefficient 1) subtracted from the residual, with the physical constraints on the
 /// parameters.
 #[derive(Clone, Debug, Default)]
-pub struct TermDesign {
+pub(crate) struct TermDesign {
     /// Free columns.
     pub cols: Vec<Column>,
     /// Fixed part.
@@ -170,11 +174,11 @@ pub struct TermDesign {
 }
 
 /// Plausible range of a torque gain `k` (fitted as `1 − k`).
-pub const GAIN_RANGE: (f64, f64) = (0.2, 5.0);
+pub(crate) const GAIN_RANGE: (f64, f64) = (0.2, 5.0);
 
 impl TermDesign {
     /// Columns without constraints.
-    pub fn free(cols: Vec<Column>) -> TermDesign {
+    pub(crate) fn free(cols: Vec<Column>) -> TermDesign {
         TermDesign { cols, ..Default::default() }
     }
 
@@ -203,14 +207,14 @@ fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> 
 
 /// The ten inertial parameters `(1, c, |c|² 1 − c cᵀ)` of a unit point mass at `com` [m],
 /// in the regressor's order (mass, first moment, rotational inertia about the joint frame).
-pub fn point_mass_parameters(com: [f64; 3]) -> [f64; PARAMS_PER_LINK] {
+pub(crate) fn point_mass_parameters(com: [f64; 3]) -> [f64; PARAMS_PER_LINK] {
     let c = Vector3::from(com);
     [1.0, c.x, c.y, c.z, c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y]
 }
 
 /// The torque of a unit point mass at `com` on the last link (its ten inertial parameters
 /// [`point_mass_parameters`] through the regressor), as a global column.
-pub fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
+pub(crate) fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
     let pi = point_mass_parameters(com);
     let rows = payload_basis_rows(data);
     Column { joint: None, values: rows.chunks_exact(PARAMS_PER_LINK).map(|row| row.iter().zip(&pi).map(|(a, b)| a * b).sum()).collect() }
@@ -218,7 +222,7 @@ pub fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
 
 /// The last link's ten regressor entries of every row (sample × joint, over runs), row-major:
 /// a payload's column is their combination by [`point_mass_parameters`].
-pub fn payload_basis_rows(data: &[FitData]) -> Vec<f64> {
+pub(crate) fn payload_basis_rows(data: &[FitData]) -> Vec<f64> {
     let dof = data[0].dof;
     let last = dof - 1;
     let width = PARAMS_PER_LINK * dof;
@@ -234,21 +238,21 @@ pub fn payload_basis_rows(data: &[FitData]) -> Vec<f64> {
 }
 
 /// The largest commanded torque over the fit runs [N·m] (what bounds a payload's mass).
-pub fn largest_command(data: &[FitData]) -> f64 {
+pub(crate) fn largest_command(data: &[FitData]) -> f64 {
     data.iter().flat_map(|d| d.tau.iter()).fold(0.0f64, |m, v| m.max(v.abs()))
 }
 
 /// Upper bound of a payload's mass [kg] for a unit-mass column whose largest entry is
 /// `col_max` [N·m/kg]: a payload whose torque would exceed three times the largest commanded
 /// torque `tau_max` is no payload this robot carried, and none is heavier than `max_mass`.
-pub fn payload_mass_bound(col_max: f64, tau_max: f64, max_mass: f64) -> f64 {
+pub(crate) fn payload_mass_bound(col_max: f64, tau_max: f64, max_mass: f64) -> f64 {
     let hi = if col_max > 0.0 && tau_max > 0.0 { 3.0 * tau_max / col_max } else { f64::INFINITY };
     hi.min(max_mass)
 }
 
 /// The linear first guess of a payload: mass and first moment of the last link, as four
 /// global columns (rotational part ignored).
-pub fn payload_linear_design(data: &[FitData]) -> TermDesign {
+pub(crate) fn payload_linear_design(data: &[FitData]) -> TermDesign {
     let dof = data[0].dof;
     let last = dof - 1;
     let width = PARAMS_PER_LINK * dof;
@@ -269,7 +273,7 @@ pub fn payload_linear_design(data: &[FitData]) -> TermDesign {
 }
 
 /// The design of a term over all runs.
-pub fn design(term: &Term, data: &[FitData]) -> TermDesign {
+pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     let dof = data[0].dof;
     let tanh = |x: f64| (x / COULOMB_WIDTH).tanh();
     match *term {

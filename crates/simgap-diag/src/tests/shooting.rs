@@ -4,17 +4,18 @@
 //! The DFKI part needs `../shared/data` next to the repository; without it, it prints why and
 //! passes.
 
-mod common;
+use super::common::{replay, shared_data};
 
-use common::{replay, shared_data};
-
+use crate::check::bench::{demo_specs, generate};
+use crate::lsq::{fit_terms, fitted_terms, Problem};
+use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
+use crate::prepare::align_run;
+use crate::select::shooting;
+use crate::vocabulary::effects;
+use crate::vocabulary::Term;
+use crate::{diagnose, DiagnoseOptions, FitData, Param, PrepareOptions};
 use rand::{Rng, SeedableRng};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};
-use simgap_diag::bench::{demo_specs, generate};
-use simgap_diag::fit::{fit_terms, fitted_terms, Problem};
-use simgap_diag::kstep::{self, PredictionRun, FOLDS_PER_RUN};
-use simgap_diag::terms::Term;
-use simgap_diag::{align_run, diagnose, effects, shooting, DiagnoseOptions, FitData, Param, PrepareOptions};
 use simgap_sim::{Effect, Run, SensorParams};
 
 /// The run as an open-loop replay of its commanded torque, its stamps written with a jitter of up
@@ -82,8 +83,8 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
 
     // held-out prediction: shooting at least as good at every horizon
     let eff = |th| effects::to_effects(&model, &fitted_terms(&terms, &designs, th, None));
-    let k_torque = kstep::evaluate(&model, formulation, &eff(&torque_fit.theta), &hold, &horizons, prepare.window).unwrap();
-    let k_shot = kstep::evaluate(&model, formulation, &eff(&shot.theta), &hold, &horizons, prepare.window).unwrap();
+    let k_torque = crate::predict(&model, formulation, &eff(&torque_fit.theta), &hold, &horizons, prepare.window).unwrap();
+    let k_shot = crate::predict(&model, formulation, &eff(&shot.theta), &hold, &horizons, prepare.window).unwrap();
     println!("held-out k-step: nominal {:?}, torque fit {:?}, shooting {:?}", k_torque.before, k_torque.after, k_shot.after);
     for i in 0..horizons.len() {
         assert!(k_shot.after[i] <= k_torque.after[i], "horizon {}: shooting {} against torque fit {}", horizons[i], k_shot.after[i], k_torque.after[i]);
@@ -119,7 +120,7 @@ fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     }
     assert!(!d.report.selected_effects.is_empty());
     // nothing selected is physically impossible
-    let reach = simgap_diag::inertial::link_reach(&model);
+    let reach = crate::lsq::inertial::link_reach(&model);
     for e in &d.report.selected_effects {
         println!("selected: {}", e.description);
         match e.effect.as_str() {
@@ -148,7 +149,7 @@ fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
                         + nalgebra::Matrix3::new(d.inertia[0], d.inertia[1], d.inertia[2], d.inertia[1], d.inertia[3], d.inertia[4], d.inertia[2], d.inertia[4], d.inertia[5]);
                     let s = simgap_core::SpatialInertia::from_com(old.mass + d.mass, old.com() + nalgebra::Vector3::from(d.com), ic);
                     assert!(s.mass > 0.0, "link of {j}: mass {}", s.mass);
-                    assert!(simgap_diag::inertial::link_is_physical(&simgap_core::inertial_parameters(&s), reach[i] * 1.000001), "link of {j} not physical: {s:?}");
+                    assert!(crate::lsq::inertial::link_is_physical(&simgap_core::inertial_parameters(&s), reach[i] * 1.000001), "link of {j} not physical: {s:?}");
                 }
             }
             _ => {}

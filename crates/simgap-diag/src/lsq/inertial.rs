@@ -29,7 +29,7 @@
 //!
 //! The torque residual is linear in the corrections Δπ = π(φ) − π_URDF (columns of the
 //! regressor), so the weighted least-squares objective is the quadratic
-//! `½ θᵀ G θ − cᵀ θ` of [`crate::fit`] over the scaled corrections θ = D⁻¹ Δπ, plus the prior
+//! `½ θᵀ G θ − cᵀ θ` of [`crate::lsq`] over the scaled corrections θ = D⁻¹ Δπ, plus the prior
 //! `½ μ ‖θ‖²` toward the URDF. It is minimised by Levenberg–Marquardt on φ (together with the
 //! other terms' linear, bounded parameters): the problem is convex in π over a convex set, so
 //! the smooth map φ ↦ π has no spurious minimum.
@@ -54,7 +54,7 @@ use simgap_core::{inertia_from_parameters, inertial_parameters, Model, SpatialIn
 /// Prior of the inertial correction: the URDF parameters, their scales, the reach of every link,
 /// the prior weight.
 #[derive(Clone, Debug, PartialEq)]
-pub struct InertialPrior {
+pub(crate) struct InertialPrior {
     /// Stacked URDF inertial parameters, `10 · dof` (see [`simgap_core::inertial_parameters`]).
     pub nominal: Vec<f64>,
     /// Nominal magnitude of each stacked parameter (the unit of the fitted corrections).
@@ -71,18 +71,18 @@ pub struct InertialPrior {
 
 /// A corrected link's mass stays within this factor of the URDF's (a URDF further off is a wrong
 /// model, not one to correct).
-pub const MASS_FACTOR: f64 = 3.0;
+pub(crate) const MASS_FACTOR: f64 = 3.0;
 
 /// Smallest principal radius of a corrected link's mass about its centre of mass [m] (strictly
 /// physical: a positive-definite pseudo-inertia, reached in finitely many steps).
-pub const MIN_RADIUS: f64 = 1e-3;
+pub(crate) const MIN_RADIUS: f64 = 1e-3;
 
 /// Iterations of Levenberg–Marquardt at most.
 const MAX_ITERATIONS: usize = 40;
 
 /// Default weight of the prior: the correction along a direction the data excite less than
 /// 1e-3 of an average parameter stays near the URDF.
-pub const DEFAULT_PRIOR_WEIGHT: f64 = 1e-3;
+pub(crate) const DEFAULT_PRIOR_WEIGHT: f64 = 1e-3;
 
 impl std::ops::Deref for InertialPrior {
     type Target = [f64];
@@ -94,7 +94,7 @@ impl std::ops::Deref for InertialPrior {
 
 impl InertialPrior {
     /// The prior of `model`'s links (scales as in [`crate::select::parameter_scales`]).
-    pub fn new(model: &Model) -> InertialPrior {
+    pub(crate) fn new(model: &Model) -> InertialPrior {
         let n = model.dof();
         let joints = model.joints();
         let avg = model.total_mass() / n.max(1) as f64;
@@ -113,12 +113,12 @@ impl InertialPrior {
     }
 
     /// Number of links.
-    pub fn links(&self) -> usize {
+    pub(crate) fn links(&self) -> usize {
         self.reach.len()
     }
 
     /// The corrected parameters of link `i` for scaled corrections `theta` (all links).
-    pub fn corrected(&self, theta: &[f64], i: usize) -> [f64; PARAMS_PER_LINK] {
+    pub(crate) fn corrected(&self, theta: &[f64], i: usize) -> [f64; PARAMS_PER_LINK] {
         std::array::from_fn(|k| {
             let a = PARAMS_PER_LINK * i + k;
             self.nominal[a] + self.scales[a] * theta.get(a).copied().unwrap_or(0.0)
@@ -127,7 +127,7 @@ impl InertialPrior {
 
     /// Whether a corrected link's mass sits at a [`MASS_FACTOR`] bound (within 0.1 %): the
     /// data pull further than a correction of this URDF can go.
-    pub fn at_mass_bound(&self, theta: &[f64]) -> bool {
+    pub(crate) fn at_mass_bound(&self, theta: &[f64]) -> bool {
         (0..self.links()).any(|i| {
             let m0 = self.nominal[i * PARAMS_PER_LINK];
             let ratio = self.corrected(theta, i)[0] / m0;
@@ -137,7 +137,7 @@ impl InertialPrior {
 
     /// Whether the corrected links are physical: mass > 0, pseudo-inertia positive definite,
     /// centre of mass within reach (a relative tolerance of 1e-6 on each).
-    pub fn is_physical(&self, theta: &[f64]) -> bool {
+    pub(crate) fn is_physical(&self, theta: &[f64]) -> bool {
         (0..self.links()).all(|i| {
             let p = self.corrected(theta, i);
             link_is_physical(&p, self.reach[i] * (1.0 + 1e-6) + 1e-9)
@@ -148,7 +148,7 @@ impl InertialPrior {
 /// Whether ten inertial parameters are a physical body whose centre of mass lies within `reach`
 /// of the origin: mass > 0 and a positive (semi-)definite pseudo-inertia (eigenvalues above
 /// −1e-9 of its scale).
-pub fn link_is_physical(p: &[f64; PARAMS_PER_LINK], reach: f64) -> bool {
+pub(crate) fn link_is_physical(p: &[f64; PARAMS_PER_LINK], reach: f64) -> bool {
     if p.iter().any(|v| !v.is_finite()) || p[0] <= 0.0 {
         return false;
     }
@@ -160,7 +160,7 @@ pub fn link_is_physical(p: &[f64; PARAMS_PER_LINK], reach: f64) -> bool {
 }
 
 /// The pseudo-inertia `[[Σ, h], [hᵀ, m]]` of ten inertial parameters.
-pub fn pseudo_inertia(p: &[f64; PARAMS_PER_LINK]) -> Matrix4<f64> {
+pub(crate) fn pseudo_inertia(p: &[f64; PARAMS_PER_LINK]) -> Matrix4<f64> {
     let s = inertia_from_parameters(p);
     let sigma = Matrix3::from_diagonal_element(0.5 * s.rotational.trace()) - s.rotational;
     let h = s.first_moment;
@@ -173,7 +173,7 @@ pub fn pseudo_inertia(p: &[f64; PARAMS_PER_LINK]) -> Matrix4<f64> {
 }
 
 /// The ten inertial parameters of a pseudo-inertia (the inverse of [`pseudo_inertia`]; linear).
-pub fn parameters_of_pseudo_inertia(j: &Matrix4<f64>) -> [f64; PARAMS_PER_LINK] {
+pub(crate) fn parameters_of_pseudo_inertia(j: &Matrix4<f64>) -> [f64; PARAMS_PER_LINK] {
     let sigma = j.fixed_view::<3, 3>(0, 0).into_owned();
     let ibar = Matrix3::from_diagonal_element(sigma.trace()) - sigma;
     inertial_parameters(&SpatialInertia { mass: j[(3, 3)], first_moment: Vector3::new(j[(0, 3)], j[(1, 3)], j[(2, 3)]), rotational: ibar })
@@ -186,7 +186,7 @@ fn u_of(phi: &[f64]) -> Matrix4<f64> {
 }
 
 /// The ten inertial parameters of log-Cholesky parameters φ (always physical).
-pub fn parameters_of_log_cholesky(phi: &[f64]) -> [f64; PARAMS_PER_LINK] {
+pub(crate) fn parameters_of_log_cholesky(phi: &[f64]) -> [f64; PARAMS_PER_LINK] {
     let u = u_of(phi);
     parameters_of_pseudo_inertia(&(u * u.transpose()))
 }
@@ -219,7 +219,7 @@ pub(crate) fn jacobian_log_cholesky(phi: &[f64]) -> nalgebra::SMatrix<f64, 10, 1
 /// strictly physical (zero mass, a singular or indefinite inertia, as URDFs sometimes write) is
 /// first made so: mass at least `min_mass`, second moment about the centre of mass raised to at
 /// least `(1 cm)²` per axis.
-pub fn log_cholesky_of_parameters(p: &[f64; PARAMS_PER_LINK], min_mass: f64) -> [f64; 10] {
+pub(crate) fn log_cholesky_of_parameters(p: &[f64; PARAMS_PER_LINK], min_mass: f64) -> [f64; 10] {
     let s = inertia_from_parameters(p);
     let m = s.mass.max(min_mass).max(1e-12);
     let c = if s.mass > 0.0 { s.first_moment / s.mass } else { Vector3::zeros() };
@@ -238,7 +238,7 @@ pub fn log_cholesky_of_parameters(p: &[f64; PARAMS_PER_LINK], min_mass: f64) -> 
 }
 
 /// Reach of every link's centre of mass (see the module documentation for the rule) [m].
-pub fn link_reach(model: &Model) -> Vec<f64> {
+pub(crate) fn link_reach(model: &Model) -> Vec<f64> {
     let joints = model.joints();
     let n = joints.len();
     let com = |i: usize| joints[i].inertia.com().norm();
@@ -277,7 +277,7 @@ pub(crate) fn project_reach(phi: &mut [f64], reach: f64) {
 /// parameters are kept in their box (a parameter at a bound whose gradient points out is held),
 /// centres of mass are projected into their balls. Returns θ and the number of directions of `G`
 /// above 1e-10 of its largest eigenvalue.
-pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64]) -> (DVector<f64>, usize) {
+pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64]) -> (DVector<f64>, usize) {
     let k = g.nrows();
     let nl = prior.links();
     let w = PARAMS_PER_LINK * nl;
@@ -318,7 +318,7 @@ pub fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<
         let gl = DMatrix::from_fn(lin.len(), lin.len(), |a, b| g[(lin[a], lin[b])]);
         let rhs = DVector::from_fn(lin.len(), |a, _| c[lin[a]] - (first..first + w).map(|j| g[(lin[a], j)] * th0[j]).sum::<f64>());
         let (llo, lhi): (Vec<f64>, Vec<f64>) = lin.iter().map(|&i| (lo[i], hi[i])).unzip();
-        crate::fit::solve_bounded(&gl, &rhs, &llo, &lhi).0.iter().copied().collect()
+        crate::lsq::solve_bounded(&gl, &rhs, &llo, &lhi).0.iter().copied().collect()
     };
     let nx = lin.len() + 10 * nl;
     // bounds of x = (z, φ): the linear parameters' boxes; per link the mass within a factor

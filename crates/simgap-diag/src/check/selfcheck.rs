@@ -10,9 +10,9 @@ use rand_chacha::ChaCha8Rng;
 use simgap_core::{mass_matrix, Formulation, Model, UrdfOptions, Workspace};
 use simgap_sim::{ControllerKind, Effect, LinkDelta, Run};
 
-use crate::bench::{gains_for, generate, generate_with_width, random_fourier, random_setpoints, RefSpec, RunSpec};
-use crate::effects::{EffectReport, Param};
-use crate::{diagnose, DiagnoseOptions, Diagnosis};
+use crate::check::bench::{gains_for, generate, generate_with_width, random_fourier, random_setpoints, RefSpec, RunSpec};
+use crate::pipeline::{diagnose, DiagnoseOptions, Diagnosis};
+use crate::vocabulary::effects::{EffectReport, Param};
 
 /// The robots the self-check draws from.
 pub fn robots() -> Vec<Model> {

@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use simgap_core::{inertia_from_parameters, inertial_parameters, Model, SpatialInertia, PARAMS_PER_LINK};
 use simgap_sim::{Effect, LinkDelta};
 
-use crate::terms::Term;
+use crate::vocabulary::Term;
 
 /// A parameter value: per joint (aligned with the effect's joints) or whole robot.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -32,7 +32,7 @@ pub struct EffectReport {
     /// Parameters.
     pub parameters: BTreeMap<String, Param>,
     /// Half-widths of 95 % intervals, same layout as `parameters` (resampling spread and the
-    /// pipeline's shared error, [`crate::uncertainty`]; `NaN` for values searched on a grid).
+    /// pipeline's shared error, [`crate::select::uncertainty`]; `NaN` for values searched on a grid).
     pub uncertainty: BTreeMap<String, Param>,
     /// The unit of each parameter (`N·m·s/rad`, `kg`, `-`, …).
     pub units: BTreeMap<String, String>,
@@ -42,7 +42,7 @@ pub struct EffectReport {
 
 /// The SI unit of a parameter of an effect of the vocabulary (`-` for dimensionless values).
 /// Torques are written for revolute joints (`N·m`); a prismatic joint's are in `N`.
-pub fn param_unit(effect: &str, param: &str) -> &'static str {
+pub(crate) fn param_unit(effect: &str, param: &str) -> &'static str {
     match (effect, param) {
         ("viscous_friction", "b") => "N·m·s/rad",
         ("coulomb_friction" | "stribeck_friction", "fc" | "fs") => "N·m",
@@ -59,13 +59,13 @@ pub fn param_unit(effect: &str, param: &str) -> &'static str {
 
 /// A fitted term with its parameter values and standard deviations.
 #[derive(Clone, Debug)]
-pub struct FittedTerm {
+pub(crate) struct FittedTerm {
     /// The term.
     pub term: Term,
     /// Its free parameters.
     pub theta: Vec<f64>,
     /// Standard deviations: ±1.96 of them is the parameter's 95 % interval (see
-    /// [`crate::uncertainty`]).
+    /// [`crate::select::uncertainty`]).
     pub std: Vec<f64>,
 }
 
@@ -114,7 +114,7 @@ fn negligible(model: &Model, d: &LinkDelta) -> bool {
 }
 
 /// Converts fitted terms into simulator effects, merging per-joint terms of one effect.
-pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
+pub(crate) fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
     let n = model.dof();
     let mut out: Vec<Effect> = Vec::new();
     fn slot(out: &mut Vec<Effect>, name: &str, make: &dyn Fn() -> Effect) -> usize {
@@ -193,7 +193,7 @@ pub fn to_effects(model: &Model, fitted: &[FittedTerm]) -> Vec<Effect> {
 }
 
 /// The report entries of fitted terms (merged per effect, joints named).
-pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
+pub(crate) fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
     let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     let mut out: Vec<EffectReport> = Vec::new();
     for f in fitted {
@@ -292,7 +292,7 @@ pub fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectReport> {
 }
 
 /// A number with three significant digits (no exponent between 1e-3 and 1e4).
-pub fn sig3(x: f64) -> String {
+pub(crate) fn sig3(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
@@ -389,7 +389,7 @@ fn describe_inertial(model: &Model, deltas: &[LinkDelta]) -> String {
             let mut words = Vec::new();
             if d.mass.abs() > 1e-4 * old.mass.max(1e-3) {
                 let ratio = (old.mass + d.mass) / old.mass;
-                let bound = if old.mass > 0.0 && (ratio <= 1.001 / crate::inertial::MASS_FACTOR || ratio >= 0.999 * crate::inertial::MASS_FACTOR) {
+                let bound = if old.mass > 0.0 && (ratio <= 1.001 / crate::lsq::inertial::MASS_FACTOR || ratio >= 0.999 * crate::lsq::inertial::MASS_FACTOR) {
                     " (at the plausibility bound: the data pull further)"
                 } else {
                     ""
@@ -403,7 +403,7 @@ fn describe_inertial(model: &Model, deltas: &[LinkDelta]) -> String {
                 .map(|(a, c)| format!("{}{:.0} mm along {a}", if c < 0.0 { "−" } else { "+" }, 1e3 * c.abs()))
                 .collect();
             if !com.is_empty() {
-                let reach = crate::inertial::link_reach(model)[d.joint];
+                let reach = crate::lsq::inertial::link_reach(model)[d.joint];
                 let at = (old.com() + Vector3::from(d.com)).norm() >= 0.999 * reach;
                 words.push(format!("COM {}{}", com.join(", "), if at { format!(" (at its reach, {} m from the joint)", sig3(reach)) } else { String::new() }));
             }

@@ -39,7 +39,7 @@ impl InferredSensors {
 /// - Encoder: the smallest non-zero position increment `r` of each rotational joint; when every
 ///   logged position is an integer multiple of `r` (to 1e-4 of `r`) on every joint alike and
 ///   `2π / r` is at least 1,000 counts, `counts_per_rev = 2π / r`.
-pub fn infer_sensors(run: &Run) -> InferredSensors {
+pub(crate) fn infer_sensors(run: &Run) -> InferredSensors {
     let n = run.dof();
     let given_counts = run.experiment.as_ref().and_then(|e| e.extra.get("counts_per_rev")).and_then(|v| v.parse::<f64>().ok()).filter(|c| c.is_finite() && *c > 0.0);
     let given_velocity = run.experiment.as_ref().and_then(|e| e.extra.get("velocity")).cloned();
@@ -96,7 +96,7 @@ pub fn infer_sensors(run: &Run) -> InferredSensors {
 }
 
 /// The sensors the re-simulation gives the controller ([`infer_sensors`]).
-pub fn sensor_for(run: &Run) -> SensorParams {
+pub(crate) fn sensor_for(run: &Run) -> SensorParams {
     infer_sensors(run).params()
 }
 
@@ -105,7 +105,7 @@ pub fn sensor_for(run: &Run) -> SensorParams {
 ///
 /// # Errors
 /// [`Error::Log`] when the run has no experiment; simulator errors.
-pub fn resimulate(model: &Model, formulation: Formulation, effects: &[Effect], run: &Run) -> Result<(Run, RunEnd)> {
+pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Effect], run: &Run) -> Result<(Run, RunEnd)> {
     let exp = run.experiment.as_ref().ok_or_else(|| Error::Log {
         log: run.source.clone(),
         message: "no simgap.experiment metadata (controller, gains, sample period); cannot re-simulate the closed loop".into(),
@@ -140,7 +140,7 @@ pub struct RunGap {
 
 /// Re-simulates and scores one run; a diverged simulation scores over its partial span
 /// (status says so), and a failed one scores infinity.
-pub fn gap(model: &Model, formulation: Formulation, effects: &[Effect], run: &Run) -> (RunGap, Option<Run>) {
+pub(crate) fn gap(model: &Model, formulation: Formulation, effects: &[Effect], run: &Run) -> (RunGap, Option<Run>) {
     let n = run.dof();
     match resimulate(model, formulation, effects, run) {
         Ok((sim, end)) => {
@@ -159,7 +159,7 @@ pub fn gap(model: &Model, formulation: Formulation, effects: &[Effect], run: &Ru
 }
 
 /// Combines per-run L² into one index over all runs (time-weighted root mean square).
-pub fn combine(gaps: &[RunGap], runs: &[Run]) -> (f64, Vec<f64>) {
+pub(crate) fn combine(gaps: &[RunGap], runs: &[Run]) -> (f64, Vec<f64>) {
     let n = runs.first().map_or(0, Run::dof);
     let mut total = 0.0;
     let mut per = vec![0.0; n];

@@ -18,7 +18,7 @@ use simgap_sim::Run;
 
 /// A glitch found and replaced.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Glitch {
+pub(crate) struct Glitch {
     /// Log name.
     pub log: String,
     /// Sample index.
@@ -52,7 +52,7 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// Finds position glitches in `run` (model-aligned), replaces them in place, and returns them.
-pub fn repair_glitches(run: &mut Run) -> Vec<Glitch> {
+pub(crate) fn repair_glitches(run: &mut Run) -> Vec<Glitch> {
     let n = run.dof();
     let rows = run.len();
     let mut found = Vec::new();
@@ -82,7 +82,7 @@ pub fn repair_glitches(run: &mut Run) -> Vec<Glitch> {
 
 /// Whether two (model-aligned) runs hold the same samples: same stamps relative to their
 /// start, positions and efforts.
-pub fn same_content(a: &Run, b: &Run) -> bool {
+pub(crate) fn same_content(a: &Run, b: &Run) -> bool {
     a.len() == b.len() && a.dof() == b.dof() && a.q == b.q && a.tau == b.tau && a.t.iter().zip(&b.t).all(|(x, y)| (x - a.t[0]) == (y - b.t[0]))
 }
 

@@ -1,24 +1,26 @@
 //! Weighted least squares over block Gram matrices: fits, cross-validation and block bootstrap
 //! without revisiting the samples.
 
+pub(crate) mod inertial;
+
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 
-use crate::dataset::FitData;
-use crate::inertial::InertialPrior;
-use crate::terms::{design, Column, Term, TermDesign};
+use crate::lsq::inertial::InertialPrior;
+use crate::prepare::dataset::FitData;
+use crate::vocabulary::{design, Column, Term, TermDesign};
 
 /// Blocks per run for the bootstrap; cross-validation folds group [`BLOCKS_PER_FOLD`] of them.
-pub const BLOCKS_PER_RUN: usize = 20;
+pub(crate) const BLOCKS_PER_RUN: usize = 20;
 /// Bootstrap blocks per cross-validation fold (so 5 contiguous folds per run).
-pub const BLOCKS_PER_FOLD: usize = 4;
+pub(crate) const BLOCKS_PER_FOLD: usize = 4;
 
 /// The inertial columns' scales and their block Grams.
 type InertialGram = (Vec<f64>, Vec<DMatrix<f64>>);
 
 /// The fitting problem: residuals of all runs, joint weights and sample blocks.
 #[derive(Clone, Debug)]
-pub struct Problem {
+pub(crate) struct Problem {
     /// Degrees of freedom.
     pub dof: usize,
     /// Total samples over runs.
@@ -43,7 +45,7 @@ pub struct Problem {
 
 impl Problem {
     /// Builds the problem from prepared runs.
-    pub fn new(data: &[FitData]) -> Problem {
+    pub(crate) fn new(data: &[FitData]) -> Problem {
         let dof = data[0].dof;
         let mut block_of = Vec::new();
         let mut blocks = 0;
@@ -111,14 +113,14 @@ impl Problem {
     }
 
     /// Total weighted rows (samples × dof).
-    pub fn rows(&self) -> f64 {
+    pub(crate) fn rows(&self) -> f64 {
         (self.samples * self.dof) as f64
     }
 }
 
 /// The block Gram matrices of a set of terms.
 #[derive(Clone, Debug)]
-pub struct Grams {
+pub(crate) struct Grams {
     /// Free columns (k).
     pub k: usize,
     /// Per (block, joint), index `block · dof + joint`: XᵀW²X (k × k).
@@ -129,8 +131,6 @@ pub struct Grams {
     pub s: Vec<f64>,
     /// Degrees of freedom (joints per block).
     pub dof: usize,
-    /// Which term each column belongs to.
-    pub owner: Vec<usize>,
     /// Lower bound of each column's parameter (`-∞` when free).
     pub lo: Vec<f64>,
     /// Upper bound of each column's parameter (`+∞` when free).
@@ -142,11 +142,11 @@ pub struct Grams {
 impl Grams {
     /// Minimises `½ θᵀ g θ − cᵀ θ` (a sum of these Grams' blocks) under the physical constraints
     /// of the terms: bounds on linear parameters ([`solve_bounded`]) and, with an inertial
-    /// correction, physically consistent links ([`crate::inertial::solve`]). Returns θ and the
+    /// correction, physically consistent links ([`crate::lsq::inertial::solve`]). Returns θ and the
     /// effective rank.
-    pub fn solve(&self, g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
+    pub(crate) fn solve(&self, g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
         match &self.inertial {
-            Some((first, prior)) => crate::inertial::solve(prior, *first, g, c, &self.lo, &self.hi),
+            Some((first, prior)) => crate::lsq::inertial::solve(prior, *first, g, c, &self.lo, &self.hi),
             None => solve_bounded(g, c, &self.lo, &self.hi),
         }
     }
@@ -154,18 +154,18 @@ impl Grams {
 
 /// Builds the Gram matrices of `terms` (their designs given) against the nominal residual
 /// minus their fixed offsets.
-pub fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
+pub(crate) fn grams(p: &Problem, designs: &[&TermDesign]) -> Grams {
     grams_against(p, &p.y, designs)
 }
 
 /// [`grams`] against another residual `y` (a global column over the problem's rows).
-pub fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams {
+pub(crate) fn grams_against(p: &Problem, y: &Column, designs: &[&TermDesign]) -> Grams {
     grams_against_known(p, y, designs, None)
 }
 
 /// `y·y` per (block, joint) of a global column, as [`grams_against`] computes it: pass it to
 /// [`grams_against_known`] when many designs without offset are fitted against one `y`.
-pub fn block_squares(p: &Problem, y: &Column) -> Vec<f64> {
+pub(crate) fn block_squares(p: &Problem, y: &Column) -> Vec<f64> {
     let mut buf = vec![0.0; p.blocks * p.dof];
     p.dot_blocks(y, y, &mut buf);
     buf
@@ -173,7 +173,7 @@ pub fn block_squares(p: &Problem, y: &Column) -> Vec<f64> {
 
 /// [`grams_against`] with `y·y` per block already known (`y_squares` from [`block_squares`]
 /// of the same `y`; used only when no design has a fixed offset, which changes `y`).
-pub fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesign], y_squares: Option<&[f64]>) -> Grams {
+pub(crate) fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesign], y_squares: Option<&[f64]>) -> Grams {
     // y' = y − Σ offsets, as a global column (y itself without offsets)
     let has_offset = designs.iter().any(|d| d.offset.is_some());
     let shifted;
@@ -194,7 +194,6 @@ pub fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesign], y_s
         y
     };
     let cols: Vec<&Column> = designs.iter().flat_map(|d| d.cols.iter()).collect();
-    let owner: Vec<usize> = designs.iter().enumerate().flat_map(|(i, d)| std::iter::repeat_n(i, d.cols.len())).collect();
     let k = cols.len();
     let (mut lo, mut hi) = (Vec::with_capacity(k), Vec::with_capacity(k));
     let mut inertial = None;
@@ -271,12 +270,12 @@ pub fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesign], y_s
             s.copy_from_slice(&buf);
         }
     }
-    Grams { k, g, c, s, owner, dof: p.dof, lo, hi, inertial }
+    Grams { k, g, c, s, dof: p.dof, lo, hi, inertial }
 }
 
 /// Minimum-norm least-squares solution of `G θ = c` (eigenvalues below `1e-10 · max` dropped);
 /// returns θ and the effective rank.
-pub fn solve(g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
+pub(crate) fn solve(g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
     let k = g.nrows();
     if k == 0 {
         return (DVector::zeros(0), 0);
@@ -300,7 +299,7 @@ pub fn solve(g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
 /// bounds on both sides). When the minimum-norm unconstrained solution ([`solve`]) is within the
 /// bounds it is the answer; otherwise parameters are held at the bounds they reach, and released
 /// when the gradient pulls them back inside. Returns θ and the effective rank of the free block.
-pub fn solve_bounded(g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64]) -> (DVector<f64>, usize) {
+pub(crate) fn solve_bounded(g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64]) -> (DVector<f64>, usize) {
     let k = g.nrows();
     let inside = |th: &DVector<f64>| (0..k).all(|i| th[i] >= lo[i] && th[i] <= hi[i]);
     let (theta, rank) = solve(g, c);
@@ -357,13 +356,9 @@ pub fn solve_bounded(g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64])
 
 /// Result of fitting a set of terms.
 #[derive(Clone, Debug)]
-pub struct Fit {
+pub(crate) struct Fit {
     /// Parameters, in column order.
     pub theta: DVector<f64>,
-    /// Effective number of parameters.
-    pub rank: usize,
-    /// Weighted mean squared residual on all data.
-    pub mse: f64,
     /// Cross-validated weighted mean squared residual (contiguous folds).
     pub cv_mse: f64,
     /// The same per joint (mean over that joint's rows).
@@ -391,10 +386,9 @@ fn sse(g: &DMatrix<f64>, c: &DVector<f64>, s: f64, theta: &DVector<f64>) -> f64 
 
 /// Fits and cross-validates, every fit (all data and each fold) under the terms' physical
 /// constraints (see [`Grams::solve`]).
-pub fn fit(p: &Problem, gr: &Grams) -> Fit {
-    let (g, c, s) = sum_blocks(gr, |_, _| true);
-    let (theta, rank) = gr.solve(&g, &c);
-    let mse = sse(&g, &c, s, &theta) / p.rows();
+pub(crate) fn fit(p: &Problem, gr: &Grams) -> Fit {
+    let (g, c, _) = sum_blocks(gr, |_, _| true);
+    let (theta, _) = gr.solve(&g, &c);
     let folds = p.blocks / BLOCKS_PER_FOLD;
     let mut cv_joint = vec![0.0; p.dof];
     for f in 0..folds {
@@ -408,12 +402,12 @@ pub fn fit(p: &Problem, gr: &Grams) -> Fit {
     }
     let cv_mse = cv_joint.iter().sum::<f64>() / p.rows();
     let cv_joint = cv_joint.iter().map(|v| v / p.samples.max(1) as f64).collect();
-    Fit { theta, rank, mse, cv_mse, cv_joint }
+    Fit { theta, cv_mse, cv_joint }
 }
 
 /// Block-bootstrap standard deviations of the parameters (`draws` resamples, fixed seed), each
 /// draw fitted under the terms' physical constraints.
-pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
+pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
     let nb = gr.g.len() / gr.dof;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut sum = DVector::zeros(gr.k);
@@ -449,13 +443,13 @@ pub fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64> {
 /// The parameters fitted without the contiguous folds `held(fold)` ([`BLOCKS_PER_FOLD`] blocks
 /// each: a fifth of a fit run), under the terms' physical constraints (`|_| false`: all the fit
 /// data).
-pub fn theta_without(gr: &Grams, held: &dyn Fn(usize) -> bool) -> DVector<f64> {
+pub(crate) fn theta_without(gr: &Grams, held: &dyn Fn(usize) -> bool) -> DVector<f64> {
     let (g, c, _) = sum_blocks(gr, |b, _| !held(b / BLOCKS_PER_FOLD));
     gr.solve(&g, &c).0
 }
 
 /// The parameters fitted without each contiguous fold ([`theta_without`]).
-pub fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
+pub(crate) fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
     let folds = gr.g.len() / gr.dof / BLOCKS_PER_FOLD;
     (0..folds).map(|f| theta_without(gr, &|g| g == f)).collect()
 }
@@ -464,7 +458,7 @@ pub fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
 /// two-sided 95 % interval in standard errors): the Cornish–Fisher expansion about the normal
 /// quantile 1.959964 to order `nu⁻⁴`, within 0.2 % of the exact value for `nu ≥ 3`; `nu = 1, 2`
 /// are the exact 12.706 and 4.303.
-pub fn t_quantile_975(nu: usize) -> f64 {
+pub(crate) fn t_quantile_975(nu: usize) -> f64 {
     let z: f64 = 1.959_963_985;
     match nu {
         0 => f64::INFINITY,
@@ -493,7 +487,7 @@ pub fn t_quantile_975(nu: usize) -> f64 {
 /// holds that motion-dependent error; the 0.2 s block bootstrap ([`bootstrap_std`]) treats such
 /// errors as independent from block to block and misses most of them. With `G` folds the
 /// variance estimate has `G − 1` degrees of freedom, hence Student's quantile.
-pub fn jackknife_std(gr: &Grams) -> DVector<f64> {
+pub(crate) fn jackknife_std(gr: &Grams) -> DVector<f64> {
     let thetas = fold_thetas(gr);
     let g = thetas.len();
     if g < 2 {
@@ -507,21 +501,21 @@ pub fn jackknife_std(gr: &Grams) -> DVector<f64> {
 
 /// The larger, per parameter, of the delete-one-fold jackknife ([`jackknife_std`]) and the block
 /// bootstrap `boot`: the resampling spread, without the pipeline's shared error (see
-/// [`crate::uncertainty`]).
-pub fn resampling_std(gr: &Grams, boot: &DVector<f64>) -> DVector<f64> {
+/// [`crate::select::uncertainty`]).
+pub(crate) fn resampling_std(gr: &Grams, boot: &DVector<f64>) -> DVector<f64> {
     larger_spread(boot, &jackknife_std(gr))
 }
 
 /// Per parameter, the larger of the block bootstrap's `boot` and the jackknife's `jack` (the
 /// bootstrap's where the jackknife has none).
-pub fn larger_spread(boot: &DVector<f64>, jack: &DVector<f64>) -> DVector<f64> {
+pub(crate) fn larger_spread(boot: &DVector<f64>, jack: &DVector<f64>) -> DVector<f64> {
     DVector::from_fn(boot.len(), |i, _| if jack[i].is_finite() { jack[i].max(boot[i]) } else { boot[i] })
 }
 
 /// A term's parameters as the effect states them, from its fitted column coefficients: the
 /// same numbers except for Stribeck friction, fitted as `(fc, fs − fc)` (both ≥ 0, so that
 /// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)`.
-pub fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
+pub(crate) fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
     match term {
         Term::Stribeck { .. } => vec![raw[0], raw[0] + raw[1]],
         _ => raw.to_vec(),
@@ -529,7 +523,7 @@ pub fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
 }
 
 /// Splits a joint parameter vector (and its standard deviations, if any) per term.
-pub fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>, std: Option<&DVector<f64>>) -> Vec<crate::FittedTerm> {
+pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>, std: Option<&DVector<f64>>) -> Vec<crate::vocabulary::effects::FittedTerm> {
     let mut out = Vec::with_capacity(terms.len());
     let mut c = 0;
     for (t, d) in terms.iter().zip(designs) {
@@ -540,14 +534,14 @@ pub fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>
             // fs = fc + (fs − fc): the spread of a sum, its covariance ignored
             sd[1] = sd[0].hypot(sd[1]);
         }
-        out.push(crate::FittedTerm { term: t.clone(), theta: th, std: sd });
+        out.push(crate::vocabulary::effects::FittedTerm { term: t.clone(), theta: th, std: sd });
         c += k;
     }
     out
 }
 
 /// Designs and fits a list of terms in one go.
-pub fn fit_terms(p: &Problem, data: &[FitData], terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
+pub(crate) fn fit_terms(p: &Problem, data: &[FitData], terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
     let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, data)).collect();
     let refs: Vec<&TermDesign> = designs.iter().collect();
     let gr = grams(p, &refs);

@@ -4,8 +4,8 @@
 use simgap_core::{bias_torques_into, inverse_dynamics_regressor_into, mass_matrix_into, Formulation, Model, Workspace, PARAMS_PER_LINK};
 use simgap_sim::{DelayLine, Run};
 
-use crate::differentiate::Smoother;
 use crate::error::{Error, Result};
+use crate::prepare::differentiate::Smoother;
 
 /// Options of the data preparation.
 #[derive(Clone, Debug)]
@@ -29,7 +29,7 @@ impl Default for PrepareOptions {
 /// # Errors
 /// [`Error::Log`] when a model joint is missing from the log, when the log is too short, or
 /// when its time or values are not finite and increasing.
-pub fn align_run(model: &Model, run: &Run) -> Result<Run> {
+pub(crate) fn align_run(model: &Model, run: &Run) -> Result<Run> {
     let names = model.joint_names();
     let log = if run.source.is_empty() { "<run>".to_string() } else { run.source.clone() };
     let idx: Vec<usize> = names

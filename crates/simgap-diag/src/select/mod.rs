@@ -7,15 +7,23 @@
 //! at least [`SelectOptions::min_torque_share`] of the commanded torque (RMS) on its joint:
 //! effects too small to matter are reported, not selected.
 
+pub(crate) mod alternatives;
+pub(crate) mod prediction;
+pub(crate) mod refine;
+pub(crate) mod scorer;
+pub(crate) mod screen;
+pub(crate) mod shooting;
+pub(crate) mod uncertainty;
+
 use nalgebra::{DMatrix, DVector};
 use simgap_core::PARAMS_PER_LINK;
 
-use crate::dataset::FitData;
+use crate::prepare::dataset::FitData;
 use std::sync::Arc;
 
-use crate::fit::{block_squares, contract_parameters, fit, fit_terms, grams, grams_against_known, Fit, Grams, Problem};
-use crate::inertial::InertialPrior;
-use crate::terms::{design, largest_command, payload_basis_rows, payload_mass_bound, point_mass_parameters, Column, Term, TermDesign, GAIN_RANGE};
+use crate::lsq::inertial::InertialPrior;
+use crate::lsq::{block_squares, contract_parameters, fit, fit_terms, grams, grams_against_known, Fit, Grams, Problem};
+use crate::vocabulary::{design, largest_command, payload_basis_rows, payload_mass_bound, point_mass_parameters, Column, Term, TermDesign, GAIN_RANGE};
 
 /// Thresholds of the selection.
 #[derive(Clone, Debug)]
@@ -39,7 +47,7 @@ impl Default for SelectOptions {
 
 /// A family of terms sharing an effect and a joint; nonlinear parameters are searched on a grid.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Family {
+pub(crate) enum Family {
     /// A fixed term.
     Fixed(Term),
     /// Stribeck velocity searched.
@@ -69,7 +77,7 @@ impl Family {
 }
 
 /// All candidate families for a model with `dof` joints.
-pub fn families(dof: usize) -> Vec<Family> {
+pub(crate) fn families(dof: usize) -> Vec<Family> {
     let mut f = Vec::new();
     for j in 0..dof {
         f.push(Family::Fixed(Term::Viscous(j)));
@@ -88,7 +96,7 @@ pub fn families(dof: usize) -> Vec<Family> {
 }
 
 /// Shared context of a selection.
-pub struct Context<'a> {
+pub(crate) struct Context<'a> {
     /// Prepared fit runs.
     pub data: &'a [FitData],
     /// The problem.
@@ -127,7 +135,7 @@ struct PayloadBasis {
 impl<'a> Context<'a> {
     /// Builds the context; `prior` holds the model's inertial parameters, their scales and the
     /// reach of every link (see [`parameter_scales`]).
-    pub fn new(data: &'a [FitData], sample_period: f64, prior: &InertialPrior) -> Context<'a> {
+    pub(crate) fn new(data: &'a [FitData], sample_period: f64, prior: &InertialPrior) -> Context<'a> {
         let problem = Problem::new(data);
         let inertial_basis = inertial_basis(&problem, data, prior);
         let dof = problem.dof;
@@ -166,7 +174,7 @@ impl<'a> Context<'a> {
             })
             .collect();
         let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-        scores.iter().filter(|s| s.1 <= best * 1.01).map(|s| s.0).fold(crate::inertial::DEFAULT_PRIOR_WEIGHT.min(1e-6), f64::max)
+        scores.iter().filter(|s| s.1 <= best * 1.01).map(|s| s.0).fold(crate::lsq::inertial::DEFAULT_PRIOR_WEIGHT.min(1e-6), f64::max)
     }
 
     /// Whether a torque saturation limit is possible: not below the torque the drive is seen to
@@ -174,7 +182,7 @@ impl<'a> Context<'a> {
     /// limit would clamp, the residual `r` left by the other terms must follow the clamped excess
     /// `τ − clamp(τ, ±L)`: its least-squares coefficient on it is at least 0.5 (a limit the
     /// joint's acceleration contradicts has a coefficient near 0).
-    pub fn saturation_plausible(&self, t: &Term, resid: &Column) -> bool {
+    pub(crate) fn saturation_plausible(&self, t: &Term, resid: &Column) -> bool {
         let Term::Saturation { joint, limit } = *t else { return true };
         if limit < self.saturation_floor.get(joint).copied().unwrap_or(0.0) {
             return false;
@@ -245,7 +253,7 @@ impl<'a> Context<'a> {
     }
 
     /// The best member of a family against the current residual.
-    pub fn best_of(&self, family: &Family, resid: &Column) -> Term {
+    pub(crate) fn best_of(&self, family: &Family, resid: &Column) -> Term {
         let mut cands = self.grid(family);
         if let Family::Saturation(j) = *family {
             // limits the logs contradict are not candidates; with none left, a limit that
@@ -261,7 +269,7 @@ impl<'a> Context<'a> {
 
     /// [`Context::best_of`]; the payload's centre of mass is searched jointly with the other
     /// selected terms `rest` (so they cannot absorb part of it first).
-    pub fn best_of_with(&self, family: &Family, resid: &Column, rest: &[TermDesign]) -> Term {
+    pub(crate) fn best_of_with(&self, family: &Family, resid: &Column, rest: &[TermDesign]) -> Term {
         match family {
             Family::Payload => self.payload_search(resid, rest),
             _ => self.best_of(family, resid),
@@ -272,7 +280,7 @@ impl<'a> Context<'a> {
     /// link), then Nelder–Mead on the cross-validation-free fit residual of `rest` + payload.
     fn payload_search(&self, resid: &Column, rest: &[TermDesign]) -> Term {
         let p = &self.problem;
-        let (th, _) = screen_fit(p, &crate::terms::payload_linear_design(self.data), resid);
+        let (th, _) = screen_fit(p, &crate::vocabulary::payload_linear_design(self.data), resid);
         let c0 = if th.len() == 4 && th[0].abs() > 1e-9 { [th[1] / th[0], th[2] / th[0], th[3] / th[0]] } else { [0.0; 3] };
         // the centre of mass stays within reach of the last link
         let reach = self.prior.reach.last().copied().unwrap_or(f64::INFINITY);
@@ -317,7 +325,7 @@ impl<'a> Context<'a> {
         let (mut lo, mut hi) = (full.lo[..k].to_vec(), full.hi[..k].to_vec());
         lo.push(0.0);
         hi.push(f64::INFINITY);
-        let mut solver = Grams { k: k + 1, g: Vec::new(), c: Vec::new(), s: Vec::new(), dof: p.dof, owner: Vec::new(), lo, hi, inertial: full.inertial.clone() };
+        let mut solver = Grams { k: k + 1, g: Vec::new(), c: Vec::new(), s: Vec::new(), dof: p.dof, lo, hi, inertial: full.inertial.clone() };
         let mut g = DMatrix::zeros(k + 1, k + 1);
         g.view_mut((0, 0), (k, k)).copy_from(&g_full.view((0, 0), (k, k)));
         let mut c = DVector::zeros(k + 1);
@@ -365,7 +373,7 @@ impl<'a> Context<'a> {
 
     /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
     /// was built before.
-    pub fn design(&self, t: &Term) -> TermDesign {
+    pub(crate) fn design(&self, t: &Term) -> TermDesign {
         self.design_shared(t).as_ref().clone()
     }
 
@@ -381,7 +389,7 @@ impl<'a> Context<'a> {
 
     /// The inertial-error term: physically consistent corrections of every link, regularised
     /// toward the URDF.
-    pub fn inertial_term(&self) -> Term {
+    pub(crate) fn inertial_term(&self) -> Term {
         Term::InertialError { prior: self.prior.clone() }
     }
 }
@@ -441,7 +449,7 @@ fn nelder_mead(mut f: impl FnMut(&[f64; 3]) -> f64, x0: [f64; 3], step: f64, ite
 ///
 /// Returned inside the [`InertialPrior`] of the model (which dereferences to the scales), with
 /// the URDF parameters and the reach of every link.
-pub fn parameter_scales(model: &simgap_core::Model) -> InertialPrior {
+pub(crate) fn parameter_scales(model: &simgap_core::Model) -> InertialPrior {
     InertialPrior::new(model)
 }
 
@@ -518,7 +526,7 @@ fn screen_best(ctx: &Context<'_>, cands: &[Term], resid: &Column) -> (Term, f64)
 }
 
 /// The residual left by a fitted set of terms, as a global column.
-pub fn residual_after(p: &Problem, designs: &[TermDesign], theta: &DVector<f64>) -> Column {
+pub(crate) fn residual_after(p: &Problem, designs: &[TermDesign], theta: &DVector<f64>) -> Column {
     let dof = p.dof;
     let mut r = p.y.clone();
     let mut c = 0;
@@ -544,7 +552,7 @@ pub fn residual_after(p: &Problem, designs: &[TermDesign], theta: &DVector<f64>)
 }
 
 /// RMS torque a fitted term explains on each joint.
-pub fn term_torque_rms(p: &Problem, d: &TermDesign, theta: &[f64]) -> Vec<f64> {
+pub(crate) fn term_torque_rms(p: &Problem, d: &TermDesign, theta: &[f64]) -> Vec<f64> {
     let dof = p.dof;
     let mut acc = vec![0.0; dof];
     for s in 0..p.samples {
@@ -561,7 +569,7 @@ pub fn term_torque_rms(p: &Problem, d: &TermDesign, theta: &[f64]) -> Vec<f64> {
 
 /// One step of the selection log.
 #[derive(Clone, Debug)]
-pub struct Step {
+pub(crate) struct Step {
     /// The term considered.
     pub term: Term,
     /// Cross-validated MSE with it (weighted).
@@ -574,7 +582,7 @@ pub struct Step {
 
 /// Outcome of the selection.
 #[derive(Clone, Debug)]
-pub struct Selection {
+pub(crate) struct Selection {
     /// Selected terms.
     pub terms: Vec<Term>,
     /// Their joint fit.
@@ -596,12 +604,12 @@ fn slot_taken(terms: &[Term], t: &Term) -> bool {
 }
 
 /// Whether fitted parameters (as the effect states them, see
-/// [`crate::fit::contract_parameters`]) are physical: dissipative friction (b, fc ≥ 0,
+/// [`crate::lsq::contract_parameters`]) are physical: dissipative friction (b, fc ≥ 0,
 /// fs ≥ fc), non-negative rotor inertia and payload mass, a gain within [`GAIN_RANGE`], and
 /// every corrected link with mass > 0, a positive-definite pseudo-inertia and its centre of
-/// mass within reach. The bounded fits of [`crate::fit`] always give physical parameters; a
+/// mass within reach. The bounded fits of [`crate::lsq`] always give physical parameters; a
 /// parameter at its bound (fc = 0) is physical.
-pub fn physical(term: &Term, theta: &[f64]) -> bool {
+pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
     let tol = 1e-12;
     match term {
         Term::Viscous(_) | Term::Coulomb(_) | Term::Armature(_) => theta[0] >= -tol,
@@ -615,10 +623,10 @@ pub fn physical(term: &Term, theta: &[f64]) -> bool {
 
 /// Whether a fitted parameter of a term sits at a plausibility bound other than zero (a payload
 /// at its largest mass, a torque gain at an end of [`GAIN_RANGE`], a corrected link's mass at a
-/// factor [`crate::inertial::MASS_FACTOR`] of the URDF's): the data pull further than the
+/// factor [`crate::lsq::inertial::MASS_FACTOR`] of the URDF's): the data pull further than the
 /// effect can go, so the term stands in for something else and is not an answer. A parameter
 /// at zero (no friction) is an absent effect, not a stand-in.
-pub fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
+pub(crate) fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
     if let Some(prior) = &d.inertial {
         return prior.at_mass_bound(theta);
     }
@@ -631,7 +639,7 @@ pub fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
 
 /// Whether every term of a set (its designs and joint parameters, as [`fit_terms`] gives them)
 /// is physical and none stands at a plausibility bound.
-pub fn admissible(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
+pub(crate) fn admissible(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
     let mut c = 0;
     for (t, d) in terms.iter().zip(designs) {
         let k = d.cols.len();
@@ -654,7 +662,7 @@ fn cv_of(f: &Fit, t: &Term) -> f64 {
 }
 
 /// Number of parameters a term fits, counting searched ones.
-pub fn n_params(t: &Term, d: &TermDesign) -> usize {
+pub(crate) fn n_params(t: &Term, d: &TermDesign) -> usize {
     d.cols.len()
         + match t {
             Term::Stribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
@@ -757,7 +765,7 @@ fn describe(t: &Term) -> String {
 }
 
 /// Forward stepwise selection with cross-validation, then backward pruning.
-pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
+pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     let p = &ctx.problem;
     let (_, _, nominal) = fit_terms(p, ctx.data, &[]);
     let mut terms: Vec<Term> = Vec::new();
@@ -868,7 +876,7 @@ pub fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
 /// torque residual: a set assembled one whole effect at a time (the prediction stage's
 /// completion) otherwise keeps the value each term took when it was fitted without the rest,
 /// e.g. a payload's centre of mass pulled toward the friction it was standing in for.
-pub fn repolish(ctx: &Context<'_>, terms: &[Term]) -> Vec<Term> {
+pub(crate) fn repolish(ctx: &Context<'_>, terms: &[Term]) -> Vec<Term> {
     if !terms.iter().any(|t| family_of(t).is_some()) {
         return terms.to_vec();
     }

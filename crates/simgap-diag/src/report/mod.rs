@@ -1,8 +1,14 @@
 //! The diagnosis report: its JSON keys are a public contract that other scripts read.
 
-use crate::effects::{EffectReport, Param};
+#[cfg(feature = "html")]
+pub mod html;
+pub(crate) mod pitfalls;
+pub(crate) mod residual;
+pub(crate) mod verdict;
+
 use crate::locate::Where;
-use crate::resim::RunGap;
+use crate::predict::resim::RunGap;
+use crate::vocabulary::effects::{EffectReport, Param};
 use std::collections::BTreeMap;
 
 /// One candidate effect, fitted alone on the nominal model.
@@ -160,13 +166,13 @@ pub struct Report {
     pub alternatives: Vec<Alternative>,
     /// The sensors the re-simulation and prediction give each run's controller, as inferred
     /// from its samples.
-    pub sensors: Vec<crate::resim::InferredSensors>,
+    pub sensors: Vec<crate::predict::resim::InferredSensors>,
     /// Warnings about the logs and the answer (glitches removed, sensors inferred, URDF
     /// pitfalls the data reveal, what the residual still holds).
     pub notes: Vec<String>,
     /// What is left: the torque residual after the selected effects on the fit runs, per joint
-    /// (noise-like, or structured and following which signal; see [`crate::residual`]).
-    pub residual: Vec<crate::residual::ResidualTest>,
+    /// (noise-like, or structured and following which signal; see [`crate::report::residual`]).
+    pub residual: Vec<crate::report::residual::ResidualTest>,
     /// How far the gap shrinks on held-out runs.
     pub gap: Gap,
     /// Where the gap lies.
@@ -220,12 +226,12 @@ impl Report {
         if self.selected_effects.is_empty() {
             let _ = writeln!(s, "  nothing significant");
         }
-        for e in crate::html::ranked_selection(self) {
+        for e in verdict::ranked_selection(self) {
             let params: Vec<String> = e
                 .parameters
                 .iter()
                 .map(|(k, v)| {
-                    let unit = e.units.get(k).map(String::as_str).unwrap_or_else(|| crate::effects::param_unit(&e.effect, k));
+                    let unit = e.units.get(k).map(String::as_str).unwrap_or_else(|| crate::vocabulary::effects::param_unit(&e.effect, k));
                     let unit = if unit == "-" || unit.is_empty() { String::new() } else { format!(" {unit}") };
                     format!("{k} = {}{unit}", fmt_param(v))
                 })
@@ -268,7 +274,7 @@ impl Report {
             }
         }
         // the conclusion from the figures above, so it cannot contradict them
-        let a = crate::html::assess(self);
+        let a = verdict::assess(self);
         let _ = writeln!(s, "\n{}", a.text);
         s
     }

@@ -9,10 +9,12 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use simgap_sim::Run;
 
-use crate::effects::Param;
 use crate::error::{Error, Result};
+use crate::pipeline::Diagnosis;
+use crate::report::verdict::ranked_selection;
+pub use crate::report::verdict::{assess, Assessment};
 use crate::report::Report;
-use crate::Diagnosis;
+use crate::vocabulary::effects::Param;
 use simgap_core::Model;
 
 /// Most points drawn per series (longer series are decimated evenly).
@@ -44,93 +46,6 @@ pub fn write_html_for(diagnosis: &Diagnosis, model: Option<&Model>, path: &Path)
 /// A message when a plot cannot be drawn.
 pub fn render_html(d: &Diagnosis) -> std::result::Result<String, String> {
     render_html_for(d, None)
-}
-
-/// How the page sums up the answer: a class (`good`, `warn`, `bad`, `none`) and a sentence,
-/// both from the report's numbers (never from the verdict text, so the banner cannot
-/// contradict the figures below it).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Assessment {
-    /// `good`, `warn`, `bad` or `none`.
-    pub class: &'static str,
-    /// One or two sentences.
-    pub text: String,
-}
-
-/// The runs whose simulation did not complete, as `log (status)`.
-fn not_completed(runs: &[crate::resim::RunGap]) -> Vec<String> {
-    runs.iter().filter(|g| g.status != "completed").map(|g| format!("{} ({})", g.log, g.status)).collect()
-}
-
-/// Sums up the report from its numbers (see [`Assessment`]).
-pub fn assess(r: &Report) -> Assessment {
-    let g = &r.gap;
-    let names: Vec<String> = ranked_selection(r).iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
-    let nominal_bad = not_completed(&g.runs_before);
-    let corrected_bad = if r.selected_effects.is_empty() { vec![] } else { not_completed(&g.runs_after) };
-    let k = &g.kstep;
-    let use_kstep = g.headline == "k_step" && !k.before.is_empty() && k.before.len() == k.after.len() && k.before.len() == k.horizons_s.len();
-    let mut notes = Vec::new();
-    if !nominal_bad.is_empty() {
-        notes.push(format!("The nominal simulation diverges on {}: its closed-loop L² measures divergence, not the model.", nominal_bad.join(", ")));
-    }
-    if r.selected_effects.is_empty() {
-        let text = format!("No effect selected: {}. {}", lowercase_first(&r.verdict), notes.join(" "));
-        return Assessment { class: "none", text: text.trim().to_string() };
-    }
-    let selected = names.join("; ");
-    if !corrected_bad.is_empty() {
-        notes.insert(0, format!("With the selected effects ({selected}) the simulation still diverges on {}: they do not close the gap.", corrected_bad.join(", ")));
-        return Assessment { class: "bad", text: notes.join(" ") };
-    }
-    if use_kstep {
-        // the longest horizon decides; the constant-velocity floor says whether physics helps
-        let i = k.horizons_s.len() - 1;
-        let (h, b, a) = (k.horizons_s[i], k.before[i], k.after[i]);
-        let floor = k.floor.get(i).copied().unwrap_or(f64::NAN);
-        let ratio = a / b;
-        let beat = if floor.is_finite() && a >= floor {
-            format!(" It does not beat constant-velocity extrapolation ({floor:.3e} rad), so it says little about the physics.")
-        } else {
-            String::new()
-        };
-        let (class, what) = if !ratio.is_finite() {
-            ("warn", format!("the {h} s prediction error cannot be compared ({b:.3e} → {a:.3e} rad)"))
-        } else if ratio > 1.0 {
-            ("bad", format!("they make the {h} s prediction of held-out runs worse: {b:.3e} → {a:.3e} rad (×{ratio:.2})"))
-        } else if ratio > 0.9 {
-            ("warn", format!("they barely change the {h} s prediction of held-out runs: {b:.3e} → {a:.3e} rad ({:.0} % of before)", 100.0 * ratio))
-        } else {
-            ("good", format!("they shrink the {h} s prediction error on held-out runs: {b:.3e} → {a:.3e} rad ({:.0} % of before)", 100.0 * ratio))
-        };
-        let class = if class == "good" && !beat.is_empty() { "warn" } else { class };
-        let text = format!("Selected: {selected}; {what}.{beat} {}", notes.join(" "));
-        return Assessment { class, text: text.trim().to_string() };
-    }
-    let (b, a) = (g.holdout_l2_before, g.holdout_l2_after);
-    if !nominal_bad.is_empty() || !b.is_finite() {
-        let text = format!("Selected: {selected}. {} With them the held-out runs complete with closed-loop L² {a:.3e} rad; compare the plots below.", notes.join(" "));
-        return Assessment { class: "warn", text: text.trim().to_string() };
-    }
-    let ratio = a / b;
-    let (class, what) = if !ratio.is_finite() {
-        ("warn", format!("held-out L² {b:.3e} → {a:.3e} rad cannot be compared"))
-    } else if ratio > 1.0 {
-        ("bad", format!("they make held-out runs worse: closed-loop L² {b:.3e} → {a:.3e} rad (×{ratio:.2})"))
-    } else if ratio > 0.9 {
-        ("warn", format!("they barely change held-out runs: closed-loop L² {b:.3e} → {a:.3e} rad ({:.0} % of before)", 100.0 * ratio))
-    } else {
-        ("good", format!("they shrink the gap on held-out runs: closed-loop L² {b:.3e} → {a:.3e} rad ({:.1} % of before)", 100.0 * ratio))
-    };
-    Assessment { class, text: format!("Selected: {selected}; {what}.") }
-}
-
-fn lowercase_first(s: &str) -> String {
-    let mut c = s.chars();
-    match c.next() {
-        Some(f) => f.to_lowercase().chain(c).collect(),
-        None => String::new(),
-    }
 }
 
 /// The HTML report of `diagnosis` of `model` as a string.
@@ -385,7 +300,7 @@ fn params_cell(
     params
         .iter()
         .map(|(k, v)| {
-            let unit = units.and_then(|u| u.get(k)).map(String::as_str).unwrap_or_else(|| crate::effects::param_unit(effect, k));
+            let unit = units.and_then(|u| u.get(k)).map(String::as_str).unwrap_or_else(|| crate::vocabulary::effects::param_unit(effect, k));
             let value = match unc.and_then(|u| u.get(k)).filter(|u| any_finite(u)) {
                 Some(u) => format!("{} ± {}", fmt_param(v), fmt_param(u)),
                 None => fmt_param(v),
@@ -470,43 +385,6 @@ table.inertial{margin:0;font-size:100%}\
 .verdict.good{border-color:#2a7;background:#f4faf6}.verdict.warn{border-color:#d90;background:#fff8e6}.verdict.bad{border-color:#c33;background:#fdf0f0}\
 ul.notes{background:#fff8e6;border-left:6px solid #d90;padding:.5em 2em}.meta{color:#666;font-size:90%}\
 figure{margin:.5em 0}svg{max-width:100%;height:auto}";
-
-/// The selected effects in candidate rank order, each with its joints (and per-joint
-/// parameters) in model order.
-pub fn ranked_selection(r: &Report) -> Vec<crate::effects::EffectReport> {
-    let rank = |effect: &str| r.candidates.iter().find(|c| c.effect == effect).map_or(usize::MAX, |c| c.rank);
-    let mut out: Vec<crate::effects::EffectReport> = r.selected_effects.iter().map(|e| in_model_order(e, &r.joints)).collect();
-    out.sort_by_key(|e| rank(&e.effect));
-    out
-}
-
-/// `e` with its joints in the order of `joints` (a model's), per-joint values moved with them.
-fn in_model_order(e: &crate::effects::EffectReport, joints: &[String]) -> crate::effects::EffectReport {
-    let pos = |name: &String| joints.iter().position(|j| j == name).unwrap_or(usize::MAX);
-    let mut order: Vec<usize> = (0..e.joints.len()).collect();
-    order.sort_by_key(|&i| pos(&e.joints[i]));
-    if order.iter().enumerate().all(|(k, &i)| k == i) {
-        return e.clone();
-    }
-    let n = e.joints.len();
-    let reorder = |m: &std::collections::BTreeMap<String, Param>| -> std::collections::BTreeMap<String, Param> {
-        m.iter()
-            .map(|(k, v)| {
-                let v = match v {
-                    Param::PerJoint(x) if x.len() == n => Param::PerJoint(order.iter().map(|&i| x[i]).collect()),
-                    Param::PerLink(x) if x.len() == n => Param::PerLink(order.iter().map(|&i| x[i].clone()).collect()),
-                    other => other.clone(),
-                };
-                (k.clone(), v)
-            })
-            .collect()
-    };
-    let mut out = e.clone();
-    out.joints = order.iter().map(|&i| e.joints[i].clone()).collect();
-    out.parameters = reorder(&e.parameters);
-    out.uncertainty = reorder(&e.uncertainty);
-    out
-}
 
 /// HTML-escapes text.
 pub fn esc(s: &str) -> String {

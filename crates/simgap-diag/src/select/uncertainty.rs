@@ -1,7 +1,7 @@
 //! Intervals of the fitted parameters whose coverage matches their level.
 //!
-//! Resampling the fit data (the block bootstrap, [`crate::fit::bootstrap_std`]; the
-//! delete-one-fold jackknife, [`crate::fit::jackknife_std`]) measures how much an estimate moves
+//! Resampling the fit data (the block bootstrap, [`crate::lsq::bootstrap_std`]; the
+//! delete-one-fold jackknife, [`crate::lsq::jackknife_std`]) measures how much an estimate moves
 //! with the data. It cannot see an error that every part of the data shares: the smoothing
 //! differentiator's lag and attenuation of q̈, the encoder's quantisation, the zero-order hold
 //! of the torque, an effect fitted on a grid (a Stribeck velocity, a delay). On simulated robots
@@ -11,7 +11,7 @@
 //!
 //! The shared error of the pipeline is measured the way a parametric bootstrap measures bias:
 //! the fit runs are re-simulated with the fitted effects (same experiment, reference, initial
-//! state, sample times and inferred sensors; [`crate::resim::resimulate`]), so that the fitted
+//! state, sample times and inferred sensors; [`crate::predict::resim::resimulate`]), so that the fitted
 //! parameters are the truth of these synthetic runs; the same terms are fitted to them through
 //! the same preparation; the difference `b = θ* − θ̂` is the pipeline's error on data like these.
 //! The reported half-width is `1.96 · sqrt(σ² + b²)`, with `σ` the larger of the bootstrap and
@@ -25,17 +25,17 @@ use nalgebra::DVector;
 use simgap_core::{Formulation, Model};
 use simgap_sim::{Effect, Run, RunEnd};
 
-use crate::dataset::{FitData, PrepareOptions};
-use crate::fit::{grams, larger_spread, theta_without, Problem};
-use crate::terms::{design, Term, TermDesign};
+use crate::lsq::{grams, larger_spread, theta_without, Problem};
+use crate::prepare::dataset::{FitData, PrepareOptions};
+use crate::vocabulary::{design, Term, TermDesign};
 
 /// The synthetic fit runs: each (model-aligned) fit run re-simulated with `effects`; runs whose
 /// simulation diverges or fails are left out.
-pub fn synthetic_runs(model: &Model, formulation: Formulation, effects: &[Effect], fit_runs: &[Run]) -> Vec<Run> {
+pub(crate) fn synthetic_runs(model: &Model, formulation: Formulation, effects: &[Effect], fit_runs: &[Run]) -> Vec<Run> {
     use rayon::prelude::*;
     fit_runs
         .par_iter()
-        .filter_map(|r| match crate::resim::resimulate(model, formulation, effects, r) {
+        .filter_map(|r| match crate::predict::resim::resimulate(model, formulation, effects, r) {
             Ok((mut sim, RunEnd::Completed)) => {
                 sim.source = format!("{} (re-simulated with the fitted effects)", r.source);
                 Some(sim)
@@ -48,7 +48,7 @@ pub fn synthetic_runs(model: &Model, formulation: Formulation, effects: &[Effect
 /// The pipeline's error on synthetic runs whose truth is `theta` (the parameters of `terms`
 /// fitted on the real runs): `θ* − θ`, with `θ*` the same terms fitted to `synthetic` (see the
 /// module documentation). `None` when no synthetic run can be prepared.
-pub fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: &[Run], terms: &[Term], theta: &DVector<f64>, prepare: &PrepareOptions) -> Option<DVector<f64>> {
+pub(crate) fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: &[Run], terms: &[Term], theta: &DVector<f64>, prepare: &PrepareOptions) -> Option<DVector<f64>> {
     if terms.is_empty() {
         return Some(DVector::zeros(0));
     }
@@ -67,7 +67,7 @@ pub fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: &[Run],
 /// `sqrt(σ² + b²)` with `σ` the larger of the block-bootstrap (`boot`) and delete-one-fold
 /// jackknife (`jack`) spreads and `b` the pipeline's error ([`pipeline_bias`]; taken as 0 where
 /// unknown).
-pub fn interval_std(boot: &DVector<f64>, jack: &DVector<f64>, bias: Option<&DVector<f64>>) -> DVector<f64> {
+pub(crate) fn interval_std(boot: &DVector<f64>, jack: &DVector<f64>, bias: Option<&DVector<f64>>) -> DVector<f64> {
     let spread = larger_spread(boot, jack);
     DVector::from_fn(boot.len(), |i, _| {
         let b = bias.and_then(|b| b.get(i).copied()).filter(|b| b.is_finite()).unwrap_or(0.0);

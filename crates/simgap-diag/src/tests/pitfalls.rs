@@ -3,10 +3,11 @@
 
 use std::path::Path;
 
+use crate::check::bench::{demo_specs, generate};
+use crate::prepare::align_run;
+use crate::report::pitfalls::urdf_pitfalls;
+use crate::{FitData, PrepareOptions};
 use simgap_core::{Formulation, Model, SpatialInertia};
-use simgap_diag::bench::{demo_specs, generate};
-use simgap_diag::pitfalls::urdf_pitfalls;
-use simgap_diag::{align_run, FitData, PrepareOptions};
 use simgap_sim::{ControllerKind, Effect, Experiment};
 
 /// Fit data of the paper arm's demo runs (simulated on the true arm with `effects`), prepared

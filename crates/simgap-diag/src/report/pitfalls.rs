@@ -20,10 +20,10 @@
 
 use simgap_core::{gravity_torques_into, mass_matrix_into, Model, Workspace, PARAMS_PER_LINK};
 
-use crate::dataset::FitData;
-use crate::effects::sig3;
-use crate::fit::{fit, grams, Fit, Problem};
-use crate::terms::{design, Column, Term, TermDesign};
+use crate::lsq::{fit, grams, Fit, Problem};
+use crate::prepare::dataset::FitData;
+use crate::vocabulary::effects::sig3;
+use crate::vocabulary::{design, Column, Term, TermDesign};
 
 /// Smallest relative decrease of the cross-validated residual for a pitfall to be named.
 const MIN_GAIN: f64 = 0.1;
@@ -32,7 +32,7 @@ const MIN_GAIN: f64 = 0.1;
 ///
 /// `data` are the prepared fit runs of `model` (with the regressor, see
 /// [`crate::PrepareOptions::regressor`]).
-pub fn urdf_pitfalls(model: &Model, data: &[FitData]) -> Vec<String> {
+pub(crate) fn urdf_pitfalls(model: &Model, data: &[FitData]) -> Vec<String> {
     let mut notes = Vec::new();
     if data.is_empty() || data.iter().all(|d| d.is_empty()) {
         return notes;

@@ -23,24 +23,24 @@ use simgap_core::{Formulation, Model};
 use simgap_sim::sensor::Sensor;
 use simgap_sim::{applied_torque, controller_from_experiment, effective_substeps, ControllerKind, DelayLine, Effect, Plant, Run, SensorParams, SimParams};
 
-use crate::differentiate::Smoother;
 use crate::error::Result;
+use crate::prepare::differentiate::Smoother;
 
 /// Default prediction horizons [s].
-pub const DEFAULT_HORIZONS: [f64; 3] = [0.1, 0.25, 0.5];
+pub(crate) const DEFAULT_HORIZONS: [f64; 3] = [0.1, 0.25, 0.5];
 
 /// At most this many windows per held-out run (the stride grows on long runs).
-pub const MAX_WINDOWS_PER_RUN: usize = 200;
+pub(crate) const MAX_WINDOWS_PER_RUN: usize = 200;
 
 /// At most this many windows per fit run, where every candidate set is scored.
-pub const FIT_WINDOWS_PER_RUN: usize = 48;
+pub(crate) const FIT_WINDOWS_PER_RUN: usize = 48;
 
 /// Largest error counted per joint [rad]: half a turn.
 const ERROR_CAP: f64 = std::f64::consts::PI;
 
 /// A run prepared for k-step prediction: smoothed states, windows and the controller set-up.
 #[derive(Clone, Debug)]
-pub struct PredictionRun {
+pub(crate) struct PredictionRun {
     /// The model-aligned run.
     pub run: Run,
     /// Smoothed positions at every sample (row-major; meaningful on the valid range).
@@ -60,12 +60,12 @@ pub struct PredictionRun {
 }
 
 /// Folds per run for cross-validated prediction (matches the torque fit's contiguous folds).
-pub const FOLDS_PER_RUN: usize = crate::fit::BLOCKS_PER_RUN / crate::fit::BLOCKS_PER_FOLD;
+pub(crate) const FOLDS_PER_RUN: usize = crate::lsq::BLOCKS_PER_RUN / crate::lsq::BLOCKS_PER_FOLD;
 
 impl PredictionRun {
     /// Prepares `run` (model-aligned) for prediction at `horizons`, smoothing with a window of
     /// `window` seconds; at most `max_windows` windows, numbered in folds from `fold_base`.
-    pub fn new(run: Run, horizons: &[f64], window: f64, sensor: SensorParams, fold_base: usize, max_windows: usize) -> PredictionRun {
+    pub(crate) fn new(run: Run, horizons: &[f64], window: f64, sensor: SensorParams, fold_base: usize, max_windows: usize) -> PredictionRun {
         let n = run.dof();
         let smoother = Smoother::new(&run.t, window);
         let q_hat = smoother.apply(&run.q, n, 0);
@@ -111,13 +111,13 @@ impl PredictionRun {
     }
 
     /// Number of windows.
-    pub fn windows(&self) -> usize {
+    pub(crate) fn windows(&self) -> usize {
         self.starts.len()
     }
 }
 
 /// The median spacing of increasing stamps [s] (1 for fewer than two).
-pub fn median_spacing(t: &[f64]) -> f64 {
+pub(crate) fn median_spacing(t: &[f64]) -> f64 {
     if t.len() < 2 {
         return 1.0;
     }
@@ -129,7 +129,7 @@ pub fn median_spacing(t: &[f64]) -> f64 {
 /// Squared errors of a set of windows: per window, per horizon, per joint (`e²`, capped), and
 /// whether the horizon exists for that window.
 #[derive(Clone, Debug, Default)]
-pub struct Errors {
+pub(crate) struct Errors {
     /// Horizons.
     pub horizons: usize,
     /// Degrees of freedom.
@@ -145,7 +145,7 @@ impl Errors {
     }
 
     /// Number of windows.
-    pub fn windows(&self) -> usize {
+    pub(crate) fn windows(&self) -> usize {
         self.sq.len() / (self.horizons * self.dof).max(1)
     }
 
@@ -159,7 +159,7 @@ impl Errors {
     }
 
     /// Per horizon, `sqrt(mean over windows of ‖e‖²)` [rad] (NaN without windows).
-    pub fn rms(&self) -> Vec<f64> {
+    pub(crate) fn rms(&self) -> Vec<f64> {
         (0..self.horizons)
             .map(|h| {
                 let (mut s, mut c) = (0.0, 0usize);
@@ -180,7 +180,7 @@ impl Errors {
     }
 
     /// Per joint, per horizon: RMS error [rad], `[joint][horizon]`.
-    pub fn rms_per_joint(&self) -> Vec<Vec<f64>> {
+    pub(crate) fn rms_per_joint(&self) -> Vec<Vec<f64>> {
         (0..self.dof)
             .map(|j| {
                 (0..self.horizons)
@@ -199,7 +199,7 @@ impl Errors {
 }
 
 /// Constant-velocity extrapolation errors over the windows of `pr`.
-pub fn floor(pr: &PredictionRun, horizons: &[f64]) -> Errors {
+pub(crate) fn floor(pr: &PredictionRun, horizons: &[f64]) -> Errors {
     let n = pr.run.dof();
     let mut out = Errors::new(pr.windows(), horizons.len(), n);
     for (w, (&k0, ends)) in pr.starts.iter().zip(&pr.ends).enumerate() {
@@ -223,7 +223,7 @@ pub fn floor(pr: &PredictionRun, horizons: &[f64]) -> Errors {
 ///
 /// # Errors
 /// Controller set-up errors (gains that do not match the model).
-pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], pr: &PredictionRun, horizons: &[f64], keep: &dyn Fn(usize) -> bool) -> Result<Errors> {
+pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect], pr: &PredictionRun, horizons: &[f64], keep: &dyn Fn(usize) -> bool) -> Result<Errors> {
     let n = pr.run.dof();
     let mut out = Errors::new(pr.windows(), horizons.len(), n);
     let plant = match Plant::new(model, formulation, effects) {
@@ -354,7 +354,7 @@ fn delayed_command(run: &Run, history: &[f64], k0: usize, k: usize, line: &Delay
 ///
 /// # Errors
 /// As [`predict`].
-pub fn predict_all(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[PredictionRun], horizons: &[f64]) -> Result<(Errors, Vec<Errors>)> {
+pub(crate) fn predict_all(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[PredictionRun], horizons: &[f64]) -> Result<(Errors, Vec<Errors>)> {
     let per: Vec<Errors> = runs.par_iter().map(|pr| predict(model, formulation, effects, pr, horizons, &|_| true)).collect::<Result<_>>()?;
     let mut all = Errors { horizons: horizons.len(), dof: model.dof(), sq: Vec::new() };
     for e in &per {
@@ -364,7 +364,7 @@ pub fn predict_all(model: &Model, formulation: Formulation, effects: &[Effect], 
 }
 
 /// The floor over every window of every run: pooled and per run.
-pub fn floor_all(runs: &[PredictionRun], horizons: &[f64], dof: usize) -> (Errors, Vec<Errors>) {
+pub(crate) fn floor_all(runs: &[PredictionRun], horizons: &[f64], dof: usize) -> (Errors, Vec<Errors>) {
     let per: Vec<Errors> = runs.iter().map(|pr| floor(pr, horizons)).collect();
     let mut all = Errors { horizons: horizons.len(), dof, sq: Vec::new() };
     for e in &per {
@@ -378,7 +378,7 @@ pub fn floor_all(runs: &[PredictionRun], horizons: &[f64], dof: usize) -> (Error
 ///
 /// # Errors
 /// As [`predict`].
-pub fn predict_cv(
+pub(crate) fn predict_cv(
     model: &Model,
     formulation: Formulation,
     runs: &[PredictionRun],
@@ -418,7 +418,7 @@ pub fn predict_cv(
 /// Per fold, how a set predicts against a reference on the same windows: the geometric mean
 /// over horizons of `rms_set / rms_reference` over the windows of that fold (`fold[w]` is the
 /// fold of window `w`, in the order of `set.sq`). Folds where either has no window are left out.
-pub fn fold_ratios(set: &Errors, reference: &Errors, fold: &[usize]) -> Vec<f64> {
+pub(crate) fn fold_ratios(set: &Errors, reference: &Errors, fold: &[usize]) -> Vec<f64> {
     let (hs, n) = (set.horizons, set.dof);
     if set.sq.len() != reference.sq.len() || set.windows() != fold.len() {
         return Vec::new();
@@ -454,7 +454,7 @@ pub fn fold_ratios(set: &Errors, reference: &Errors, fold: &[usize]) -> Vec<f64>
 /// Whether a set's prediction gain over a reference holds across the folds of the fit runs
 /// (from the per-fold ratios of [`fold_ratios`]).
 #[derive(Clone, Copy, Debug)]
-pub struct FoldTest {
+pub(crate) struct FoldTest {
     /// Upper confidence bound of the ratio: `exp(m + 2 s / √F)` with `m` and `s` the mean and
     /// standard deviation of `ln ratio` over the `F` folds (infinite with fewer than two).
     pub bound: f64,
@@ -466,7 +466,7 @@ pub struct FoldTest {
 
 impl FoldTest {
     /// The test of per-fold ratios `ratios`.
-    pub fn of(ratios: &[f64]) -> FoldTest {
+    pub(crate) fn of(ratios: &[f64]) -> FoldTest {
         let logs: Vec<f64> = ratios.iter().filter(|r| **r > 0.0 && r.is_finite()).map(|r| r.ln()).collect();
         if logs.len() < 2 {
             return FoldTest { bound: f64::INFINITY, worst: f64::INFINITY, mean: f64::NAN };
@@ -481,77 +481,19 @@ impl FoldTest {
     /// the luck of a few windows), or no fold is worse by more than `tolerance` (relative) and
     /// the mean ratio is below `1 − gain` (an effect that acts in a few folds only, e.g. a
     /// saturation reached there, and changes nothing elsewhere).
-    pub fn holds(&self, tolerance: f64, gain: f64) -> bool {
+    pub(crate) fn holds(&self, tolerance: f64, gain: f64) -> bool {
         self.bound < 1.0 || (self.worst <= 1.0 + tolerance && self.mean < 1.0 - gain)
     }
 }
 
 /// One number for comparing models by prediction: the geometric mean over horizons of
 /// `rms_h / reference_h` (lower is better; 1 = as good as the reference).
-pub fn score(rms: &[f64], reference: &[f64]) -> f64 {
+pub(crate) fn score(rms: &[f64], reference: &[f64]) -> f64 {
     let logs: Vec<f64> = rms.iter().zip(reference).filter(|(a, b)| a.is_finite() && b.is_finite() && **b > 0.0).map(|(a, b)| (a.max(1e-300) / b).ln()).collect();
     if logs.is_empty() {
         return f64::INFINITY;
     }
     (logs.iter().sum::<f64>() / logs.len() as f64).exp()
-}
-
-/// k-step prediction of logged runs by `model` alone (`before`) and with `effects` (`after`),
-/// with the constant-velocity floor: how well a model predicts logs, without a diagnosis
-/// (e.g. to compare a published identified model with a corrected one on the same runs).
-///
-/// Runs are aligned to the model by joint name, glitches repaired and sensors inferred as in
-/// [`crate::diagnose`]; `window` is the smoothing window [s] of the restart states.
-///
-/// # Errors
-/// [`crate::Error::Log`] for runs that do not match the model, have no experiment or are too
-/// short for a window; controller set-up errors.
-pub fn evaluate(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[Run], horizons: &[f64], window: f64) -> Result<crate::report::KStep> {
-    if let Some(h) = horizons.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
-        return Err(crate::Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
-    }
-    let mut prepared = Vec::with_capacity(runs.len());
-    for r in runs {
-        let mut run = crate::dataset::align_run(model, r)?;
-        if run.experiment.is_none() {
-            return Err(crate::Error::Log {
-                log: run.source.clone(),
-                message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into(),
-            });
-        }
-        crate::robust::repair_glitches(&mut run);
-        let sensor = crate::resim::infer_sensors(&run).params();
-        let pr = PredictionRun::new(run, horizons, window, sensor, 0, MAX_WINDOWS_PER_RUN);
-        if pr.windows() == 0 {
-            return Err(crate::Error::Log {
-                log: pr.run.source.clone(),
-                message: format!("too short to predict: {:.3} s; expected at least the shortest horizon plus the smoothing window", pr.run.duration()),
-            });
-        }
-        prepared.push(pr);
-    }
-    let (floor_all, floor_runs) = floor_all(&prepared, horizons, model.dof());
-    let (before, before_runs) = predict_all(model, formulation, &[], &prepared, horizons)?;
-    let (after, after_runs) = if effects.is_empty() { (before.clone(), before_runs.clone()) } else { predict_all(model, formulation, effects, &prepared, horizons)? };
-    Ok(crate::report::KStep {
-        horizons_s: horizons.to_vec(),
-        before: before.rms(),
-        after: after.rms(),
-        floor: floor_all.rms(),
-        per_joint_before: before.rms_per_joint(),
-        per_joint_after: after.rms_per_joint(),
-        runs: prepared
-            .iter()
-            .enumerate()
-            .map(|(i, pr)| crate::report::RunKStep {
-                log: pr.run.source.clone(),
-                windows: pr.windows(),
-                before: before_runs[i].rms(),
-                after: after_runs[i].rms(),
-                floor: floor_runs[i].rms(),
-            })
-            .collect(),
-    })
 }
 
 #[cfg(test)]

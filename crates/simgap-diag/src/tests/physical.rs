@@ -6,17 +6,17 @@
 //! The DFKI part needs `../shared/data` next to the repository; without it, it prints why and
 //! passes.
 
-mod common;
-
-use common::{replay, shared_data};
+use super::common::{replay, shared_data};
+use crate::check::bench::{demo_specs, generate};
+use crate::lsq::inertial::{link_is_physical, link_reach};
+use crate::lsq::{fit_terms, solve, solve_bounded, Problem};
+use crate::prepare::align_run;
+use crate::select::{parameter_scales, Context};
+use crate::vocabulary::effects;
+use crate::vocabulary::Term;
+use crate::{diagnose, DiagnoseOptions, EffectReport, FitData, Param, PrepareOptions};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use simgap_core::{inertial_parameters, Formulation, Model, SpatialInertia};
-use simgap_diag::bench::{demo_specs, generate};
-use simgap_diag::fit::{fit_terms, solve, solve_bounded, Problem};
-use simgap_diag::inertial::{link_is_physical, link_reach};
-use simgap_diag::select::{parameter_scales, Context};
-use simgap_diag::terms::Term;
-use simgap_diag::{align_run, diagnose, effects, DiagnoseOptions, EffectReport, FitData, Param, PrepareOptions};
 use simgap_sim::{Effect, LinkDelta, Run};
 
 /// Fit data of the paper arm's demo runs with hidden `effects`.
@@ -59,10 +59,10 @@ fn bounded_fits_keep_viscous_armature_stribeck_and_payload_physical() {
     }
     let terms = [Term::Viscous(0), Term::Armature(1), Term::Stribeck { joint: 0, vs: 0.1 }, Term::Gain(1), Term::Payload { com: [0.2, 0.0, 0.0], max_mass: f64::INFINITY }];
     let (designs, gr, f) = fit_terms(&p, &data, &terms);
-    let std = simgap_diag::fit::bootstrap_std(&gr, 20, 3);
-    let fitted = simgap_diag::fit::fitted_terms(&terms, &designs, &f.theta, Some(&std));
+    let std = crate::lsq::bootstrap_std(&gr, 20, 3);
+    let fitted = crate::lsq::fitted_terms(&terms, &designs, &f.theta, Some(&std));
     for t in &fitted {
-        assert!(simgap_diag::select::physical(&t.term, &t.theta), "{:?}: {:?}", t.term, t.theta);
+        assert!(crate::select::physical(&t.term, &t.theta), "{:?}: {:?}", t.term, t.theta);
     }
     let th: Vec<f64> = fitted.iter().flat_map(|t| t.theta.clone()).collect();
     // b ≥ 0, ia ≥ 0, 0 ≤ fc ≤ fs, k in [0.2, 5], payload mass ≥ 0
@@ -119,8 +119,8 @@ fn inertial_fit_recovers_known_link_mass_from_synthetic_data() {
     let ctx = Context::new(&data, 0.0025, &prior);
     let term = ctx.inertial_term();
     let (designs, _, f) = fit_terms(&ctx.problem, &data, std::slice::from_ref(&term));
-    let fitted = simgap_diag::fit::fitted_terms(std::slice::from_ref(&term), &designs, &f.theta, None);
-    assert!(simgap_diag::select::physical(&fitted[0].term, &fitted[0].theta));
+    let fitted = crate::lsq::fitted_terms(std::slice::from_ref(&term), &designs, &f.theta, None);
+    assert!(crate::select::physical(&fitted[0].term, &fitted[0].theta));
     let Some(Effect::InertialError { deltas }) = effects::to_effects(&model, &fitted).into_iter().next() else { panic!("no inertial effect") };
     let reach = link_reach(&model);
     for d in &deltas {
@@ -188,7 +188,7 @@ fn assert_physical(model: &Model, e: &EffectReport, delivered: &[f64], what: &st
     }
 }
 
-fn assert_report_physical(model: &Model, d: &simgap_diag::Diagnosis, delivered: &[f64], name: &str) {
+fn assert_report_physical(model: &Model, d: &crate::Diagnosis, delivered: &[f64], name: &str) {
     for e in &d.report.selected_effects {
         assert_physical(model, e, delivered, &format!("{name}, selected"));
         assert!(!e.description.is_empty(), "{name}: {} has no description", e.effect);
@@ -221,7 +221,7 @@ fn no_effect_is_physically_impossible_on_synthetic_runs() {
 fn no_effect_is_physically_impossible_in_selfcheck_scenarios() {
     // blind scenarios of the self-check (robots, hidden effects, open and closed loop)
     for index in 0..4 {
-        let sc = simgap_diag::selfcheck::scenario(3, index).unwrap();
+        let sc = crate::check::selfcheck::scenario(3, index).unwrap();
         let d = diagnose(&sc.model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &DiagnoseOptions::default(), &mut |_| {}).unwrap();
         let truth: Vec<&str> = sc.effects.iter().map(|e| e.name()).collect();
         let found: Vec<&str> = d.report.selected_effects.iter().map(|e| e.effect.as_str()).collect();

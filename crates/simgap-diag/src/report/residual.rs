@@ -20,18 +20,18 @@
 //! the joint's RMS velocity: a residual concentrated near rest or in one direction points at the
 //! friction model.
 
-use crate::dataset::FitData;
-use crate::fit::Problem;
-use crate::terms::Column;
+use crate::lsq::Problem;
+use crate::prepare::dataset::FitData;
+use crate::vocabulary::Column;
 
 /// Number of bins per signal.
 const BINS: usize = 10;
 
 /// A signal's explained share from which the residual counts as structured.
-pub const STRUCTURE_SHARE: f64 = 0.2;
+pub(crate) const STRUCTURE_SHARE: f64 = 0.2;
 
 /// Below this RMS relative to the joint's RMS commanded torque, the residual is negligible.
-pub const NEGLIGIBLE_SHARE: f64 = 0.02;
+pub(crate) const NEGLIGIBLE_SHARE: f64 = 0.02;
 
 /// The residual of one joint after the selected effects.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -149,7 +149,7 @@ fn explained_share(r: &[f64], signal: &[f64], half: &[bool]) -> f64 {
 }
 
 /// Tests the residual `r` (as [`crate::select::residual_after`] gives it) joint by joint.
-pub fn test(p: &Problem, data: &[FitData], r: &Column, joints: &[String]) -> Vec<ResidualTest> {
+pub(crate) fn test(p: &Problem, data: &[FitData], r: &Column, joints: &[String]) -> Vec<ResidualTest> {
     let dof = p.dof;
     // signals in the order of the stacked samples
     let stack = |f: &dyn Fn(&FitData) -> &[f64], j: usize| -> Vec<f64> { data.iter().flat_map(|d| f(d).iter().skip(j).step_by(dof).copied()).collect() };

@@ -1,7 +1,7 @@
 //! Multiple shooting: the parameters of a set of terms chosen to minimise the k-step prediction
 //! error, not the torque residual.
 //!
-//! The torque-residual fit ([`crate::fit`]) needs accelerations differentiated from positions;
+//! The torque-residual fit ([`crate::lsq`]) needs accelerations differentiated from positions;
 //! on jittery stamps, with a friction shape the vocabulary only approximates, or with effects
 //! the residual sees poorly (inertia against gravity on a slow motion), it is biased, and the
 //! bias shows when the fitted model predicts. Here the same parameters are fitted to what the
@@ -18,7 +18,7 @@
 //!    physical constraints are boxes: a linear parameter is x = θ within its term's bounds
 //!    (friction, rotor inertia ≥ 0, a payload's mass within its bound, a gain within its
 //!    range); an inertial correction is the log-Cholesky parameters of every link (always a
-//!    physical body, see [`crate::inertial`]) with the mass within [`inertial::MASS_FACTOR`] of
+//!    physical body, see [`crate::lsq::inertial`]) with the mass within [`inertial::MASS_FACTOR`] of
 //!    the URDF's, principal radii at least [`inertial::MIN_RADIUS`] and the centre of mass
 //!    projected into its link's reach.
 //!
@@ -37,16 +37,16 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model, PARAMS_PER_LINK};
 
-use crate::effects;
 use crate::error::{Error, Result};
-use crate::fit::fitted_terms;
-use crate::inertial::{self, InertialPrior};
-use crate::kstep::{self, PredictionRun, FOLDS_PER_RUN};
-use crate::terms::{Term, TermDesign};
+use crate::lsq::fitted_terms;
+use crate::lsq::inertial::{self, InertialPrior};
+use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
+use crate::vocabulary::effects;
+use crate::vocabulary::{Term, TermDesign};
 
 /// Options of a multiple-shooting fit.
 #[derive(Clone, Debug)]
-pub struct Options {
+pub(crate) struct Options {
     /// Length of every shooting window [s].
     pub window: f64,
     /// Instants per window at which the error counts (evenly spaced, the last at the window's end).
@@ -68,7 +68,7 @@ impl Default for Options {
 
 impl Options {
     /// The instants (from each window's start) at which the error counts [s].
-    pub fn horizons(&self) -> Vec<f64> {
+    pub(crate) fn horizons(&self) -> Vec<f64> {
         let p = self.points.max(1);
         (1..=p).map(|i| self.window * i as f64 / p as f64).collect()
     }
@@ -77,7 +77,7 @@ impl Options {
 /// The fit runs cut into consecutive shooting windows; window folds numbered as the fit runs'
 /// k-step folds (run `i` from `i ·` [`FOLDS_PER_RUN`]), so that a cross-validation can leave a
 /// fold out of both.
-pub fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Options) -> Vec<PredictionRun> {
+pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Options) -> Vec<PredictionRun> {
     let horizons = options.horizons();
     fit_pred
         .iter()
@@ -91,8 +91,8 @@ pub fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Optio
 
 /// A multiple-shooting fit.
 #[derive(Clone, Debug)]
-pub struct Shot {
-    /// Fitted column coefficients, laid out as [`crate::fit::fit_terms`]'s θ.
+pub(crate) struct Shot {
+    /// Fitted column coefficients, laid out as [`crate::lsq::fit_terms`]'s θ.
     pub theta: DVector<f64>,
     /// Their standard deviations from `σ² (JᵀJ)⁻¹` (see the module documentation).
     pub std: DVector<f64>,
@@ -100,16 +100,12 @@ pub struct Shot {
     pub cost_start: f64,
     /// The same at the answer.
     pub cost: f64,
-    /// Which of the given starts was used (the one of lowest cost).
-    pub start: usize,
     /// Levenberg–Marquardt iterations done.
     pub iterations: usize,
-    /// Simulations of all windows done.
-    pub evaluations: usize,
 }
 
 /// The problem: a model, terms (with their designs, for bounds and layout) and windows.
-pub struct Problem<'a> {
+pub(crate) struct Problem<'a> {
     /// The model.
     pub model: &'a Model,
     /// Its formulation.
@@ -353,28 +349,26 @@ fn stopped(stop: Option<&AtomicBool>) -> Result<()> {
 }
 
 /// Fits the terms' parameters by multiple shooting, from the start of lowest cost among
-/// `starts` (θ vectors laid out as [`crate::fit::fit_terms`]'s, e.g. the torque-residual fit).
+/// `starts` (θ vectors laid out as [`crate::lsq::fit_terms`]'s, e.g. the torque-residual fit).
 ///
 /// # Errors
 /// Controller set-up errors of [`kstep::predict`]; [`Error::Interrupted`] when `stop` is set.
-pub fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicBool>) -> Result<Shot> {
+pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicBool>) -> Result<Shot> {
     let ev = Evaluator::new(problem)?;
     let layout = &ev.layout;
     let nx = layout.nx();
-    let mut evaluations = 1;
     // the start of lowest cost
     let mut best: Option<(usize, Vec<f64>, Vec<f64>, f64)> = None;
     for (i, s) in starts.iter().enumerate() {
         stopped(stop)?;
         let x = layout.x_of(s);
         let r = ev.residuals(&x)?;
-        evaluations += 1;
         let f = r.iter().map(|v| v * v).sum::<f64>();
         if best.as_ref().is_none_or(|b| f < b.3) {
             best = Some((i, x, r, f));
         }
     }
-    let Some((start, mut x, mut r, mut f)) = best else {
+    let Some((_, mut x, mut r, mut f)) = best else {
         return Err(Error::Input("multiple shooting needs at least one start".into()));
     };
     let cost_start = ev.data_cost(&r);
@@ -409,7 +403,6 @@ pub fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicB
                     Ok(r2.iter().zip(&r).map(|(b, a0)| (b - a0) / h).collect())
                 })
                 .collect();
-            evaluations += idx.len();
             for (col, &a) in cols.into_iter().zip(&idx) {
                 for (i, v) in col?.iter().enumerate() {
                     jac[(i, a)] = *v;
@@ -451,7 +444,6 @@ pub fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicB
             }
             layout.project(&mut x2);
             let r2 = ev.residuals(&x2)?;
-            evaluations += 1;
             let f2 = r2.iter().map(|v| v * v).sum::<f64>();
             if f2.is_finite() && f2 < f {
                 small = if f - f2 <= TOLERANCE * f { small + 1 } else { 0 };
@@ -497,13 +489,13 @@ pub fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicB
     let t = layout.dtheta_dx(&x);
     let cov = &t * cov_x * t.transpose();
     let std = DVector::from_fn(layout.k, |i, _| cov[(i, i)].max(0.0).sqrt());
-    Ok(Shot { theta: layout.theta_of(&x), std, cost_start, cost: ev.data_cost(&r), start, iterations, evaluations })
+    Ok(Shot { theta: layout.theta_of(&x), std, cost_start, cost: ev.data_cost(&r), iterations })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::terms::Column;
+    use crate::vocabulary::Column;
 
     #[test]
     fn layout_round_trips_linear_and_inertial_parameters() {

@@ -16,7 +16,7 @@ use nalgebra::{Matrix4, Vector4};
 
 /// A sliding-window local-polynomial smoother over one time base.
 #[derive(Clone, Debug)]
-pub struct Smoother {
+pub(crate) struct Smoother {
     t: Vec<f64>,
     half: usize,
     /// Weights (value, first and second derivative, zero-order-hold kernel), `2 half + 1` each:
@@ -31,7 +31,7 @@ const MAX_CACHED_WEIGHTS: usize = 4_000_000;
 
 impl Smoother {
     /// A smoother over times `t` (strictly increasing) with a window of about `window` seconds.
-    pub fn new(t: &[f64], window: f64) -> Smoother {
+    pub(crate) fn new(t: &[f64], window: f64) -> Smoother {
         let n = t.len();
         let dt = if n > 1 { (t[n - 1] - t[0]) / (n - 1) as f64 } else { 1.0 };
         let half = ((window / dt / 2.0).round() as usize).clamp(3, 200);
@@ -48,12 +48,12 @@ impl Smoother {
     }
 
     /// Half-width of the window in samples.
-    pub fn half(&self) -> usize {
+    pub(crate) fn half(&self) -> usize {
         self.half
     }
 
     /// The range of samples with a full window.
-    pub fn valid(&self) -> std::ops::Range<usize> {
+    pub(crate) fn valid(&self) -> std::ops::Range<usize> {
         let n = self.t.len();
         if n <= 2 * self.half {
             0..0
@@ -102,14 +102,14 @@ impl Smoother {
 
     /// Filters a zero-order-hold signal (value `x_j` held over `[t_j, t_{j+1})`) with the
     /// kernel that matches [`Smoother::apply`]`(q, 2)` (module docs).
-    pub fn apply_zoh(&self, x: &[f64], dof: usize) -> Vec<f64> {
+    pub(crate) fn apply_zoh(&self, x: &[f64], dof: usize) -> Vec<f64> {
         self.apply(x, dof, 3)
     }
 
     /// Applies the filter to a row-major `len × dof` signal: `deriv` 0 = smoothed value,
     /// 1 = first derivative, 2 = second derivative (3 = [`Smoother::apply_zoh`]). Samples
     /// outside [`Smoother::valid`] are 0.
-    pub fn apply(&self, x: &[f64], dof: usize, deriv: usize) -> Vec<f64> {
+    pub(crate) fn apply(&self, x: &[f64], dof: usize, deriv: usize) -> Vec<f64> {
         let n = self.t.len();
         assert_eq!(x.len(), n * dof, "signal length");
         let mut out = vec![0.0; x.len()];

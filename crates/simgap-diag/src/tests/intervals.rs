@@ -1,8 +1,8 @@
 //! The pieces of the reported 95 % intervals.
 
+use crate::lsq::t_quantile_975;
+use crate::select::uncertainty::interval_std;
 use nalgebra::DVector;
-use simgap_diag::fit::t_quantile_975;
-use simgap_diag::uncertainty::interval_std;
 
 #[test]
 fn student_quantile_matches_tables() {

@@ -1,0 +1,452 @@
+//! The pipeline: [`diagnose`] runs the stages in order, one call per stage.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use simgap_core::{Formulation, Model};
+use simgap_sim::{Effect, Run};
+
+use crate::error::{Error, Result};
+use crate::locate;
+use crate::lsq::{self, bootstrap_std, fit_terms, fitted_terms};
+use crate::predict::{kstep, resim};
+use crate::prepare::{prepare, sample_period, FitData, PrepareOptions, Prepared};
+use crate::report::verdict::{headline, residual_notes, verdict};
+use crate::report::{pitfalls, residual, Candidate, Decision, Gap, KStep, Report, RunKStep};
+use crate::select::alternatives::alternatives;
+use crate::select::prediction::{fits_in, prune_and_complete, rank_selected, ADD_GAIN};
+use crate::select::refine::refine_by_shooting;
+use crate::select::scorer::Scorer;
+use crate::select::screen::{candidate_groups, describe_term, drop_passive_actuator_terms, select_nothing};
+use crate::select::{self, select, uncertainty, Context, SelectOptions};
+use crate::vocabulary::{effects, EffectReport, Term};
+
+/// Options of [`diagnose`].
+#[derive(Clone, Debug, Default)]
+pub struct DiagnoseOptions {
+    /// Data preparation.
+    pub prepare: PrepareOptions,
+    /// Selection thresholds.
+    pub select: SelectOptions,
+    /// Prediction horizons [s] of the k-step figures; empty = [`kstep::DEFAULT_HORIZONS`].
+    pub horizons: Vec<f64>,
+    /// When set (e.g. by Ctrl-C), the diagnosis stops at its next step with
+    /// [`Error::Interrupted`].
+    pub stop: Option<Arc<AtomicBool>>,
+}
+
+/// Progress of a diagnosis, for a progress bar.
+#[derive(Clone, Debug)]
+pub struct Progress {
+    /// What is being done (the stage, and the candidate when there is one).
+    pub stage: &'static str,
+    /// Steps done.
+    pub done: usize,
+    /// Steps in all.
+    pub total: usize,
+}
+
+/// Everything [`diagnose`] produced: the report and the runs behind its figures.
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    /// The report (see [`Report`]).
+    pub report: Report,
+    /// The selected effects, as simulator effects.
+    pub effects: Vec<Effect>,
+    /// Held-out runs as measured (model-aligned, glitches repaired).
+    pub holdout: Vec<Run>,
+    /// Their nominal closed-loop simulations.
+    pub holdout_nominal: Vec<Option<Run>>,
+    /// Their simulations with the selected effects.
+    pub holdout_corrected: Vec<Option<Run>>,
+    /// Fit data (smoothed states and residuals), for plots.
+    pub fit_data: Vec<FitData>,
+    /// The selected effects with the 95 % half-widths of each interval method on its own
+    /// (`block_bootstrap`, `fold_jackknife`, `resampling` = the larger of the two; the report
+    /// adds the pipeline's shared error, [`uncertainty`]), for the self-check's coverage
+    /// comparison.
+    pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
+}
+
+pub(crate) fn check_stop(options: &DiagnoseOptions) -> Result<()> {
+    match &options.stop {
+        Some(s) if s.load(Ordering::Relaxed) => Err(Error::Interrupted),
+        _ => Ok(()),
+    }
+}
+
+/// Diagnoses the gap between `model` (in `formulation`) and logged runs.
+///
+/// `fit` runs are used to fit and select; `holdout` runs only to measure how far the gap
+/// shrinks. Every run must carry its experiment (controller, gains, sample period): a replay
+/// experiment for open-loop runs and for any controller that cannot be reproduced.
+///
+/// # Errors
+/// [`Error::Input`] with no fit or no held-out run, or a held-out run that repeats a fit run;
+/// [`Error::Log`] for logs whose joints do not match the model, too short logs, logs without
+/// experiment or with a sample period the stamps contradict; [`Error::Interrupted`] when
+/// `options.stop` is set.
+pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions, progress: &mut dyn FnMut(Progress)) -> Result<Diagnosis> {
+    // prepare
+    progress(Progress { stage: "preparing logs", done: 0, total: fit.len() + holdout.len() });
+    let prep = prepare(model, formulation, fit, holdout, options)?;
+    check_stop(options)?;
+    let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
+    let data = &prep.data;
+    let moving = data.iter().any(|d| d.qd.iter().any(|v| v.abs() > 1e-3));
+    let scales = select::parameter_scales(model);
+    let ctx = Context::new(data, sample_period(&prep.fit_runs), &scales);
+    let p = &ctx.problem;
+    let horizons = prep.horizons.clone();
+
+    // locate: the nominal closed loop on the fit runs
+    progress(Progress { stage: "locating the gap", done: 0, total: prep.fit_runs.len() });
+    let fit_nominal: Vec<(resim::RunGap, Option<Run>)> = prep.fit_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
+    let nominal_sims: Vec<Option<Run>> = fit_nominal.iter().map(|g| g.1.clone()).collect();
+    let location = locate::locate(&joints, data, &prep.fit_runs, &nominal_sims);
+    check_stop(options)?;
+
+    // select: stepwise on the torque residual
+    progress(Progress { stage: "selecting on the torque residual", done: 0, total: 1 });
+    let mut selection = if moving { select(&ctx, &options.select) } else { select_nothing(&ctx) };
+    drop_passive_actuator_terms(&mut selection.terms, &prep.passive);
+    check_stop(options)?;
+
+    // candidates: every effect of the vocabulary alone
+    let groups: Vec<(&'static str, Vec<Term>)> = candidate_groups(&ctx, &p.y)
+        .into_iter()
+        .map(|(n, mut t)| {
+            drop_passive_actuator_terms(&mut t, &prep.passive);
+            (n, t)
+        })
+        .filter(|(_, t)| !t.is_empty())
+        .collect();
+
+    // prune by prediction: cross-validated k-step error on the fit runs
+    let scorer = Scorer::new(model, formulation, &ctx, &prep);
+    let total_steps = groups.len() * 2 + selection.terms.len() + 4;
+    let mut step = 0usize;
+    let mut tick = |progress: &mut dyn FnMut(Progress), stage: &'static str| {
+        step += 1;
+        progress(Progress { stage, done: step.min(total_steps), total: total_steps });
+    };
+    let alone_cv: Vec<Vec<f64>> = groups
+        .iter()
+        .map(|(_, t)| {
+            tick(progress, "scoring candidates by prediction");
+            if options.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed)) {
+                return vec![f64::NAN; horizons.len()];
+            }
+            scorer.cv(t)
+        })
+        .collect();
+    check_stop(options)?;
+    let alone_score: Vec<f64> = alone_cv.iter().map(|v| kstep::score(v, &scorer.nominal)).collect();
+    if moving {
+        prune_and_complete(&scorer, &groups, &alone_score, &mut selection, progress, options)?;
+    }
+    check_stop(options)?;
+    let final_score = scorer.score(&selection.terms);
+    let final_cv = scorer.cv(&selection.terms);
+
+    // refine by multiple shooting: parameters fitted to k-step prediction, kept when the
+    // cross-validated prediction of the fit runs says so
+    let (refined, shooting_notes) = if moving { refine_by_shooting(&scorer, &selection.terms, final_score, progress, options)? } else { (None, Vec::new()) };
+    check_stop(options)?;
+    let (final_score, final_cv) = match &refined {
+        Some(r) => {
+            let before: Vec<Term> = selection.terms.clone();
+            for t in before.iter().filter(|t| !r.terms.contains(t)) {
+                selection.log.push(select::Step {
+                    term: t.clone(),
+                    cv_mse: f64::NAN,
+                    accepted: false,
+                    reason: format!("replaced by {}, fitted by multiple shooting (cross-validated k-step score {:.4} against {final_score:.4})", r.name, r.score),
+                });
+            }
+            for t in &r.terms {
+                let how = if before.contains(t) { "parameters refitted by multiple shooting" } else { "added by multiple shooting" };
+                selection.log.push(select::Step {
+                    term: t.clone(),
+                    cv_mse: f64::NAN,
+                    accepted: true,
+                    reason: format!(
+                        "{how} as part of {}: the fit runs' cross-validated k-step error is {:.4} of the nominal model's (torque-residual fit of the set before: {final_score:.4})",
+                        r.name, r.score
+                    ),
+                });
+            }
+            selection.terms = r.terms.clone();
+            (r.score, r.cv.clone())
+        }
+        None => (final_score, final_cv),
+    };
+
+    // the selected set, fitted on all fit data, with uncertainties
+    let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
+    selection.designs = designs;
+    selection.fit = sel_fit;
+    let (fitted, interval_variants) = match &refined {
+        // shooting's own spread (see [`shooting::Shot::std`])
+        Some(r) => {
+            let fitted = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std));
+            let own = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.own_std));
+            let variants = vec![("multiple_shooting", effects::to_reports(model, &own))];
+            (fitted, variants)
+        }
+        None => {
+            let boot_std = bootstrap_std(&sel_grams, 100, 7);
+            let jack_std = lsq::jackknife_std(&sel_grams);
+            let sel_effects = effects::to_effects(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, None));
+            // the pipeline's shared error, from the fit runs re-simulated with the fitted effects
+            let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs) };
+            let bias = uncertainty::pipeline_bias(model, formulation, &synthetic, &selection.terms, &selection.fit.theta, &options.prepare);
+            let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
+            let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
+            // the same effects with the half-widths of each interval method alone, for the self-check
+            let resampling = lsq::larger_spread(&boot_std, &jack_std);
+            let variants: Vec<(&'static str, Vec<EffectReport>)> = [("block_bootstrap", &boot_std), ("fold_jackknife", &jack_std), ("resampling", &resampling)]
+                .into_iter()
+                .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
+                .collect();
+            (fitted, variants)
+        }
+    };
+    let sel_effects = effects::to_effects(model, &fitted);
+    let mut selected_effects = effects::to_reports(model, &fitted);
+    // report order: by how much each effect's removal would worsen prediction
+    rank_selected(&scorer, &selection.terms, &mut selected_effects);
+
+    // how far: held-out runs, k-step and closed loop, before and after
+    progress(Progress { stage: "predicting held-out runs", done: 0, total: 3 });
+    let (floor_all, floor_runs) = kstep::floor_all(&prep.hold_pred, &horizons, model.dof());
+    let (before_k, before_runs_k) = kstep::predict_all(model, formulation, &[], &prep.hold_pred, &horizons)?;
+    let (after_k, after_runs_k) =
+        if sel_effects.is_empty() { (before_k.clone(), before_runs_k.clone()) } else { kstep::predict_all(model, formulation, &sel_effects, &prep.hold_pred, &horizons)? };
+    check_stop(options)?;
+    progress(Progress { stage: "re-simulating held-out runs", done: 1, total: 3 });
+    let hold_nominal: Vec<(resim::RunGap, Option<Run>)> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &[], r)).collect();
+    let hold_after: Vec<(resim::RunGap, Option<Run>)> =
+        if sel_effects.is_empty() { hold_nominal.clone() } else { prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r)).collect() };
+    let before_runs: Vec<resim::RunGap> = hold_nominal.iter().map(|g| g.0.clone()).collect();
+    let after_runs: Vec<resim::RunGap> = hold_after.iter().map(|g| g.0.clone()).collect();
+    let (before, before_joint) = resim::combine(&before_runs, &prep.hold_runs);
+    let (after, after_joint) = resim::combine(&after_runs, &prep.hold_runs);
+    let fit_before = resim::combine(&fit_nominal.iter().map(|g| g.0.clone()).collect::<Vec<_>>(), &prep.fit_runs).0;
+    let fit_after = if sel_effects.is_empty() {
+        fit_before
+    } else {
+        let g: Vec<resim::RunGap> = prep.fit_runs.par_iter().map(|r| resim::gap(model, formulation, &sel_effects, r).0).collect();
+        resim::combine(&g, &prep.fit_runs).0
+    };
+    check_stop(options)?;
+
+    // screen: every candidate alone on the held-out runs (k-step and closed loop)
+    let mut candidates = Vec::new();
+    for (gi, (name, terms)) in groups.iter().enumerate() {
+        tick(progress, "screening candidates on held-out runs");
+        check_stop(options)?;
+        let (designs, gr, f) = fit_terms(p, data, terms);
+        // resampling spread only: the pipeline's shared error is measured for the selected set
+        let std = lsq::resampling_std(&gr, &bootstrap_std(&gr, 50, 11));
+        let fitted_c = fitted_terms(terms, &designs, &f.theta, Some(&std));
+        let rep = effects::to_reports(model, &fitted_c).into_iter().next();
+        let eff = effects::to_effects(model, &fitted_c);
+        let unphysical: Vec<String> = fitted_c.iter().filter(|f| !select::physical(&f.term, &f.theta)).map(|f| describe_term(&f.term, &joints)).collect();
+        let kstep_after = kstep::predict_all(model, formulation, &eff, &prep.hold_pred, &horizons).map(|e| e.0.rms()).unwrap_or_else(|_| vec![f64::NAN; horizons.len()]);
+        let gaps: Vec<resim::RunGap> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
+        let l2 = resim::combine(&gaps, &prep.hold_runs).0;
+        let selected = selection.terms.iter().any(|t| t.effect_name() == *name);
+        let reason = if selected {
+            "selected".to_string()
+        } else if let Some(s) = selection.log.iter().rev().find(|s| s.term.effect_name() == *name) {
+            s.reason.clone()
+        } else if !unphysical.is_empty() {
+            format!("fitted alone it is not physical ({})", unphysical.join(", "))
+        } else {
+            format!(
+                "alone it predicts the fit runs at {:.3} of the nominal model's k-step error (cross-validated); not among the best terms of any selection step",
+                alone_score[gi]
+            )
+        };
+        let (joints_c, parameters, uncertainty) = match rep {
+            Some(r) => (r.joints, r.parameters, r.uncertainty),
+            None => (vec![], Default::default(), Default::default()),
+        };
+        candidates.push(Candidate {
+            rank: 0,
+            effect: name.to_string(),
+            joints: joints_c,
+            parameters,
+            uncertainty,
+            cv_residual_reduction: if selection.nominal_cv_mse > 0.0 { 1.0 - f.cv_mse / selection.nominal_cv_mse } else { 0.0 },
+            holdout_l2_after: l2,
+            holdout_ratio: if before > 0.0 { l2 / before } else { f64::NAN },
+            holdout_kstep_after: kstep_after,
+            fit_kstep_cv: alone_cv[gi].clone(),
+            selected,
+            reason,
+        });
+    }
+    // rank: by cross-validated prediction on the fit runs, then by torque residual removed
+    let score_of = |c: &Candidate| kstep::score(&c.fit_kstep_cv, &scorer.nominal);
+    candidates.sort_by(|a, b| score_of(a).total_cmp(&score_of(b)).then(b.cv_residual_reduction.total_cmp(&a.cv_residual_reduction)));
+    for (i, c) in candidates.iter_mut().enumerate() {
+        c.rank = i + 1;
+    }
+
+    // report: headline, alternatives, notes, verdict
+    let kstep_report = kstep_figures(&horizons, &prep.hold_pred, (&floor_all, &floor_runs), (&before_k, &before_runs_k), (&after_k, &after_runs_k));
+    let (headline, headline_reason) = headline(&prep.hold_runs, &before_runs, &after_runs, before);
+    let alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
+    let mut notes = prep.notes.clone();
+    notes.extend(shooting_notes);
+    if moving {
+        // a pitfall is named with what prediction says of the matching correction; a rotor
+        // inertia that does not improve prediction is not named at all
+        let alone = |effect: &str| groups.iter().position(|g| g.0 == effect).map(|i| alone_score[i]);
+        for note in pitfalls::urdf_pitfalls(model, data) {
+            let effect = if note.contains("rotor inertia") {
+                Some("armature")
+            } else if note.contains("inertia about") {
+                Some("inertial_error")
+            } else {
+                None
+            };
+            // a correction that the selected set already makes needless (its data explained
+            // otherwise) is not named: it must improve the selected set's prediction too
+            let needless = |e: &str| {
+                if selection.terms.iter().any(|t| t.effect_name() == e) {
+                    return false;
+                }
+                let Some(g) = groups.iter().find(|g| g.0 == e) else { return false };
+                let mut with = selection.terms.clone();
+                with.extend(g.1.iter().filter(|t| fits_in(&selection.terms, t)).cloned());
+                scorer.score(&with) >= final_score * (1.0 - ADD_GAIN)
+            };
+            let selected_it = |e: &str| selection.terms.iter().any(|t| t.effect_name() == e);
+            match effect.and_then(|e| alone(e).map(|a| (e, a))) {
+                Some((e, _)) if selected_it(e) => notes.push(format!("{note}; the selected {e} corrects it")),
+                Some(("armature", a)) if a >= 1.0 - ADD_GAIN => {}
+                Some((e, _)) if !selection.terms.is_empty() && needless(e) => {}
+                Some((e, a)) => notes.push(format!("{note}; fitted alone, {e} predicts the fit runs at {a:.2} of the nominal model's cross-validated k-step error")),
+                None => notes.push(note),
+            }
+        }
+    }
+    for j in &location.per_joint {
+        if let (Some(a), Some(m)) = (j.actuator_residual_l2, j.mechanics_residual_l2) {
+            let (part, other) =
+                if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };
+            notes.push(format!(
+                "{}: with the measured torque the gap splits into actuator {a:.3e} N·m and mechanics {m:.3e} N·m (RMS): most of it lies in {part}, less in {other}",
+                j.joint
+            ));
+        }
+    }
+    notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons));
+    // what is left: the torque residual after the selected effects, joint by joint
+    let residual_tests = if moving { residual::test(p, data, &select::residual_after(p, &selection.designs, &selection.fit.theta), &joints) } else { Vec::new() };
+    notes.extend(residual_tests.iter().filter(|t| t.kind != "negligible").map(|t| t.sentence()));
+    let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, before, after, &before_runs);
+    let selection_log = selection
+        .log
+        .iter()
+        .map(|s| Decision {
+            effect: s.term.effect_name().into(),
+            joint: s.term.joint().map(|j| joints[j].clone()),
+            cv_mse: s.cv_mse,
+            accepted: s.accepted,
+            reason: s.reason.clone(),
+        })
+        .collect();
+    let report = Report {
+        simgap_version: env!("CARGO_PKG_VERSION").into(),
+        model: model.name().into(),
+        formulation: formulation.as_str().into(),
+        joints: joints.clone(),
+        fit_logs: prep.fit_runs.iter().map(|r| r.source.clone()).collect(),
+        holdout_logs: prep.hold_runs.iter().map(|r| r.source.clone()).collect(),
+        verdict,
+        selected_effects,
+        candidates,
+        alternatives,
+        notes,
+        residual: residual_tests,
+        sensors: prep.sensors.clone(),
+        gap: Gap {
+            headline,
+            headline_reason,
+            kstep: kstep_report,
+            fit_kstep_cv_before: scorer.nominal.clone(),
+            fit_kstep_cv_after: final_cv,
+            holdout_l2_before: before,
+            holdout_l2_after: after,
+            ratio: if before > 0.0 { after / before } else { f64::NAN },
+            per_joint_before: before_joint,
+            per_joint_after: after_joint,
+            runs_before: before_runs,
+            runs_after: after_runs,
+            fit_l2_before: fit_before,
+            fit_l2_after: fit_after,
+        },
+        location,
+        selection_log,
+        nominal_cv_mse: selection.nominal_cv_mse,
+    };
+    let Prepared { hold_runs, data, .. } = prep;
+    Ok(Diagnosis {
+        report,
+        effects: sel_effects,
+        holdout: hold_runs,
+        holdout_nominal: hold_nominal.into_iter().map(|g| g.1).collect(),
+        holdout_corrected: hold_after.into_iter().map(|g| g.1).collect(),
+        fit_data: data,
+        interval_variants,
+    })
+}
+
+/// The k-step figures of held-out runs `runs`: the floor (constant velocity), the nominal model
+/// (`before`) and the corrected one (`after`), pooled and per run.
+fn kstep_figures(
+    horizons: &[f64],
+    runs: &[kstep::PredictionRun],
+    floor: (&kstep::Errors, &[kstep::Errors]),
+    before: (&kstep::Errors, &[kstep::Errors]),
+    after: (&kstep::Errors, &[kstep::Errors]),
+) -> KStep {
+    KStep {
+        horizons_s: horizons.to_vec(),
+        before: before.0.rms(),
+        after: after.0.rms(),
+        floor: floor.0.rms(),
+        per_joint_before: before.0.rms_per_joint(),
+        per_joint_after: after.0.rms_per_joint(),
+        runs: runs
+            .iter()
+            .enumerate()
+            .map(|(i, pr)| RunKStep { log: pr.run.source.clone(), windows: pr.windows(), before: before.1[i].rms(), after: after.1[i].rms(), floor: floor.1[i].rms() })
+            .collect(),
+    }
+}
+
+/// k-step prediction of logged runs by `model` alone (`before`) and with `effects` (`after`),
+/// with the constant-velocity floor: how well a model predicts logs, without a diagnosis
+/// (e.g. to compare a published identified model with a corrected one on the same runs).
+///
+/// Runs are prepared as [`diagnose`] prepares its held-out runs (aligned to the model by joint
+/// name, glitches repaired, sensors inferred); `horizons` [s] (empty: 0.1, 0.25 and 0.5 s);
+/// `window` is the smoothing window [s] of the restart states.
+///
+/// # Errors
+/// [`Error::Log`] for runs that do not match the model, have no experiment or are too short
+/// for a window; [`Error::Input`] for a horizon that is not a positive number.
+pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[Run], horizons: &[f64], window: f64) -> Result<KStep> {
+    let horizons = crate::prepare::horizons(horizons)?;
+    let prepared = crate::prepare::prediction_runs(model, runs, &horizons, window)?;
+    let (floor_all, floor_runs) = kstep::floor_all(&prepared, &horizons, model.dof());
+    let (before, before_runs) = kstep::predict_all(model, formulation, &[], &prepared, &horizons)?;
+    let (after, after_runs) = if effects.is_empty() { (before.clone(), before_runs.clone()) } else { kstep::predict_all(model, formulation, effects, &prepared, &horizons)? };
+    Ok(kstep_figures(&horizons, &prepared, (&floor_all, &floor_runs), (&before, &before_runs), (&after, &after_runs)))
+}

@@ -1,0 +1,173 @@
+//! The prepare stage: every log aligned to the model by joint name, checked (experiment, sample
+//! period, a held-out run that repeats a fit run), glitches repaired, sensors inferred, passive
+//! joints found, and each fit run smoothed once into the [`FitData`] every later stage shares.
+
+pub(crate) mod dataset;
+pub(crate) mod differentiate;
+pub(crate) mod robust;
+
+use simgap_core::{Formulation, Model};
+use simgap_sim::Run;
+
+use crate::error::{Error, Result};
+use crate::pipeline::DiagnoseOptions;
+use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
+use crate::predict::resim;
+pub(crate) use dataset::align_run;
+pub use dataset::{FitData, PrepareOptions};
+
+/// Everything the stages share: the model, the prepared runs, the fit context.
+pub(crate) struct Prepared {
+    pub(crate) fit_runs: Vec<Run>,
+    pub(crate) hold_runs: Vec<Run>,
+    pub(crate) data: Vec<FitData>,
+    pub(crate) fit_pred: Vec<PredictionRun>,
+    pub(crate) hold_pred: Vec<PredictionRun>,
+    pub(crate) horizons: Vec<f64>,
+    pub(crate) notes: Vec<String>,
+    pub(crate) sensors: Vec<resim::InferredSensors>,
+    pub(crate) passive: Vec<bool>,
+}
+
+/// The controller sample period of the fit runs [s].
+pub(crate) fn sample_period(runs: &[Run]) -> f64 {
+    runs.iter()
+        .find_map(|r| r.experiment.as_ref().map(|e| e.sample_period))
+        .filter(|t| t.is_finite() && *t > 0.0)
+        .unwrap_or_else(|| runs.first().map_or(0.0025, |r| kstep::median_spacing(&r.t)))
+}
+
+/// The prepare stage: align, check, repair glitches, infer sensors, smooth.
+pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions) -> Result<Prepared> {
+    if fit.is_empty() {
+        return Err(Error::Input("no fit log given; expected at least one".into()));
+    }
+    if holdout.is_empty() {
+        return Err(Error::Input("no held-out log given; expected at least one (held-out runs measure how far the gap shrinks)".into()));
+    }
+    let mut notes = Vec::new();
+    let mut fit_runs: Vec<Run> = fit.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
+    let mut hold_runs: Vec<Run> = holdout.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
+    // every run carries its experiment, with a sample period its stamps allow
+    for r in fit_runs.iter().chain(&hold_runs) {
+        let Some(exp) = &r.experiment else {
+            return Err(Error::Log {
+                log: r.source.clone(),
+                message: "no experiment (controller, joints, kp, kv, sample_period) in its metadata, sidecar or the call; expected one to predict and re-simulate it (use controller 'replay' for open-loop runs or an unknown controller)".into(),
+            });
+        };
+        if r.len() < 3 {
+            return Err(Error::Log { log: r.source.clone(), message: format!("{} samples; expected a log of at least a few seconds", r.len()) });
+        }
+        let spacing = kstep::median_spacing(&r.t);
+        let ratio = exp.sample_period / spacing;
+        if !(exp.sample_period.is_finite() && exp.sample_period > 0.0 && (0.02..=50.0).contains(&ratio)) {
+            return Err(Error::Log {
+                log: r.source.clone(),
+                message: format!(
+                    "sample_period {} s, but the log's stamps are {:.6} s apart (median); expected a period within a factor 50 of the stamp spacing",
+                    exp.sample_period, spacing
+                ),
+            });
+        }
+        if (ratio - 1.0).abs() > 0.05 {
+            notes.push(format!(
+                "{}: the experiment's sample period {} s differs from the median stamp spacing {:.6} s; the controller is simulated at the experiment's period",
+                r.source, exp.sample_period, spacing
+            ));
+        }
+    }
+    // a held-out run must be one the fit never saw (a robot at rest logs the same samples twice:
+    // that is no copy, and the answer will be that nothing can be told)
+    for h in hold_runs.iter().filter(|h| h.q.chunks(h.dof().max(1)).any(|row| row != &h.q[..h.dof()])) {
+        if let Some(f) = fit_runs.iter().find(|f| robust::same_content(f, h)) {
+            return Err(Error::Input(format!("held-out log {} holds the same samples as fit log {}; a held-out run must be one the fit never saw", h.source, f.source)));
+        }
+    }
+    // glitches: found, replaced, reported
+    for r in fit_runs.iter_mut().chain(hold_runs.iter_mut()) {
+        let found = robust::repair_glitches(r);
+        for g in found.iter().take(5) {
+            notes.push(g.to_string());
+        }
+        if found.len() > 5 {
+            notes.push(format!("{}: {} more glitch samples replaced (the first five are listed)", r.source, found.len() - 5));
+        }
+    }
+    // sensors as the logs show them
+    let sensors: Vec<resim::InferredSensors> = fit_runs.iter().chain(&hold_runs).map(resim::infer_sensors).collect();
+    let mut kinds: Vec<(String, Vec<&str>)> = Vec::new();
+    for s in sensors.iter().filter(|s| s.velocity == "backward_difference" || s.counts_per_rev.is_some()) {
+        let kind = format!("velocity {}{}", s.velocity.replace('_', " "), s.counts_per_rev.map_or(String::new(), |c| format!(", encoder {c} counts per revolution")));
+        match kinds.iter_mut().find(|k| k.0 == kind) {
+            Some(k) => k.1.push(&s.log),
+            None => kinds.push((kind, vec![&s.log])),
+        }
+    }
+    for (kind, logs) in kinds {
+        notes.push(format!("sensors inferred from the logs ({}): {kind}; the re-simulated controller sees the same", logs.join(", ")));
+    }
+    // passive joints: commanded effort always zero in every run
+    let n = model.dof();
+    let passive: Vec<bool> = (0..n).map(|j| fit_runs.iter().chain(&hold_runs).all(|r| r.tau.iter().skip(j).step_by(n).all(|v| *v == 0.0))).collect();
+    for (j, p) in passive.iter().enumerate() {
+        if *p {
+            notes.push(format!("joint {} is passive (commanded effort always 0): actuator effects (gain, offset, saturation) are not tried on it", model.joint_names()[j]));
+        }
+    }
+    let data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), &options.prepare)).collect::<Result<_>>()?;
+    let horizons = horizons(&options.horizons)?;
+    let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
+    let fit_pred: Vec<PredictionRun> = fit_runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN))
+        .collect();
+    let hold_pred: Vec<PredictionRun> =
+        hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
+    if let Some(pr) = hold_pred.iter().find(|p| p.windows() == 0) {
+        return Err(Error::Log {
+            log: pr.run.source.clone(),
+            message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]),
+        });
+    }
+    Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive })
+}
+
+/// The prediction horizons [s]: `given`, or [`kstep::DEFAULT_HORIZONS`] when empty.
+///
+/// # Errors
+/// [`Error::Input`] for a horizon that is not a positive number.
+pub(crate) fn horizons(given: &[f64]) -> Result<Vec<f64>> {
+    let horizons = if given.is_empty() { kstep::DEFAULT_HORIZONS.to_vec() } else { given.to_vec() };
+    if let Some(h) = horizons.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+        return Err(Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
+    }
+    Ok(horizons)
+}
+
+/// Runs prepared for k-step prediction only, as held-out runs are: aligned to the model,
+/// glitches repaired, sensors inferred, windows laid.
+///
+/// # Errors
+/// [`Error::Log`] for a run without experiment or too short for one window.
+pub(crate) fn prediction_runs(model: &Model, runs: &[Run], horizons: &[f64], window: f64) -> Result<Vec<PredictionRun>> {
+    let mut prepared = Vec::with_capacity(runs.len());
+    for r in runs {
+        let mut run = align_run(model, r)?;
+        if run.experiment.is_none() {
+            return Err(Error::Log { log: run.source.clone(), message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into() });
+        }
+        robust::repair_glitches(&mut run);
+        let sensor = resim::infer_sensors(&run).params();
+        let pr = PredictionRun::new(run, horizons, window, sensor, 0, kstep::MAX_WINDOWS_PER_RUN);
+        if pr.windows() == 0 {
+            return Err(Error::Log {
+                log: pr.run.source.clone(),
+                message: format!("too short to predict: {:.3} s; expected at least the shortest horizon plus the smoothing window", pr.run.duration()),
+            });
+        }
+        prepared.push(pr);
+    }
+    Ok(prepared)
+}

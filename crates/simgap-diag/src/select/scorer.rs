@@ -1,0 +1,104 @@
+//! The scorer: sets of terms scored by cross-validated k-step prediction of the fit runs, the one
+//! helper for "fit → effects → predict → combine", memoised per set.
+
+use simgap_core::{Formulation, Model};
+use simgap_sim::Effect;
+
+use crate::lsq::{self, fit_terms, fitted_terms, Grams};
+use crate::predict::kstep::{self, FOLDS_PER_RUN};
+use crate::prepare::Prepared;
+use crate::select::{self, Context};
+use crate::vocabulary::{effects, Term};
+
+/// Scores sets of terms by cross-validated prediction on the fit runs: the one helper for
+/// "fit → effects → predict → combine".
+pub(crate) struct Scorer<'a> {
+    pub(crate) model: &'a Model,
+    pub(crate) formulation: Formulation,
+    pub(crate) ctx: &'a Context<'a>,
+    pub(crate) prep: &'a Prepared,
+    pub(crate) nominal: Vec<f64>,
+    /// The fold of every fit window, in the order of [`Scorer::cv_errors`].
+    pub(crate) folds: Vec<usize>,
+    /// Cross-validated errors of the sets scored so far (the selection revisits sets); `None`
+    /// for a set that is no answer (inadmissible, or a prediction that failed).
+    pub(crate) memo: std::sync::Mutex<std::collections::HashMap<String, Option<std::sync::Arc<kstep::Errors>>>>,
+}
+
+impl Scorer<'_> {
+    pub(crate) fn new<'a>(model: &'a Model, formulation: Formulation, ctx: &'a Context<'a>, prep: &'a Prepared) -> Scorer<'a> {
+        let folds = prep.fit_pred.iter().flat_map(|pr| pr.fold.iter().copied()).collect();
+        let mut s = Scorer { model, formulation, ctx, prep, nominal: Vec::new(), folds, memo: Default::default() };
+        s.nominal = s.cv(&[]);
+        s
+    }
+
+    /// Cross-validated k-step RMS per horizon on the fit runs: each fold predicted by the terms
+    /// fitted without it (infinite for a set that is no answer).
+    pub(crate) fn cv(&self, terms: &[Term]) -> Vec<f64> {
+        self.cv_errors(terms).map_or_else(|| vec![f64::INFINITY; self.prep.horizons.len()], |e| e.rms())
+    }
+
+    /// The cross-validated errors of every fit window (see [`Scorer::cv`]), memoised.
+    pub(crate) fn cv_errors(&self, terms: &[Term]) -> Option<std::sync::Arc<kstep::Errors>> {
+        let mut key: Vec<String> = terms.iter().map(|t| format!("{t:?}")).collect();
+        key.sort();
+        let key = key.join("|");
+        if let Some(v) = self.memo.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return v;
+        }
+        let v = self.cv_uncached(terms).map(std::sync::Arc::new);
+        if let Ok(mut m) = self.memo.lock() {
+            m.insert(key, v.clone());
+        }
+        v
+    }
+
+    pub(crate) fn cv_uncached(&self, terms: &[Term]) -> Option<kstep::Errors> {
+        let folds = self.prep.fit_runs.len() * FOLDS_PER_RUN;
+        if terms.is_empty() {
+            return kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new()).ok();
+        }
+        let (designs, gr, all) = fit_terms(&self.ctx.problem, self.ctx.data, terms);
+        // a set whose fit on all the fit data leaves an effect at a plausibility bound (a
+        // payload at its largest mass) is no answer, however well it predicts
+        if !select::admissible(&designs, terms, &all.theta) {
+            return None;
+        }
+        let effects_of = |f: usize| -> Vec<Effect> {
+            let theta = fold_theta(&gr, f);
+            effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
+        };
+        kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of).ok()
+    }
+
+    /// The fold test ([`kstep::FoldTest`]) of windows' errors `errors` against the nominal
+    /// model's.
+    pub(crate) fn against_nominal(&self, errors: &kstep::Errors) -> kstep::FoldTest {
+        match self.cv_errors(&[]) {
+            Some(nominal) => kstep::FoldTest::of(&kstep::fold_ratios(errors, &nominal, &self.folds)),
+            None => kstep::FoldTest::of(&[]),
+        }
+    }
+
+    /// The fold test of the set `with` against the set `without`: whether what `with` adds
+    /// helps in every part of the fit runs, not in a few windows only.
+    pub(crate) fn gain_test(&self, with: &[Term], without: &[Term]) -> kstep::FoldTest {
+        match (self.cv_errors(with), self.cv_errors(without)) {
+            (Some(a), Some(b)) => kstep::FoldTest::of(&kstep::fold_ratios(&a, &b, &self.folds)),
+            _ => kstep::FoldTest::of(&[]),
+        }
+    }
+
+    /// One number per set: the geometric mean over horizons of its cross-validated k-step error
+    /// relative to the nominal model's (lower is better).
+    pub(crate) fn score(&self, terms: &[Term]) -> f64 {
+        kstep::score(&self.cv(terms), &self.nominal)
+    }
+}
+
+/// Parameters fitted without fold `f` (contiguous fifth of a fit run), under the terms'
+/// physical constraints.
+pub(crate) fn fold_theta(gr: &Grams, f: usize) -> nalgebra::DVector<f64> {
+    lsq::theta_without(gr, &|g| g == f)
+}

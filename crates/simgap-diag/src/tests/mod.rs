@@ -1,0 +1,8 @@
+//! Tests of the stages' internals (the public API is tested from `tests/`).
+
+mod common;
+mod delay_line;
+mod intervals;
+mod physical;
+mod pitfalls;
+mod shooting;
