@@ -9,7 +9,7 @@ use simgap_sim::{Effect, Run};
 
 use crate::error::{Error, Result};
 use crate::locate;
-use crate::lsq::{self, bootstrap_std, fit_terms, fitted_terms};
+use crate::lsq::{self, bootstrap_std};
 use crate::predict::{kstep, resim};
 use crate::prepare::{prepare, sample_period, FitData, PrepareOptions, Prepared};
 use crate::report::verdict::{headline, residual_notes, verdict};
@@ -18,9 +18,10 @@ use crate::select::alternatives::alternatives;
 use crate::select::prediction::{fits_in, prune_and_complete, rank_selected, ADD_GAIN};
 use crate::select::refine::refine_by_shooting;
 use crate::select::scorer::Scorer;
-use crate::select::screen::{candidate_groups, describe_term, drop_passive_actuator_terms, select_nothing};
+use crate::select::screen::{candidate_groups, drop_passive_actuator_terms, select_nothing};
 use crate::select::{self, select, uncertainty, Context, SelectOptions};
 use crate::vocabulary::{effects, EffectReport, Term};
+use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Options of [`diagnose`].
 #[derive(Clone, Debug, Default)]
@@ -253,7 +254,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         let fitted_c = fitted_terms(terms, &designs, &f.theta, Some(&std));
         let rep = effects::to_reports(model, &fitted_c).into_iter().next();
         let eff = effects::to_effects(model, &fitted_c);
-        let unphysical: Vec<String> = fitted_c.iter().filter(|f| !select::physical(&f.term, &f.theta)).map(|f| describe_term(&f.term, &joints)).collect();
+        let unphysical: Vec<String> = fitted_c.iter().filter(|f| !crate::vocabulary::physical(&f.term, &f.theta)).map(|f| f.term.describe(&joints)).collect();
         let kstep_after = kstep::predict_all(model, formulation, &eff, &prep.hold_pred, &horizons).map(|e| e.0.rms()).unwrap_or_else(|_| vec![f64::NAN; horizons.len()]);
         let gaps: Vec<resim::RunGap> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
         let l2 = resim::combine(&gaps, &prep.hold_runs).0;

@@ -1,14 +1,15 @@
 //! Weighted least squares over block Gram matrices: fits, cross-validation and block bootstrap
 //! without revisiting the samples.
 
+pub(crate) mod design;
 pub(crate) mod inertial;
 
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 
+use crate::lsq::design::{Column, TermDesign};
 use crate::lsq::inertial::InertialPrior;
 use crate::prepare::dataset::FitData;
-use crate::vocabulary::{design, Column, Term, TermDesign};
 
 /// Blocks per run for the bootstrap; cross-validation folds group [`BLOCKS_PER_FOLD`] of them.
 pub(crate) const BLOCKS_PER_RUN: usize = 20;
@@ -510,41 +511,4 @@ pub(crate) fn resampling_std(gr: &Grams, boot: &DVector<f64>) -> DVector<f64> {
 /// bootstrap's where the jackknife has none).
 pub(crate) fn larger_spread(boot: &DVector<f64>, jack: &DVector<f64>) -> DVector<f64> {
     DVector::from_fn(boot.len(), |i, _| if jack[i].is_finite() { jack[i].max(boot[i]) } else { boot[i] })
-}
-
-/// A term's parameters as the effect states them, from its fitted column coefficients: the
-/// same numbers except for Stribeck friction, fitted as `(fc, fs − fc)` (both ≥ 0, so that
-/// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)`.
-pub(crate) fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
-    match term {
-        Term::Stribeck { .. } => vec![raw[0], raw[0] + raw[1]],
-        _ => raw.to_vec(),
-    }
-}
-
-/// Splits a joint parameter vector (and its standard deviations, if any) per term.
-pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>, std: Option<&DVector<f64>>) -> Vec<crate::vocabulary::effects::FittedTerm> {
-    let mut out = Vec::with_capacity(terms.len());
-    let mut c = 0;
-    for (t, d) in terms.iter().zip(designs) {
-        let k = d.cols.len();
-        let mut sd = std.map_or_else(|| vec![0.0; k], |s| s.as_slice()[c..c + k].to_vec());
-        let th = contract_parameters(t, &theta.as_slice()[c..c + k]);
-        if matches!(t, Term::Stribeck { .. }) {
-            // fs = fc + (fs − fc): the spread of a sum, its covariance ignored
-            sd[1] = sd[0].hypot(sd[1]);
-        }
-        out.push(crate::vocabulary::effects::FittedTerm { term: t.clone(), theta: th, std: sd });
-        c += k;
-    }
-    out
-}
-
-/// Designs and fits a list of terms in one go.
-pub(crate) fn fit_terms(p: &Problem, data: &[FitData], terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
-    let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, data)).collect();
-    let refs: Vec<&TermDesign> = designs.iter().collect();
-    let gr = grams(p, &refs);
-    let f = fit(p, &gr);
-    (designs, gr, f)
 }

@@ -22,8 +22,9 @@ use crate::prepare::dataset::FitData;
 use std::sync::Arc;
 
 use crate::lsq::inertial::InertialPrior;
-use crate::lsq::{block_squares, contract_parameters, fit, fit_terms, grams, grams_against_known, Fit, Grams, Problem};
-use crate::vocabulary::{design, largest_command, payload_basis_rows, payload_mass_bound, point_mass_parameters, Column, Term, TermDesign, GAIN_RANGE};
+use crate::lsq::{block_squares, fit, grams, grams_against_known, Fit, Grams, Problem};
+use crate::vocabulary::{contract_parameters, fit_terms};
+use crate::vocabulary::{design, largest_command, n_params, payload_basis_rows, payload_mass_bound, physical, point_mass_parameters, Column, Slot, Term, TermDesign};
 
 /// Thresholds of the selection.
 #[derive(Clone, Debug)]
@@ -603,24 +604,6 @@ fn slot_taken(terms: &[Term], t: &Term) -> bool {
     terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
 }
 
-/// Whether fitted parameters (as the effect states them, see
-/// [`crate::lsq::contract_parameters`]) are physical: dissipative friction (b, fc ≥ 0,
-/// fs ≥ fc), non-negative rotor inertia and payload mass, a gain within [`GAIN_RANGE`], and
-/// every corrected link with mass > 0, a positive-definite pseudo-inertia and its centre of
-/// mass within reach. The bounded fits of [`crate::lsq`] always give physical parameters; a
-/// parameter at its bound (fc = 0) is physical.
-pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
-    let tol = 1e-12;
-    match term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Armature(_) => theta[0] >= -tol,
-        Term::Stribeck { .. } => theta[1] >= theta[0] - tol && theta[0] >= -tol,
-        Term::Gain(_) => (GAIN_RANGE.0 - tol..=GAIN_RANGE.1 + tol).contains(&(1.0 - theta[0])),
-        Term::Payload { .. } => theta[0] >= -tol,
-        Term::InertialError { prior } => prior.is_physical(theta),
-        _ => true,
-    }
-}
-
 /// Whether a fitted parameter of a term sits at a plausibility bound other than zero (a payload
 /// at its largest mass, a torque gain at an end of [`GAIN_RANGE`], a corrected link's mass at a
 /// factor [`crate::lsq::inertial::MASS_FACTOR`] of the URDF's): the data pull further than the
@@ -661,16 +644,6 @@ fn cv_of(f: &Fit, t: &Term) -> f64 {
     }
 }
 
-/// Number of parameters a term fits, counting searched ones.
-pub(crate) fn n_params(t: &Term, d: &TermDesign) -> usize {
-    d.cols.len()
-        + match t {
-            Term::Stribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
-            Term::Payload { .. } => 3,
-            _ => 0,
-        }
-}
-
 /// Extra relative gain demanded of a term found by a large grid search (selection bias: the
 /// best of many columns explains some noise).
 fn grid_penalty(t: &Term) -> f64 {
@@ -709,7 +682,7 @@ fn exchange(
             .map(|f| ctx.best_of_with(f, &resid, &rest))
             .filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i])
             .collect();
-        if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == "inertia") && !matches!(terms[i], Term::InertialError { .. }) {
+        if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == Slot::Inertia) && !matches!(terms[i], Term::InertialError { .. }) {
             let t = ctx.inertial_term();
             if !slot_taken(&rest_terms, &t) {
                 cands.push(t);
@@ -778,7 +751,7 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         // best member of every family, then the inertial error, evaluated jointly with the set
         let mut cands: Vec<Term> =
             fams.iter().filter(|f| !slot_taken(&terms, &f.member())).map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
-        if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == "inertia") {
+        if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == Slot::Inertia) {
             cands.push(ctx.inertial_term());
         }
         let mut evaluated: Vec<(Term, Fit, Vec<TermDesign>)> = Vec::new();

@@ -5,7 +5,6 @@
 use rayon::prelude::*;
 
 use crate::error::Result;
-use crate::lsq::{fit_terms, fitted_terms};
 use crate::pipeline::{check_stop, DiagnoseOptions, Progress};
 use crate::predict::kstep;
 use crate::prepare::{prepare, sample_period};
@@ -13,6 +12,7 @@ use crate::select::scorer::Scorer;
 use crate::select::uncertainty;
 use crate::select::{self, Context};
 use crate::vocabulary::{effects, EffectReport, Term};
+use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Removing a term keeps it out when prediction worsens by less than this (relative).
 pub(crate) const PRUNE_TOLERANCE: f64 = 0.02;

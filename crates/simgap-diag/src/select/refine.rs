@@ -6,14 +6,13 @@ use simgap_sim::ControllerKind;
 
 use crate::error::Result;
 use crate::lsq;
-use crate::lsq::{fit_terms, fitted_terms};
 use crate::pipeline::{check_stop, DiagnoseOptions, Progress};
 use crate::predict::kstep::{self, FOLDS_PER_RUN};
 use crate::select::prediction::{ADD_GAIN, PRUNE_TOLERANCE};
 use crate::select::scorer::Scorer;
-use crate::select::screen::describe_term;
 use crate::select::shooting;
 use crate::vocabulary::{effects, Term, TermDesign};
+use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// A set of terms whose parameters multiple shooting fitted.
 pub(crate) struct Refined {
@@ -239,7 +238,7 @@ pub(crate) fn refine_by_shooting(
         let k = d.cols.len();
         let zero = d.inertial.is_none() && k > 0 && (0..k).all(|a| shot.theta[c + a] == 0.0 && d.lo.get(a) == Some(&0.0));
         if zero {
-            none.push(describe_term(t, &scorer.model.joint_names().iter().map(|s| s.to_string()).collect::<Vec<_>>()));
+            none.push(t.describe(&scorer.model.joint_names().iter().map(|s| s.to_string()).collect::<Vec<_>>()));
         } else {
             terms.push(t.clone());
             designs.push(d.clone());

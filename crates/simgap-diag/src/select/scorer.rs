@@ -4,11 +4,12 @@
 use simgap_core::{Formulation, Model};
 use simgap_sim::Effect;
 
-use crate::lsq::{self, fit_terms, fitted_terms, Grams};
+use crate::lsq::{self, Grams};
 use crate::predict::kstep::{self, FOLDS_PER_RUN};
 use crate::prepare::Prepared;
 use crate::select::{self, Context};
 use crate::vocabulary::{effects, Term};
+use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Scores sets of terms by cross-validated prediction on the fit runs: the one helper for
 /// "fit → effects → predict → combine".

@@ -1,20 +1,13 @@
 //! The candidates: every effect of the vocabulary as one group of terms, and the screen of each
 //! alone.
 
-use crate::lsq::fit_terms;
 use crate::select::{families, Context, Selection};
+use crate::vocabulary::fit_terms;
 use crate::vocabulary::{Column, Term};
 
 /// Removes torque gain, offset and saturation terms of passive joints (nothing drives them).
 pub(crate) fn drop_passive_actuator_terms(terms: &mut Vec<Term>, passive: &[bool]) {
     terms.retain(|t| !(matches!(t, Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. }) && t.joint().is_some_and(|j| passive[j])));
-}
-
-pub(crate) fn describe_term(t: &Term, joints: &[String]) -> String {
-    match t.joint() {
-        Some(j) => format!("{} on {}", t.effect_name(), joints[j]),
-        None => t.effect_name().to_string(),
-    }
 }
 
 pub(crate) fn select_nothing(ctx: &Context<'_>) -> Selection {

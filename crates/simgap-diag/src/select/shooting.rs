@@ -38,10 +38,10 @@ use rayon::prelude::*;
 use simgap_core::{Formulation, Model, PARAMS_PER_LINK};
 
 use crate::error::{Error, Result};
-use crate::lsq::fitted_terms;
 use crate::lsq::inertial::{self, InertialPrior};
 use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use crate::vocabulary::effects;
+use crate::vocabulary::fitted_terms;
 use crate::vocabulary::{Term, TermDesign};
 
 /// Options of a multiple-shooting fit.
@@ -92,7 +92,7 @@ pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options:
 /// A multiple-shooting fit.
 #[derive(Clone, Debug)]
 pub(crate) struct Shot {
-    /// Fitted column coefficients, laid out as [`crate::lsq::fit_terms`]'s θ.
+    /// Fitted column coefficients, laid out as [`crate::vocabulary::fit_terms`]'s θ.
     pub theta: DVector<f64>,
     /// Their standard deviations from `σ² (JᵀJ)⁻¹` (see the module documentation).
     pub std: DVector<f64>,
@@ -349,7 +349,7 @@ fn stopped(stop: Option<&AtomicBool>) -> Result<()> {
 }
 
 /// Fits the terms' parameters by multiple shooting, from the start of lowest cost among
-/// `starts` (θ vectors laid out as [`crate::lsq::fit_terms`]'s, e.g. the torque-residual fit).
+/// `starts` (θ vectors laid out as [`crate::vocabulary::fit_terms`]'s, e.g. the torque-residual fit).
 ///
 /// # Errors
 /// Controller set-up errors of [`kstep::predict`]; [`Error::Interrupted`] when `stop` is set.

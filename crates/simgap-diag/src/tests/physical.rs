@@ -9,10 +9,11 @@
 use super::common::{replay, shared_data};
 use crate::check::bench::{demo_specs, generate};
 use crate::lsq::inertial::{link_is_physical, link_reach};
-use crate::lsq::{fit_terms, solve, solve_bounded, Problem};
+use crate::lsq::{solve, solve_bounded, Problem};
 use crate::prepare::align_run;
 use crate::select::{parameter_scales, Context};
 use crate::vocabulary::effects;
+use crate::vocabulary::fit_terms;
 use crate::vocabulary::Term;
 use crate::{diagnose, DiagnoseOptions, EffectReport, FitData, Param, PrepareOptions};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -60,9 +61,9 @@ fn bounded_fits_keep_viscous_armature_stribeck_and_payload_physical() {
     let terms = [Term::Viscous(0), Term::Armature(1), Term::Stribeck { joint: 0, vs: 0.1 }, Term::Gain(1), Term::Payload { com: [0.2, 0.0, 0.0], max_mass: f64::INFINITY }];
     let (designs, gr, f) = fit_terms(&p, &data, &terms);
     let std = crate::lsq::bootstrap_std(&gr, 20, 3);
-    let fitted = crate::lsq::fitted_terms(&terms, &designs, &f.theta, Some(&std));
+    let fitted = crate::vocabulary::fitted_terms(&terms, &designs, &f.theta, Some(&std));
     for t in &fitted {
-        assert!(crate::select::physical(&t.term, &t.theta), "{:?}: {:?}", t.term, t.theta);
+        assert!(crate::vocabulary::physical(&t.term, &t.theta), "{:?}: {:?}", t.term, t.theta);
     }
     let th: Vec<f64> = fitted.iter().flat_map(|t| t.theta.clone()).collect();
     // b ≥ 0, ia ≥ 0, 0 ≤ fc ≤ fs, k in [0.2, 5], payload mass ≥ 0
@@ -119,8 +120,8 @@ fn inertial_fit_recovers_known_link_mass_from_synthetic_data() {
     let ctx = Context::new(&data, 0.0025, &prior);
     let term = ctx.inertial_term();
     let (designs, _, f) = fit_terms(&ctx.problem, &data, std::slice::from_ref(&term));
-    let fitted = crate::lsq::fitted_terms(std::slice::from_ref(&term), &designs, &f.theta, None);
-    assert!(crate::select::physical(&fitted[0].term, &fitted[0].theta));
+    let fitted = crate::vocabulary::fitted_terms(std::slice::from_ref(&term), &designs, &f.theta, None);
+    assert!(crate::vocabulary::physical(&fitted[0].term, &fitted[0].theta));
     let Some(Effect::InertialError { deltas }) = effects::to_effects(&model, &fitted).into_iter().next() else { panic!("no inertial effect") };
     let reach = link_reach(&model);
     for d in &deltas {

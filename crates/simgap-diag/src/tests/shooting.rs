@@ -7,12 +7,13 @@
 use super::common::{replay, shared_data};
 
 use crate::check::bench::{demo_specs, generate};
-use crate::lsq::{fit_terms, fitted_terms, Problem};
+use crate::lsq::Problem;
 use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use crate::prepare::align_run;
 use crate::select::shooting;
 use crate::vocabulary::effects;
 use crate::vocabulary::Term;
+use crate::vocabulary::{fit_terms, fitted_terms};
 use crate::{diagnose, DiagnoseOptions, FitData, Param, PrepareOptions};
 use rand::{Rng, SeedableRng};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};

@@ -1,6 +1,6 @@
 //! Candidate terms: each unmodelled effect of the vocabulary, as columns of a linear model of the
 //! nominal residual `r = τ_cmd − (H q̈ + C q̇ + g)`, each with the bounds physics puts on its
-//! parameters (b, fc, fs − fc, ia, payload mass ≥ 0; a gain within [`GAIN_RANGE`]).
+//! parameters (b, fc, fs − fc, ia, payload mass ≥ 0; a gain within [`actuator::GAIN_RANGE`]).
 //!
 //! With the effect present, the robot obeys `(H + diag(ia)) q̈ + C q̇ + g = τ_applied + τ_eff`, so
 //!
@@ -16,20 +16,31 @@
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
 
+mod actuator;
+mod cogging;
+mod coriolis;
+mod delay;
 pub(crate) mod effects;
+mod friction;
+mod inertial;
+mod payload;
+mod rotor;
 
 pub use effects::{EffectReport, Param};
 
+pub(crate) use crate::lsq::design::{Column, TermDesign};
+pub(crate) use payload::{largest_command, payload_basis_rows, payload_linear_design, payload_mass_bound, point_mass_parameters};
+
 use std::sync::Arc;
 
-use nalgebra::Vector3;
-use simgap_core::PARAMS_PER_LINK;
+use simgap_core::Model;
+use simgap_sim::{Effect, EffectKind};
 
 use crate::lsq::inertial::InertialPrior;
+use crate::lsq::{fit, grams, Fit, Grams, Problem};
 use crate::prepare::dataset::FitData;
-
-/// Width [rad/s] of the tanh that smooths sign(q̇) in fitting and in simulation.
-pub(crate) const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
+use effects::{Entry, FittedTerm};
+use nalgebra::DVector;
 
 /// One candidate term.
 #[derive(Clone, Debug, PartialEq)]
@@ -90,22 +101,27 @@ pub(crate) enum Term {
 }
 
 impl Term {
+    /// The effect of the vocabulary the term belongs to.
+    pub(crate) fn kind(&self) -> EffectKind {
+        match self {
+            Term::Viscous(_) => EffectKind::ViscousFriction,
+            Term::Coulomb(_) => EffectKind::CoulombFriction,
+            Term::Stribeck { .. } => EffectKind::StribeckFriction,
+            Term::Armature(_) => EffectKind::Armature,
+            Term::Gain(_) => EffectKind::TorqueGain,
+            Term::Offset(_) => EffectKind::TorqueOffset,
+            Term::Saturation { .. } => EffectKind::TorqueSaturation,
+            Term::Cogging { .. } => EffectKind::Cogging,
+            Term::Delay { .. } => EffectKind::TimeDelay,
+            Term::CoriolisStructure => EffectKind::CoriolisStructure,
+            Term::Payload { .. } => EffectKind::Payload,
+            Term::InertialError { .. } => EffectKind::InertialError,
+        }
+    }
+
     /// The effect's contract name.
     pub(crate) fn effect_name(&self) -> &'static str {
-        match self {
-            Term::Viscous(_) => "viscous_friction",
-            Term::Coulomb(_) => "coulomb_friction",
-            Term::Stribeck { .. } => "stribeck_friction",
-            Term::Armature(_) => "armature",
-            Term::Gain(_) => "torque_gain",
-            Term::Offset(_) => "torque_offset",
-            Term::Saturation { .. } => "torque_saturation",
-            Term::Cogging { .. } => "cogging",
-            Term::Delay { .. } => "time_delay",
-            Term::CoriolisStructure => "coriolis_structure",
-            Term::Payload { .. } => "payload",
-            Term::InertialError { .. } => "inertial_error",
-        }
+        self.kind().as_str()
     }
 
     /// The joint of a per-joint term.
@@ -117,85 +133,39 @@ impl Term {
         }
     }
 
-    /// Identity of the slot the term occupies: at most one term per slot is selected
-    /// (Coulomb and Stribeck share one; payload and inertial error share one).
-    pub(crate) fn slot(&self) -> (&'static str, Option<usize>) {
-        let name = match self {
-            Term::Coulomb(_) | Term::Stribeck { .. } => "dry_friction",
-            Term::Payload { .. } | Term::InertialError { .. } => "inertia",
-            other => other.effect_name(),
+    /// The slot the term occupies: at most one term per slot is selected (Coulomb and
+    /// Stribeck friction share one; a payload and an inertial error share one).
+    pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
+        let slot = match self {
+            Term::Coulomb(_) | Term::Stribeck { .. } => Slot::DryFriction,
+            Term::Payload { .. } | Term::InertialError { .. } => Slot::Inertia,
+            other => Slot::Effect(other.kind()),
         };
-        (name, self.joint())
+        (slot, self.joint())
     }
-}
 
-/// A column of the design: per-joint (values per sample, on that joint's rows) or global
-/// (values per sample and joint, row-major).
-#[derive(Clone, Debug)]
-pub(crate) struct Column {
-    /// `Some(j)`: nonzero only on joint j's rows.
-    pub joint: Option<usize>,
-    /// Values: length = samples (per-joint) or samples × dof (global).
-    pub values: Vec<f64>,
-}
-
-impl Column {
-    /// Value at (sample, joint).
-    #[inline]
-    pub(crate) fn at(&self, s: usize, j: usize, dof: usize) -> f64 {
-        match self.joint {
-            Some(jj) => {
-                if jj == j {
-                    self.values[s]
-                } else {
-                    0.0
-                }
-            }
-            None => self.values[s * dof + j],
+    /// The term in words for the selection log: "viscous_friction on elbow".
+    pub(crate) fn describe(&self, joints: &[String]) -> String {
+        match self.joint() {
+            Some(j) => format!("{} on {}", self.effect_name(), joints.get(j).map_or("?", String::as_str)),
+            None => self.effect_name().to_string(),
         }
     }
 }
 
-/// The columns of a term: free columns (one per fitted parameter) and a fixed offset
-/// (coefficient 1) subtracted from the residual, with the physical constraints on the
-/// parameters.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct TermDesign {
-    /// Free columns.
-    pub cols: Vec<Column>,
-    /// Fixed part.
-    pub offset: Option<Column>,
-    /// Lower bound of each column's coefficient (empty: none).
-    pub lo: Vec<f64>,
-    /// Upper bound of each column's coefficient (empty: none).
-    pub hi: Vec<f64>,
-    /// The columns are a physically consistent inertial correction with this prior.
-    pub inertial: Option<Arc<InertialPrior>>,
-}
-
-/// Plausible range of a torque gain `k` (fitted as `1 − k`).
-pub(crate) const GAIN_RANGE: (f64, f64) = (0.2, 5.0);
-
-impl TermDesign {
-    /// Columns without constraints.
-    pub(crate) fn free(cols: Vec<Column>) -> TermDesign {
-        TermDesign { cols, ..Default::default() }
-    }
-
-    /// Columns whose coefficients are at least `lo` each.
-    fn at_least(cols: Vec<Column>, lo: f64) -> TermDesign {
-        let k = cols.len();
-        TermDesign { cols, lo: vec![lo; k], hi: vec![f64::INFINITY; k], ..Default::default() }
-    }
-
-    /// A fixed offset and no parameter.
-    fn fixed(offset: Column) -> TermDesign {
-        TermDesign { offset: Some(offset), ..Default::default() }
-    }
+/// What a selected term occupies (see [`Term::slot`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Slot {
+    /// Its own effect.
+    Effect(EffectKind),
+    /// Dry friction: Coulomb or Stribeck.
+    DryFriction,
+    /// The rigid-body parameters: a payload or an inertial error.
+    Inertia,
 }
 
 /// Concatenation of a per-joint signal over runs.
-fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> Column {
+pub(crate) fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> Column {
     let mut v = Vec::new();
     for d in data {
         for s in 0..d.len() {
@@ -205,138 +175,125 @@ fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) -> f64) -> 
     Column { joint: Some(j), values: v }
 }
 
-/// The ten inertial parameters `(1, c, |c|² 1 − c cᵀ)` of a unit point mass at `com` [m],
-/// in the regressor's order (mass, first moment, rotational inertia about the joint frame).
-pub(crate) fn point_mass_parameters(com: [f64; 3]) -> [f64; PARAMS_PER_LINK] {
-    let c = Vector3::from(com);
-    [1.0, c.x, c.y, c.z, c.y * c.y + c.z * c.z, -c.x * c.y, -c.x * c.z, c.x * c.x + c.z * c.z, -c.y * c.z, c.x * c.x + c.y * c.y]
-}
-
-/// The torque of a unit point mass at `com` on the last link (its ten inertial parameters
-/// [`point_mass_parameters`] through the regressor), as a global column.
-pub(crate) fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
-    let pi = point_mass_parameters(com);
-    let rows = payload_basis_rows(data);
-    Column { joint: None, values: rows.chunks_exact(PARAMS_PER_LINK).map(|row| row.iter().zip(&pi).map(|(a, b)| a * b).sum()).collect() }
-}
-
-/// The last link's ten regressor entries of every row (sample × joint, over runs), row-major:
-/// a payload's column is their combination by [`point_mass_parameters`].
-pub(crate) fn payload_basis_rows(data: &[FitData]) -> Vec<f64> {
-    let dof = data[0].dof;
-    let last = dof - 1;
-    let width = PARAMS_PER_LINK * dof;
-    let mut v = Vec::with_capacity(data.iter().map(|d| d.len() * dof * PARAMS_PER_LINK).sum());
-    for d in data {
-        for s in 0..d.len() {
-            for j in 0..dof {
-                v.extend_from_slice(&d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last..(s * dof + j) * width + PARAMS_PER_LINK * (last + 1)]);
-            }
-        }
-    }
-    v
-}
-
-/// The largest commanded torque over the fit runs [N·m] (what bounds a payload's mass).
-pub(crate) fn largest_command(data: &[FitData]) -> f64 {
-    data.iter().flat_map(|d| d.tau.iter()).fold(0.0f64, |m, v| m.max(v.abs()))
-}
-
-/// Upper bound of a payload's mass [kg] for a unit-mass column whose largest entry is
-/// `col_max` [N·m/kg]: a payload whose torque would exceed three times the largest commanded
-/// torque `tau_max` is no payload this robot carried, and none is heavier than `max_mass`.
-pub(crate) fn payload_mass_bound(col_max: f64, tau_max: f64, max_mass: f64) -> f64 {
-    let hi = if col_max > 0.0 && tau_max > 0.0 { 3.0 * tau_max / col_max } else { f64::INFINITY };
-    hi.min(max_mass)
-}
-
-/// The linear first guess of a payload: mass and first moment of the last link, as four
-/// global columns (rotational part ignored).
-pub(crate) fn payload_linear_design(data: &[FitData]) -> TermDesign {
-    let dof = data[0].dof;
-    let last = dof - 1;
-    let width = PARAMS_PER_LINK * dof;
-    let cols = (0..4)
-        .map(|p| {
-            let mut v = Vec::new();
-            for d in data {
-                for s in 0..d.len() {
-                    for j in 0..dof {
-                        v.push(d.regressor[(s * dof + j) * width + PARAMS_PER_LINK * last + p]);
-                    }
-                }
-            }
-            Column { joint: None, values: v }
-        })
-        .collect();
-    TermDesign::free(cols)
-}
-
-/// The design of a term over all runs.
+/// The design of a term over all runs: its columns and the bounds physics puts on them.
 pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
-    let dof = data[0].dof;
-    let tanh = |x: f64| (x / COULOMB_WIDTH).tanh();
-    match *term {
-        Term::Viscous(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qd[i])], 0.0),
-        Term::Coulomb(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| tanh(d.qd[i]))], 0.0),
-        Term::Stribeck { joint, vs } => {
-            // fc tanh + (fs − fc) e tanh, with fc ≥ 0 and fs − fc ≥ 0
-            let e = |v: f64| (-(v / vs).powi(2)).exp();
-            TermDesign::at_least(vec![per_joint(data, joint, |d, i| tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))], 0.0)
-        }
-        Term::Armature(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qdd[i])], 0.0),
-        Term::Gain(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.tau[i])], lo: vec![1.0 - GAIN_RANGE.1], hi: vec![1.0 - GAIN_RANGE.0], ..Default::default() },
-        Term::Offset(j) => TermDesign::free(vec![per_joint(data, j, |_, _| -1.0)]),
-        Term::Cogging { joint, periods } => TermDesign::free(vec![per_joint(data, joint, |d, i| (periods * d.q[i]).sin())]),
-        Term::Saturation { joint, limit } => {
-            let mut v = Vec::new();
-            for d in data {
-                let m = d.smoothed_torque_map(|_, tau, out| {
-                    out.fill(0.0);
-                    out[joint] = tau[joint] - tau[joint].clamp(-limit, limit);
-                });
-                v.extend((0..d.len()).map(|s| m[s * dof + joint]));
-            }
-            TermDesign::fixed(Column { joint: Some(joint), values: v })
-        }
-        Term::Delay { delay } => {
-            let mut v = Vec::new();
-            for d in data {
-                let period = d.raw.experiment.as_ref().map_or(d.raw.duration() / (d.raw.len().max(2) - 1) as f64, |e| e.sample_period);
-                let m = d.smoothed_torque_map(|k, tau, out| {
-                    for j in 0..dof {
-                        out[j] = tau[j] - d.delayed_torque(k, delay, period, j);
-                    }
-                });
-                v.extend(m);
-            }
-            TermDesign::fixed(Column { joint: None, values: v })
-        }
-        Term::CoriolisStructure => {
-            let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
-            TermDesign::fixed(Column { joint: None, values: v })
-        }
-        Term::Payload { com, max_mass } => {
-            let col = payload_column(data, com);
-            let col_max = col.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            let hi = payload_mass_bound(col_max, largest_command(data), max_mass);
-            TermDesign { cols: vec![col], lo: vec![0.0], hi: vec![hi], ..Default::default() }
-        }
-        Term::InertialError { ref prior } => {
-            // every stacked parameter, in units of its scale
-            let width = PARAMS_PER_LINK * dof;
-            let mut cols: Vec<Column> = (0..width).map(|_| Column { joint: None, values: Vec::new() }).collect();
-            for d in data {
-                for s in 0..d.len() {
-                    for j in 0..dof {
-                        let row = &d.regressor[(s * dof + j) * width..(s * dof + j + 1) * width];
-                        for (p, col) in cols.iter_mut().enumerate() {
-                            col.values.push(row[p] * prior.scales[p]);
-                        }
-                    }
-                }
-            }
-            TermDesign { cols, inertial: Some(prior.clone()), ..Default::default() }
-        }
+    match term {
+        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::design(term, data),
+        Term::Armature(j) => rotor::design(*j, data),
+        Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::design(term, data),
+        Term::Cogging { joint, periods } => cogging::design(*joint, *periods, data),
+        Term::Delay { delay } => delay::design(*delay, data),
+        Term::CoriolisStructure => coriolis::design(data),
+        Term::Payload { com, max_mass } => payload::design(*com, *max_mass, data),
+        Term::InertialError { prior } => inertial::design(prior, data),
     }
+}
+
+/// Whether fitted parameters (as the effect states them, see [`contract_parameters`]) are
+/// physical: dissipative friction (b, fc ≥ 0, fs ≥ fc), non-negative rotor inertia and
+/// payload mass, a gain within [`actuator::GAIN_RANGE`], and every corrected link with mass > 0, a
+/// positive-definite pseudo-inertia and its centre of mass within reach. The bounded fits of
+/// [`crate::lsq`] always give physical parameters; a parameter at its bound (fc = 0) is
+/// physical.
+pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
+    match term {
+        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::physical(term, theta),
+        Term::Armature(_) => rotor::physical(theta),
+        Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
+        Term::Payload { .. } => payload::physical(theta),
+        Term::InertialError { prior } => prior.is_physical(theta),
+        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure => true,
+    }
+}
+
+/// Number of parameters a term fits, counting those searched on a grid.
+pub(crate) fn n_params(term: &Term, d: &TermDesign) -> usize {
+    d.cols.len()
+        + match term {
+            Term::Stribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
+            Term::Payload { .. } => 3,
+            _ => 0,
+        }
+}
+
+/// Adds the simulator effect of a fitted term to `out`, merging per-joint terms of one effect.
+fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
+    let n = model.dof();
+    match &f.term {
+        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::apply(f, n, out),
+        Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
+        Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::apply(f, n, out),
+        Term::Cogging { joint, periods } => cogging::apply(*joint, *periods, &f.theta, n, out),
+        Term::Delay { delay } => out.push(Effect::TimeDelay { delay: *delay }),
+        Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
+        Term::Payload { com, .. } => out.push(Effect::Payload { mass: f.theta[0], com: *com }),
+        Term::InertialError { prior } => out.push(inertial::apply(model, prior, &f.theta)),
+    }
+}
+
+/// Writes a fitted term's parameters (95 % half-widths beside them) into its report entry.
+fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
+    let ci = |s: f64| 1.96 * s;
+    let (th, sd) = (&f.theta, &f.std);
+    match &f.term {
+        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::report(f, entry),
+        Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
+        Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::report(f, entry),
+        Term::Cogging { periods, .. } => cogging::report(*periods, th, sd, entry),
+        Term::Delay { delay } => entry.number("delay", *delay, f64::NAN),
+        Term::CoriolisStructure => {}
+        Term::Payload { com, .. } => payload::report(*com, th, sd, entry),
+        Term::InertialError { prior } => inertial::report(model, prior, f, entry),
+    }
+}
+
+/// The effect of a report entry in words (its `description`).
+fn describe(model: &Model, e: &EffectReport) -> String {
+    match e.effect.parse::<EffectKind>() {
+        Ok(EffectKind::ViscousFriction | EffectKind::CoulombFriction | EffectKind::StribeckFriction) => friction::describe(e),
+        Ok(EffectKind::Armature) => rotor::describe(e),
+        Ok(EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation) => actuator::describe(e),
+        Ok(EffectKind::Cogging) => cogging::describe(e),
+        Ok(EffectKind::TimeDelay) => delay::describe(e),
+        Ok(EffectKind::CoriolisStructure) => coriolis::describe(),
+        Ok(EffectKind::Payload) => payload::describe(model, e),
+        Ok(EffectKind::InertialError) | Err(_) => String::new(),
+    }
+}
+
+/// A term's parameters as the effect states them, from its fitted column coefficients: the
+/// same numbers except for Stribeck friction, fitted as `(fc, fs − fc)` (both ≥ 0, so that
+/// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)`.
+pub(crate) fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
+    match term {
+        Term::Stribeck { .. } => friction::contract_stribeck(raw),
+        _ => raw.to_vec(),
+    }
+}
+
+/// Splits a joint parameter vector (and its standard deviations, if any) per term.
+pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVector<f64>, std: Option<&DVector<f64>>) -> Vec<FittedTerm> {
+    let mut out = Vec::with_capacity(terms.len());
+    let mut c = 0;
+    for (t, d) in terms.iter().zip(designs) {
+        let k = d.cols.len();
+        let mut sd = std.map_or_else(|| vec![0.0; k], |s| s.as_slice()[c..c + k].to_vec());
+        let th = contract_parameters(t, &theta.as_slice()[c..c + k]);
+        if matches!(t, Term::Stribeck { .. }) {
+            // fs = fc + (fs − fc): the spread of a sum, its covariance ignored
+            sd[1] = sd[0].hypot(sd[1]);
+        }
+        out.push(FittedTerm { term: t.clone(), theta: th, std: sd });
+        c += k;
+    }
+    out
+}
+
+/// Designs and fits a list of terms in one go.
+pub(crate) fn fit_terms(p: &Problem, data: &[FitData], terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
+    let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, data)).collect();
+    let refs: Vec<&TermDesign> = designs.iter().collect();
+    let gr = grams(p, &refs);
+    let f = fit(p, &gr);
+    (designs, gr, f)
 }

@@ -1,0 +1,67 @@
+//! The columns of a linear least-squares problem and the bounds on their coefficients.
+
+use std::sync::Arc;
+
+use crate::lsq::inertial::InertialPrior;
+
+/// A column of the design: per-joint (values per sample, on that joint's rows) or global
+/// (values per sample and joint, row-major).
+#[derive(Clone, Debug)]
+pub(crate) struct Column {
+    /// `Some(j)`: nonzero only on joint j's rows.
+    pub joint: Option<usize>,
+    /// Values: length = samples (per-joint) or samples × dof (global).
+    pub values: Vec<f64>,
+}
+
+impl Column {
+    /// Value at (sample, joint).
+    #[inline]
+    pub(crate) fn at(&self, s: usize, j: usize, dof: usize) -> f64 {
+        match self.joint {
+            Some(jj) => {
+                if jj == j {
+                    self.values[s]
+                } else {
+                    0.0
+                }
+            }
+            None => self.values[s * dof + j],
+        }
+    }
+}
+
+/// The columns of a term: free columns (one per fitted parameter) and a fixed offset
+/// (coefficient 1) subtracted from the residual, with the physical constraints on the
+/// parameters.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TermDesign {
+    /// Free columns.
+    pub cols: Vec<Column>,
+    /// Fixed part.
+    pub offset: Option<Column>,
+    /// Lower bound of each column's coefficient (empty: none).
+    pub lo: Vec<f64>,
+    /// Upper bound of each column's coefficient (empty: none).
+    pub hi: Vec<f64>,
+    /// The columns are a physically consistent inertial correction with this prior.
+    pub inertial: Option<Arc<InertialPrior>>,
+}
+
+impl TermDesign {
+    /// Columns without constraints.
+    pub(crate) fn free(cols: Vec<Column>) -> TermDesign {
+        TermDesign { cols, ..Default::default() }
+    }
+
+    /// Columns whose coefficients are at least `lo` each.
+    pub(crate) fn at_least(cols: Vec<Column>, lo: f64) -> TermDesign {
+        let k = cols.len();
+        TermDesign { cols, lo: vec![lo; k], hi: vec![f64::INFINITY; k], ..Default::default() }
+    }
+
+    /// A fixed offset and no parameter.
+    pub(crate) fn fixed(offset: Column) -> TermDesign {
+        TermDesign { offset: Some(offset), ..Default::default() }
+    }
+}

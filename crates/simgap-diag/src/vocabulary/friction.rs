@@ -1,0 +1,100 @@
+//! Friction: `viscous_friction` (−b q̇), `coulomb_friction` (−fc sign q̇) and
+//! `stribeck_friction` (−(fc + (fs − fc) e^{−(q̇/vs)²}) sign q̇), with sign(q̇) smoothed as
+//! tanh(q̇ / [`COULOMB_WIDTH`]) in fitting as in simulation.
+//!
+//! Columns: `b_j q̇_j`; `fc_j tanh(q̇_j / w)`; `fc tanh(q̇/w) + (fs − fc) e^{−(q̇/vs)²} tanh(q̇/w)`,
+//! with b, fc ≥ 0 and fs − fc ≥ 0 (friction dissipates; a Stribeck hump rises above fc).
+//! The Stribeck velocity vs is searched on a grid.
+
+use simgap_sim::Effect;
+
+use super::effects::{list_per_joint, per_joint as reported, sig3, Entry, FittedTerm};
+use super::{per_joint, EffectReport, Term, TermDesign};
+use crate::prepare::dataset::FitData;
+
+/// Width [rad/s] of the tanh that smooths sign(q̇) in fitting and in simulation.
+pub(crate) const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
+
+/// The columns of a friction term.
+pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
+    let tanh = |x: f64| (x / COULOMB_WIDTH).tanh();
+    match *term {
+        Term::Viscous(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qd[i])], 0.0),
+        Term::Coulomb(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| tanh(d.qd[i]))], 0.0),
+        Term::Stribeck { joint, vs } => {
+            // fc tanh + (fs − fc) e tanh, with fc ≥ 0 and fs − fc ≥ 0
+            let e = |v: f64| (-(v / vs).powi(2)).exp();
+            TermDesign::at_least(vec![per_joint(data, joint, |d, i| tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))], 0.0)
+        }
+        _ => TermDesign::default(),
+    }
+}
+
+/// fc and fs of a Stribeck term from its columns' coefficients (fc, fs − fc).
+pub(super) fn contract_stribeck(raw: &[f64]) -> Vec<f64> {
+    vec![raw[0], raw[0] + raw[1]]
+}
+
+/// Dissipative: b, fc ≥ 0 and fs ≥ fc.
+pub(super) fn physical(term: &Term, theta: &[f64]) -> bool {
+    let tol = 1e-12;
+    match term {
+        Term::Stribeck { .. } => theta[1] >= theta[0] - tol && theta[0] >= -tol,
+        _ => theta[0] >= -tol,
+    }
+}
+
+/// Adds the term to the simulator's friction effects.
+pub(super) fn apply(f: &FittedTerm, n: usize, out: &mut Vec<Effect>) {
+    let th = &f.theta;
+    match f.term {
+        Term::Viscous(j) => {
+            if let Effect::ViscousFriction { b } = super::effects::slot(out, Effect::ViscousFriction { b: vec![0.0; n] }) {
+                b[j] = th[0];
+            }
+        }
+        Term::Coulomb(j) => {
+            if let Effect::CoulombFriction { fc } = super::effects::slot(out, Effect::CoulombFriction { fc: vec![0.0; n] }) {
+                fc[j] = th[0];
+            }
+        }
+        Term::Stribeck { joint, vs } => {
+            if let Effect::StribeckFriction { fc, fs, vs: v } = super::effects::slot(out, Effect::StribeckFriction { fc: vec![0.0; n], fs: vec![0.0; n], vs: vec![0.0; n] }) {
+                fc[joint] = th[0];
+                fs[joint] = th[1];
+                v[joint] = vs;
+            }
+        }
+        _ => {}
+    }
+}
+
+/// The term's parameters in its report entry.
+pub(super) fn report(f: &FittedTerm, entry: &mut Entry<'_>) {
+    let ci = |s: f64| 1.96 * s;
+    let (th, sd) = (&f.theta, &f.std);
+    match f.term {
+        Term::Viscous(_) => entry.push("b", th[0], ci(sd[0])),
+        Term::Coulomb(_) => entry.push("fc", th[0], ci(sd[0])),
+        Term::Stribeck { vs, .. } => {
+            entry.push("fc", th[0], ci(sd[0]));
+            entry.push("fs", th[1], ci(sd[1]));
+            entry.push("vs", vs, f64::NAN);
+        }
+        _ => {}
+    }
+}
+
+/// The friction in words.
+pub(super) fn describe(e: &EffectReport) -> String {
+    match e.effect.as_str() {
+        "viscous_friction" => format!("viscous friction {}", list_per_joint(e, "b", "N·m·s/rad")),
+        "coulomb_friction" => format!("Coulomb friction {}", list_per_joint(e, "fc", "N·m")),
+        _ => {
+            let (fc, fs, vs) = (reported(e, "fc"), reported(e, "fs"), reported(e, "vs"));
+            let parts: Vec<String> =
+                fc.iter().zip(&fs).zip(&vs).map(|((c, s), v)| format!("on {}: fc = {} N·m, fs = {} N·m below {} rad/s", c.0, sig3(c.1), sig3(s.1), sig3(v.1))).collect();
+            format!("Stribeck friction {}", parts.join("; "))
+        }
+    }
+}
