@@ -351,3 +351,14 @@ def test_an_output_that_cannot_be_written_loses_none_of_the_others(tmp_path: Pat
     assert len(pd.read_parquet(out / "fleet.parquet")) == len(result.table) and (out / "reports" / "r1" / "d1.json").is_file()
     back = fleet.FleetResult.read(out)
     assert list(back.table.columns) == fleet.TABLE_COLUMNS and back.table["identified"].sum() == result.table["identified"].sum()
+
+
+def test_a_single_odd_robot_day_is_not_reported_until_it_recurs() -> None:
+    values = {f"r{i}": [1.7 + 0.01 * i] * 4 for i in range(5)}
+    values["odd"] = [1.7, 2.6, 1.7, 1.7]
+    table = fleet_table(values)
+    assert fleet.find(table).outliers["outlier"].sum() == 1 and fleet.find(table).flags.empty
+    (flag,) = fleet.find(table, min_flagged_days=1).flags.itertuples()
+    assert (flag.robot, flag.finding, flag.since, flag.test) == ("odd", "outlier", "2026-01-02", "fleet")
+    values["odd"] = [1.7, 2.6, 2.6, 1.7]
+    assert list(fleet.find(fleet_table(values)).flags["robot"]) == ["odd"]

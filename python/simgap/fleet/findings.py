@@ -28,6 +28,7 @@ __all__ = ["FLAG_COLUMNS", "Findings", "find", "flagged_robots"]
 FLAG_COLUMNS = ["robot", "finding", "effect", "joint", "parameter", "since", "test", "detail", "alternatives"]
 DRIFT_ARGS = ("z_drift", "min_rate_per_day", "min_step", "min_days", "min_robots_pool")
 OUTLIER_ARGS = ("z_outlier", "rel_floor", "min_robots")
+FLAG_ARGS = ("min_flagged_days",)
 
 
 @dataclass
@@ -45,15 +46,16 @@ def find(table: pd.DataFrame, reports: dict[tuple[str, str], dict[str, Any]] | N
 
     ``thresholds``: keyword arguments of :func:`trends.drift` (``z_drift``,
     ``min_rate_per_day``, ``min_step``, ``min_days``, ``min_robots_pool``) and of
-    :func:`trends.outliers` (``z_outlier``, ``rel_floor``, ``min_robots``); anything else is a
+    :func:`trends.outliers` (``z_outlier``, ``rel_floor``, ``min_robots``) and
+    ``min_flagged_days`` of :func:`flagged_robots`; anything else is a
     TypeError. ``reports`` (``(robot, day) -> JSON report``) supplies each finding's
     ``alternatives``."""
-    unknown = sorted(set(thresholds) - set(DRIFT_ARGS) - set(OUTLIER_ARGS))
+    unknown = sorted(set(thresholds) - set(DRIFT_ARGS) - set(OUTLIER_ARGS) - set(FLAG_ARGS))
     if unknown:
-        raise TypeError(f"unknown threshold(s) {unknown}; expected some of {sorted(DRIFT_ARGS + OUTLIER_ARGS)}")
+        raise TypeError(f"unknown threshold(s) {unknown}; expected some of {sorted(DRIFT_ARGS + OUTLIER_ARGS + FLAG_ARGS)}")
     dr = trends.drift(table, **{k: v for k, v in thresholds.items() if k in DRIFT_ARGS})
     ol = trends.outliers(table, drift_table=dr, **{k: v for k, v in thresholds.items() if k in OUTLIER_ARGS})
-    return Findings(dr, ol, flagged_robots(dr, ol, reports))
+    return Findings(dr, ol, flagged_robots(dr, ol, reports, **{k: v for k, v in thresholds.items() if k in FLAG_ARGS}))
 
 
 def _num(x: float, unit: str) -> str:
@@ -86,12 +88,16 @@ def _alternatives(robot: str, effect: str, days: list[str], reports: dict[tuple[
     return "; ".join(parts)
 
 
-def flagged_robots(drift: pd.DataFrame, outliers: pd.DataFrame, reports: dict[tuple[str, str], dict[str, Any]] | None = None) -> pd.DataFrame:
+def flagged_robots(drift: pd.DataFrame, outliers: pd.DataFrame, reports: dict[tuple[str, str], dict[str, Any]] | None = None, *, min_flagged_days: int = 2) -> pd.DataFrame:
     """One row per finding: ``robot, finding`` (``drift``, ``step``, ``effect``,
     ``outlier``), ``effect, joint, parameter, since`` (the first day of the change or the first
     day flagged), ``test`` (``trend``, ``step``, ``neutral``, ``fleet``: which test flagged
     it), ``detail`` (the finding in words, with its numbers) and ``alternatives`` (effect sets
-    the robot-days' own reports say explain the runs as well without this effect)."""
+    the robot-days' own reports say explain the runs as well without this effect).
+
+    A per-day finding (``effect``, ``outlier``) needs ``min_flagged_days`` flagged days
+    (default 2): one odd robot-day (a diagnosis that attributed a payload's first day partly to
+    friction) stays in the outliers table and is not reported until it recurs."""
     rows = []
     for r in drift[drift["drifting"]].itertuples(index=False):
         unit = str(r.unit) if isinstance(r.unit, str) else ""
@@ -115,6 +121,8 @@ def flagged_robots(drift: pd.DataFrame, outliers: pd.DataFrame, reports: dict[tu
     for (robot, effect, joint, parameter, reference), g in flagged.groupby(["robot", *trends.KEY, "reference"], sort=True):
         g = g.sort_values("day")
         days = list(g["day"])
+        if len(days) < min_flagged_days:
+            continue
         unit = str(g["unit"].iloc[0]) if isinstance(g["unit"].iloc[0], str) else ""
         lo, hi = g["value"].min(), g["value"].max()
         values = _num(lo, unit) if lo == hi else f"{lo:.4g} to {_num(hi, unit)}"

@@ -135,8 +135,8 @@ def _finding_plot(robot: str, own: pd.DataFrame, scored: pd.DataFrame, change: A
 TESTS = {
     "trend": "trend test: weighted line over the days, intervals at the fleet's scale, |z| ≥ {z_drift:g} and ≥ {rate:g} %/day",
     "step": "change-point test: best single split, intervals at the fleet's scale, |z| ≥ {z_drift:g} and a step ≥ {step:g} %",
-    "neutral": "against the neutral value with the robot's own interval, |z| ≥ {z_outlier:g} (an effect the fleet does not have)",
-    "fleet": "against the fleet: robust z ≥ {z_outlier:g} (median, MAD floored at {rel:g} % and the unit's minimum, with the robot's interval)",
+    "neutral": "neutral test: against the effect's neutral value with the robot's own interval, |z| ≥ {z_outlier:g} (an effect the fleet does not have)",
+    "fleet": "fleet test: robust z ≥ {z_outlier:g} against the fleet's median (MAD floored at {rel:g} % and the unit's minimum, with the robot's interval)",
 }
 
 

@@ -177,10 +177,11 @@ ARM3_URDF_TEXT = """<?xml version="1.0"?>
   </link>
 </robot>
 """
-ARM3_KP = (400.0, 200.0, 60.0)
-ARM3_KV = (40.0, 20.0, 4.0)
-ARM3_VISCOUS = (0.8, 0.4, 0.1)
-ARM3_COULOMB = (1.5, 0.9, 0.3)
+# PD gains for a closed loop of about 8, 12 and 23 rad/s, damped near critically, at 500 Hz
+ARM3_KP = (80.0, 30.0, 6.0)
+ARM3_KV = (20.0, 5.0, 0.6)
+ARM3_VISCOUS = (0.8, 0.4, 0.03)
+ARM3_COULOMB = (1.5, 0.9, 0.1)
 ARM3_AMPLITUDE = (0.6, 0.8, 0.9)
 
 
