@@ -54,11 +54,16 @@ def coverage_summary(cov: pd.DataFrame) -> pd.DataFrame:
     """Per effect and parameter: ``n``, ``inside`` (fraction within the 95 % intervals),
     ``median_ratio`` (median |error| / half-width; 0.34 for calibrated Gaussian intervals) and
     ``scale_for_95`` (the factor the half-widths need for 95 % of the errors to fall inside:
-    above 1 too narrow, below 1 too wide)."""
-    cov = cov.assign(ratio=(cov["value"] - cov["true"]).abs() / cov["uncertainty"])
+    above 1 too narrow, below 1 too wide), ``bias`` (the median relative error, (value − true)
+    / |true|) and ``z_mean``, ``z_std`` (of (value − true) / σ: 0 and 1 for unbiased,
+    calibrated intervals)."""
+    cov = cov.assign(ratio=(cov["value"] - cov["true"]).abs() / cov["uncertainty"], rel=(cov["value"] - cov["true"]) / cov["true"].abs())
     rows = []
     for key, g in [(("all", ""), cov), *cov.groupby(["effect", "parameter"], sort=True)]:
-        rows.append({"effect": key[0], "parameter": key[1], "n": len(g), "inside": g["inside"].mean(), "median_ratio": g["ratio"].median(), "scale_for_95": float(np.quantile(g["ratio"], 0.95)) if len(g) else np.nan})
+        rows.append({
+            "effect": key[0], "parameter": key[1], "n": len(g), "inside": g["inside"].mean(), "median_ratio": g["ratio"].median(),
+            "scale_for_95": float(np.quantile(g["ratio"], 0.95)) if len(g) else np.nan, "bias": g["rel"].median(), "z_mean": g["z"].mean(), "z_std": g["z"].std(),
+        })  # fmt: skip
     return pd.DataFrame(rows)
 
 
@@ -96,8 +101,10 @@ def main(argv: list[str] | None = None) -> int:
                 alt = f" [also: {r.alternatives}]" if r.alternatives else ""
                 print(f"  {r.robot} {r.finding} ({r.test}): {r.detail}{alt}")
             cov = interval_coverage(result.table, planted.truth)
-            print("\ninterval coverage of the true parameters (reported 95 % intervals):")
+            print("\ninterval coverage of the true parameters (reported 95 % intervals), per effect and per joint:")
             print(coverage_summary(cov).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+            per_joint = cov.groupby(["effect", "joint", "parameter"], sort=True).agg(n=("inside", "size"), inside=("inside", "mean"), z_mean=("z", "mean"), z_std=("z", "std"))
+            print(per_joint.to_string(float_format=lambda v: f"{v:.3g}"))
         t = result.tasks[result.tasks["status"] == "ok"]
         n, wall = len(t), result.wall_seconds
         print(
