@@ -362,3 +362,13 @@ def test_a_single_odd_robot_day_is_not_reported_until_it_recurs() -> None:
     assert (flag.robot, flag.finding, flag.since, flag.test) == ("odd", "outlier", "2026-01-02", "fleet")
     values["odd"] = [1.7, 2.6, 2.6, 1.7]
     assert list(fleet.find(fleet_table(values)).flags["robot"]) == ["odd"]
+
+
+def test_the_change_fleet_rejects_change_days_outside_its_days(tmp_path: Path) -> None:
+    from simgap.fleet.synthetic import make_change_fleet
+
+    with pytest.raises(ValueError, match="step_day = 4: expected 1 to 2 for 3 days"):
+        make_change_fleet(tmp_path, days=3)
+    with pytest.raises(ValueError, match="clean"):
+        make_change_fleet(tmp_path, clean=-1)
+    assert not any(tmp_path.iterdir()), "nothing written"

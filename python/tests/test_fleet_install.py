@@ -42,7 +42,7 @@ def test_the_fleet_extra_alone_runs_the_fleet_command(fleet_venv: Path, tmp_path
     # only the extra: none of the test requirements
     probe = subprocess.run([str(fleet_venv), "-c", "import importlib.util as u; print([m for m in ('pytest', 'pin', 'mcap') if u.find_spec(m)])"], capture_output=True, text=True, timeout=60)
     assert probe.stdout.strip() == "[]", probe.stdout + probe.stderr
-    synthetic = make_synthetic_fleet(tmp_path / "logs", robots=2, days=1)
+    synthetic = make_synthetic_fleet(tmp_path / "logs", robots=2, days=1, payload_from_day=1)
     out = tmp_path / "out"
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")} | {"RAYON_NUM_THREADS": "1"}
     proc = subprocess.run([str(fleet_venv), "-m", "simgap.fleet", str(tmp_path / "logs"), "--urdf", str(synthetic.urdf), "--workers", "1", "--no-progress", "--out", str(out)], capture_output=True, text=True, timeout=300, env=env)

@@ -103,8 +103,11 @@ def make_synthetic_fleet(
     ``arm-01`` is the rising robot (elbow Coulomb × (1 + ``rise_per_day`` · (day − 1))),
     ``arm-02`` carries ``payload_mass`` [kg] at the forearm's tip from day ``payload_from_day``
     (1-based). Every robot's friction is the published one times a factor drawn from
-    N(1, ``spread``), fixed for that robot. Each run lasts ``duration`` seconds; seeded.
+    N(1, ``spread``), fixed for that robot. Each run lasts ``duration`` seconds; seeded. Raises
+    ValueError for fewer than two robots or a payload day outside the days.
     """
+    if robots < 2 or not 1 <= payload_from_day <= days:
+        raise ValueError(f"robots = {robots}, payload_from_day = {payload_from_day}, days = {days}: expected at least 2 robots (one rising, one with the payload) and a payload day from 1 to {days}")
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     urdf = root / "paper_arm.urdf"
@@ -283,7 +286,13 @@ def make_change_fleet(
     Every robot carries viscous and Coulomb friction on every joint (:data:`ARM3_VISCOUS`,
     :data:`ARM3_COULOMB`, each robot scaled by its own factor drawn from N(1, ``spread``)).
     Formats differ by robot: ``u2`` logs gzipped CSV with experiment sidecars, ``u3`` rosbag2
-    bag folders, the others MCAP. Days are 1-based. Seeded."""
+    bag folders, the others MCAP. Days are 1-based. Seeded. Raises ValueError for a change day
+    outside the days (the step needs two days after it) or a negative number of clean robots."""
+    for name, day in (("step_day", step_day), ("payload_day", payload_day), ("weak_day", weak_day)):
+        if not 1 <= day <= days - (1 if name == "step_day" else 0):
+            raise ValueError(f"{name} = {day}: expected 1 to {days - (1 if name == 'step_day' else 0)} for {days} days")
+    if clean < 0:
+        raise ValueError(f"clean = {clean}: expected 0 or more clean robots")
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     urdf = root / "arm3.urdf"
