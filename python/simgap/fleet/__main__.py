@@ -32,6 +32,11 @@ import signal
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .findings import Findings
+    from .result import FleetResult
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -56,7 +61,7 @@ def _thresholds(args: argparse.Namespace) -> dict[str, float]:
     return {"z_drift": args.z_drift, "min_rate_per_day": args.min_rate, "min_step": args.min_step, "z_outlier": args.z_outlier}
 
 
-def _write(result, findings, folder: Path, args: argparse.Namespace) -> list[str]:  # type: ignore[no-untyped-def]
+def _write(result: FleetResult, findings: Findings, folder: Path, args: argparse.Namespace) -> list[str]:
     """Writes every output into ``folder``, the table first and the HTML report last; one that
     fails (a missing module, a full disk) is named in the returned list and the others are
     still written."""

@@ -85,11 +85,6 @@ def day_numbers(days: pd.Series) -> pd.Series:
     return days.map(mapping).astype(float)
 
 
-def _joint_type(row: Any) -> str:
-    jt = row.get("joint_type") if hasattr(row, "get") else None
-    return str(jt) if isinstance(jt, str) else ""
-
-
 def series_table(table: pd.DataFrame) -> pd.DataFrame:
     """The rows of the fleet table that are tested: successful, an identified physical
     parameter (finite positive uncertainty, not a count or setting), with ``sigma`` (the
@@ -161,7 +156,7 @@ def _pooled_scale(s: pd.DataFrame, min_days: int, min_robots_pool: int) -> dict[
         if len(chi2s) >= min_robots_pool:
             c2 = float(np.median(chi2s)) / _chi2_median_factor(float(np.median(dofs)))
             if c2 > 0 and math.isfinite(c2):
-                out[tuple(key)] = c2  # type: ignore[index]
+                out[(str(key[0]), str(key[1]), str(key[2]))] = c2
     return out
 
 
