@@ -53,12 +53,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--min-rate", type=float, default=0.02, help="drift: minimum relative rate per day (default 0.02)")
     p.add_argument("--min-step", type=float, default=0.10, help="step: minimum relative step (default 0.10)")
     p.add_argument("--z-outlier", type=float, default=4.0, help="outlier (against the fleet) and effect (against neutral): z threshold (default 4)")
+    p.add_argument("--min-flagged-days", type=int, default=2, help="outlier / effect: days a robot must be flagged on to be reported (default 2)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
 
 def _thresholds(args: argparse.Namespace) -> dict[str, float]:
-    return {"z_drift": args.z_drift, "min_rate_per_day": args.min_rate, "min_step": args.min_step, "z_outlier": args.z_outlier}
+    return {"z_drift": args.z_drift, "min_rate_per_day": args.min_rate, "min_step": args.min_step, "z_outlier": args.z_outlier, "min_flagged_days": args.min_flagged_days}
 
 
 def _write(result: FleetResult, findings: Findings, folder: Path, args: argparse.Namespace) -> list[str]:

@@ -149,7 +149,7 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, findings: F
     table = result.table
     f = findings if findings is not None else find(table, result.reports, **thresholds)
     dr, ol, flags = f.drift, f.outliers, f.flags
-    th = {"z_drift": 4.0, "min_rate_per_day": 0.02, "min_step": 0.10, "z_outlier": 4.0, "rel_floor": 0.05} | thresholds
+    th = {"z_drift": 4.0, "min_rate_per_day": 0.02, "min_step": 0.10, "z_outlier": 4.0, "rel_floor": 0.05, "min_flagged_days": 2} | thresholds
     words = {k: v.format(z_drift=th["z_drift"], rate=100 * th["min_rate_per_day"], step=100 * th["min_step"], z_outlier=th["z_outlier"], rel=100 * th["rel_floor"]) for k, v in TESTS.items()}
     tasks = result.tasks
     ok = int((tasks["status"] == "ok").sum())
@@ -172,6 +172,7 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, findings: F
         + html.escape(words["trend"]) + "; a " + html.escape(words["step"]) + "; where both hold, the smaller BIC names the change. "
         "The intervals' scale is calibrated on the fleet (the median reduced χ² of every robot's line), both ways. "
         "<b>Per day</b>, where at least half of the robots have the effect: " + html.escape(words["fleet"]) + "; where fewer do: " + html.escape(words["neutral"]) + ". "
+        f"A per-day finding is reported once the robot is flagged on {th['min_flagged_days']:g} day(s). "
         "A parameter that changes over the days is reported once, as the change.</p>"
     )
     series = trends.series_table(table)
