@@ -12,6 +12,10 @@ import pytest
 import simgap
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "slow: a test that takes a minute or more (it still runs in `make test`; deselect with -m 'not slow')")
+
+
 def robots_dir() -> Path | None:
     """example-robot-data's `robots` folder (pip package `example-robot-data`), if installed."""
     candidates = []

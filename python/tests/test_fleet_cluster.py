@@ -154,31 +154,35 @@ def test_a_broken_robot_day_is_recorded_with_its_error(fleet_run: tuple[list[dic
 
 def test_exactly_the_rising_robot_drifts_and_the_payload_robot_stands_out_from_day_3(synthetic: SyntheticFleet, fleet_run: tuple[list[dict[str, Any]], str, float], tmp_path: Path) -> None:
     result = fleet.FleetResult.from_results(fleet_run[0])
-    dr = result.drift()
-    ol = result.outliers(drift_table=dr)
+    found = fleet.find(result.table, result.reports)
+    dr, ol = found.drift, found.outliers
     drifting = dr[dr["drifting"]]
     assert set(drifting["robot"]) == {synthetic.rising}, drifting
-    assert set(zip(drifting["effect"], drifting["joint"], drifting["parameter"])) == {("coulomb_friction", "elbow", "fc")}
+    assert set(zip(drifting["effect"], drifting["joint"], drifting["parameter"], drifting["change"])) == {("coulomb_friction", "elbow", "fc", "trend")}
     rate = drifting["rate_per_day"].iloc[0]
-    assert 0.06 < rate < 0.11, "10 % of day 1's value a day is 6-10 % of the mean a day"
+    assert 0.07 < rate < 0.13, "10 % of day 1's value a day"
     flagged = ol[ol["outlier"]]
     assert set(flagged["robot"]) == {synthetic.payload}, flagged
     assert min(flagged["day"]) == synthetic.payload_from
     payload = flagged[flagged["effect"] == "payload"]
-    assert set(payload["day"]) == {d for d in synthetic.days if d >= synthetic.payload_from}
+    assert set(payload["day"]) == {d for d in synthetic.days if d >= synthetic.payload_from} and set(payload["reference"]) == {"neutral"}
     mass = result.table[(result.table["effect"] == "payload") & (result.table["parameter"] == "mass")]
     assert set(mass["robot"]) == {synthetic.payload} and mass["value"].between(1.35, 1.65).all()
+    flags = found.flags
+    assert list(zip(flags["robot"], flags["finding"], flags["since"])) == [(synthetic.rising, "drift", synthetic.days[0]), (synthetic.payload, "effect", synthetic.payload_from)]
     # the table holds every robot-day's figures, and goes to Parquet
     table = result.table
     assert (table.loc[table["status"] == "ok", "l2_after"] < table.loc[table["status"] == "ok", "l2_before"]).all()
     result.to_parquet(tmp_path / "fleet.parquet")
     back = pd.read_parquet(tmp_path / "fleet.parquet")
     assert list(back.columns) == fleet.TABLE_COLUMNS and len(back) == len(table)
-    # the HTML report: one plot per parameter, flagged robots named
+    # the HTML report: each finding day by day, then one plot per parameter, flagged robots named
     result.to_html(tmp_path / "fleet.html")
     text = (tmp_path / "fleet.html").read_text()
-    assert text.startswith("<!DOCTYPE html>") and text.count("<svg") == ol.groupby(["effect", "joint", "parameter"]).ngroups == 5  # frictions ×4, payload mass
-    assert f"{synthetic.rising}</b> (drift)" in text and f"{synthetic.payload}</b> (outlier)" in text
+    per_parameter = ol[ol["reference"] == "fleet"].groupby(["effect", "joint", "parameter"]).ngroups + 1  # frictions ×4, payload mass
+    assert per_parameter == 5
+    assert text.startswith("<!DOCTYPE html>") and text.count("<svg") == len(flags) + per_parameter
+    assert f"{synthetic.rising}</b> (drift)" in text and f"{synthetic.payload}</b> (effect)" in text
 
 
 def small_fleet(synthetic: SyntheticFleet, folder: Path) -> Path:
@@ -196,7 +200,7 @@ def test_command_line_writes_every_output(synthetic: SyntheticFleet, cluster: tu
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-m", "simgap.fleet", str(folder), "--urdf", str(synthetic.urdf), "--scheduler", c.address, "--out", str(out)], capture_output=True, text=True, timeout=RESULT_TIMEOUT_S)
     assert proc.returncode == 0, proc.stderr
-    assert "4 of 4 robot-days diagnosed" in proc.stdout and "no robot drifts or stands out" in proc.stdout
+    assert "4 of 4 robot-days diagnosed" in proc.stdout and "no robot changes or stands out" in proc.stdout
     assert "4/4" in proc.stderr, "a progress bar over the tasks"
     assert sorted(p.name for p in out.iterdir()) == ["drift.csv", "flagged.csv", "fleet.html", "fleet.parquet", "outliers.csv", "reports", "tasks.csv"]
     assert len(list((out / "reports").glob("*/*.json"))) == 4

@@ -12,10 +12,14 @@ flagged robots and writes into ``OUT/``:
 - ``fleet.html``: the fleet report,
 - ``reports/ROBOT/DAY.json``: each robot-day's diagnosis report.
 
+They are written in that order, the table first and the HTML report last; an output that
+cannot be written (e.g. matplotlib missing for the report) is named on stderr, the others are
+written, and the exit status is 1.
+
 Outputs are written to a temporary folder and moved into ``OUT/`` at the end, so an
 interrupted run (Ctrl-C: exit status 130) leaves them complete or absent. Exit status 0 when
-at least one robot-day was diagnosed, 1 when none was, 2 for bad arguments or an unreachable
-scheduler.
+at least one robot-day was diagnosed and every output was written, 1 when none was diagnosed
+or an output could not be written, 2 for bad arguments or an unreachable scheduler.
 """
 
 from __future__ import annotations
@@ -28,6 +32,11 @@ import signal
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .findings import Findings
+    from .result import FleetResult
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -40,33 +49,60 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("fleet-out"), help="output folder (default: fleet-out)")
     p.add_argument("--formulation", default="euler_lagrange", choices=["euler_lagrange", "euler-lagrange", "simplified"])
     p.add_argument("--retries", type=int, default=2, help="re-runs of a task that fails for a reason other than its data (default 2)")
-    p.add_argument("--z-drift", type=float, default=4.0, help="drift: slope / standard error threshold (default 4)")
+    p.add_argument("--z-drift", type=float, default=4.0, help="drift and step: z threshold of the change tests (default 4)")
     p.add_argument("--min-rate", type=float, default=0.02, help="drift: minimum relative rate per day (default 0.02)")
-    p.add_argument("--z-outlier", type=float, default=4.0, help="outlier: robust z threshold (default 4)")
+    p.add_argument("--min-step", type=float, default=0.10, help="step: minimum relative step (default 0.10)")
+    p.add_argument("--z-outlier", type=float, default=4.0, help="outlier (against the fleet) and effect (against neutral): z threshold (default 4)")
+    p.add_argument("--min-flagged-days", type=int, default=2, help="outlier / effect: days a robot must be flagged on to be reported (default 2)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
 
-def _write(result, folder: Path, args: argparse.Namespace) -> None:  # type: ignore[no-untyped-def]
-    from . import trends
-    from .report import flagged_robots, write_html
+def _thresholds(args: argparse.Namespace) -> dict[str, float]:
+    return {"z_drift": args.z_drift, "min_rate_per_day": args.min_rate, "min_step": args.min_step, "z_outlier": args.z_outlier, "min_flagged_days": args.min_flagged_days}
 
-    try:
-        result.to_parquet(folder / "fleet.parquet")
-    except ImportError:
-        print("simgap.fleet: pyarrow is not installed; writing fleet.csv instead of fleet.parquet", file=sys.stderr)
-        result.table.to_csv(folder / "fleet.csv", index=False)
-    result.tasks.to_csv(folder / "tasks.csv", index=False)
-    dr = trends.drift(result.table, z_drift=args.z_drift, min_rate_per_day=args.min_rate)
-    ol = trends.outliers(result.table, z_outlier=args.z_outlier, drift_table=dr)
-    dr.to_csv(folder / "drift.csv", index=False)
-    ol.to_csv(folder / "outliers.csv", index=False)
-    flagged_robots(dr, ol).to_csv(folder / "flagged.csv", index=False)
-    write_html(result, folder / "fleet.html", z_drift=args.z_drift, min_rate_per_day=args.min_rate, z_outlier=args.z_outlier, title=args.folder.resolve().name)
-    for (robot, day), report in result.reports.items():
-        path = folder / "reports" / robot / f"{day}.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(report, indent=1))
+
+def _write(result: FleetResult, findings: Findings, folder: Path, args: argparse.Namespace) -> list[str]:
+    """Writes every output into ``folder``, the table first and the HTML report last; one that
+    fails (a missing module, a full disk) is named in the returned list and the others are
+    still written."""
+    from .report import write_html
+
+    def table() -> None:
+        try:
+            result.to_parquet(folder / "fleet.parquet")
+        except ImportError:
+            print("simgap.fleet: pyarrow is not installed; writing fleet.csv instead of fleet.parquet", file=sys.stderr)
+            result.table.to_csv(folder / "fleet.csv", index=False)
+
+    def reports() -> None:
+        for (robot, day), report in result.reports.items():
+            path = folder / "reports" / robot / f"{day}.json"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(report, indent=1))
+
+    steps = [
+        ("fleet.parquet", table),
+        ("tasks.csv", lambda: result.tasks.to_csv(folder / "tasks.csv", index=False)),
+        ("drift.csv", lambda: findings.drift.to_csv(folder / "drift.csv", index=False)),
+        ("outliers.csv", lambda: findings.outliers.to_csv(folder / "outliers.csv", index=False)),
+        ("flagged.csv", lambda: findings.flags.to_csv(folder / "flagged.csv", index=False)),
+        ("reports/", reports),
+        ("fleet.html", lambda: write_html(result, folder / "fleet.html", findings=findings, title=args.folder.resolve().name, **_thresholds(args))),
+    ]
+    failed = []
+    for name, write in steps:
+        try:
+            write()
+        except ImportError as err:
+            print(f"simgap.fleet: could not write {name}: {err.name or err} is not installed (the fleet extra installs it: pip install \"simgap[fleet]\")", file=sys.stderr)
+            failed.append(name)
+        except (OSError, ValueError, TypeError, KeyError, RuntimeError) as err:
+            print(f"simgap.fleet: could not write {name}: {type(err).__name__}: {err}", file=sys.stderr)
+            failed.append(name)
+        if name in failed and not name.endswith("/"):
+            (folder / name).unlink(missing_ok=True)  # no half-written file
+    return failed
 
 
 def _move_into(tmp: Path, out: Path) -> None:
@@ -89,6 +125,7 @@ def _move_into(tmp: Path, out: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     from .index import index_from_folder
+    from .findings import find
     from .report import summary_text
     from .run import diagnose_fleet
 
@@ -114,10 +151,15 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"simgap.fleet: cannot reach the scheduler {args.scheduler}: {err}", file=sys.stderr)
                 return 2
         result = diagnose_fleet(index, args.urdf, client, tip=args.tip, formulation=args.formulation, retries=args.retries, progress=not args.no_progress, n_workers=args.workers)
-        print(summary_text(result, z_drift=args.z_drift, min_rate_per_day=args.min_rate, z_outlier=args.z_outlier))
-        _write(result, tmp, args)
+        findings = find(result.table, result.reports, **_thresholds(args))
+        print(summary_text(result, findings))
+        failed = _write(result, findings, tmp, args)
         _move_into(tmp, out)
-        print(f"wrote {out}/ (fleet.parquet, tasks.csv, drift.csv, outliers.csv, flagged.csv, fleet.html, reports/)")
+        written = [n for n in ("fleet.parquet", "fleet.csv", "tasks.csv", "drift.csv", "outliers.csv", "flagged.csv", "fleet.html", "reports") if (out / n).exists()]
+        print(f"wrote {out}/ ({', '.join(written)})")
+        if failed:
+            print(f"simgap.fleet: not written: {', '.join(failed)}", file=sys.stderr)
+            return 1
         return 0 if (result.tasks["status"] == "ok").any() else 1
     except KeyboardInterrupt:
         print("\nsimgap.fleet: interrupted; no output written", file=sys.stderr)

@@ -40,9 +40,11 @@ def main(argv: list[str] | None = None) -> int:
             print("elbow Coulomb friction fc [N·m] per robot and day")
             print(fc.to_string())
             print()
-            drift = result.drift()
-            flagged = fleet.flagged_robots(drift, result.outliers(drift_table=drift))
+            flagged = result.findings()
             print(flagged[["robot", "finding", "effect", "joint", "parameter", "since"]].to_string(index=False))
+            print()
+            for r in flagged.itertuples(index=False):
+                print(f"{r.robot}: {r.detail}")
         print(f"\n{len(result.tasks)} robot-days on {result.workers} workers in {wall:.0f} s")
         if args.html:
             result.to_html(args.html)

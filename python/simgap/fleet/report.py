@@ -1,7 +1,11 @@
 """The HTML fleet report: self-contained (inline SVG plots), in the style of the diagnosis
-report. One plot per parameter over time: every robot's values with their 95 % bars, the
-fleet band (the daily median ± ``z_outlier`` robust scales, the region outside which a robot is
-an outlier), drifting and outlying robots drawn in colour and named in the legend."""
+report. First, per finding, the flagged robot's day-by-day series with its 95 % intervals,
+the fleet band (or the neutral value it was judged against), the fitted line or step, and the
+test that flagged it; then one plot per parameter compared across the fleet: every robot's
+values with their 95 % bars, the fleet band (the daily median ± ``z_outlier`` robust spreads,
+outside which a robot is an outlier), flagged robots drawn in colour and named in the legend.
+
+Needs matplotlib (in the ``fleet`` extra)."""
 
 from __future__ import annotations
 
@@ -11,14 +15,16 @@ import math
 import os
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import pandas as pd
 
 from . import trends
+from .findings import Findings, find
 
 if TYPE_CHECKING:
-    from .run import FleetResult
+    from .result import FleetResult
 
-__all__ = ["write_html", "flagged_robots"]
+__all__ = ["summary_text", "write_html"]
 
 CSS = (
     "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
@@ -28,21 +34,6 @@ CSS = (
     "figure{margin:1em 0}figcaption{font-size:90%;color:#444}"
 )
 COLOURS = ["#d62728", "#1f77b4", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"]
-
-
-def flagged_robots(drift: pd.DataFrame, outliers: pd.DataFrame) -> pd.DataFrame:
-    """One row per finding: ``robot, finding ("drift" / "outlier"), effect, joint, parameter,
-    since (first day flagged, or the first day of the trend), detail``."""
-    rows = []
-    for r in drift[drift["drifting"]].itertuples(index=False):
-        rows.append({"robot": r.robot, "finding": "drift", "effect": r.effect, "joint": r.joint, "parameter": r.parameter, "since": r.first_day,
-                     "detail": f"{r.slope_per_day:+.4g} ± {r.slope_se:.2g} per day ({100 * r.rate_per_day:+.1f} %/day, z = {r.z:.1f}) over {r.days} days"})  # fmt: skip
-    flagged = outliers[outliers["outlier"]]
-    for (robot, effect, joint, parameter), g in flagged.groupby(["robot", *trends.KEY], sort=True):
-        days = sorted(g["day"])
-        rows.append({"robot": robot, "finding": "outlier", "effect": effect, "joint": joint, "parameter": parameter, "since": days[0],
-                     "detail": f"{len(days)} day(s): {', '.join(days)}; |z| up to {g['z'].abs().max():.1f}"})  # fmt: skip
-    return pd.DataFrame(rows, columns=["robot", "finding", "effect", "joint", "parameter", "since", "detail"]).sort_values(["robot", "finding", "effect", "joint", "parameter"]).reset_index(drop=True)
 
 
 def _plot(series: pd.DataFrame, band: pd.DataFrame, absent: pd.DataFrame, days: pd.DataFrame, highlight: dict[str, str], title: str, unit: str, z_outlier: float) -> str:
@@ -99,34 +90,90 @@ def _table_html(df: pd.DataFrame, bad: pd.Series | None = None) -> str:
     return "\n".join(out)
 
 
-def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: float = 4.0, min_rate_per_day: float = 0.02, z_outlier: float = 4.0, rel_floor: float = 0.05, title: str = "fleet") -> None:
-    """Writes the fleet report of ``result`` to ``path`` (thresholds as in
-    :mod:`simgap.fleet.trends`)."""
+def _finding_plot(robot: str, own: pd.DataFrame, scored: pd.DataFrame, change: Any, days: pd.DataFrame, title: str, unit: str, z_outlier: float) -> str:
+    """One flagged robot's series of one parameter, day by day, as inline SVG text: its values
+    with their 95 % intervals, the fleet band or the neutral value it was judged against, and
+    the fitted line or step where a change was found."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8.5, 3.0), dpi=100)
+    try:
+        fleet = scored[scored["reference"] == "fleet"].drop_duplicates("day").sort_values("t")
+        if len(fleet):
+            ax.fill_between(fleet["t"], fleet["median"] - z_outlier * fleet["spread"], fleet["median"] + z_outlier * fleet["spread"], color="#2a7", alpha=0.15, lw=0, label=f"fleet band (median ± {z_outlier:g} robust spreads)")
+            ax.plot(fleet["t"], fleet["median"], color="#2a7", lw=1, ls="--", label="fleet median")
+        neutral = scored[scored["reference"] == "neutral"]
+        if len(neutral):
+            ax.axhline(float(neutral["median"].iloc[0]), color="#2a7", lw=1, ls="--", label=f"neutral value {float(neutral['median'].iloc[0]):g} (the fleet's)")
+        own = own.sort_values("t")
+        ax.errorbar(own["t"], own["value"], yerr=own["uncertainty"], color="#d62728", marker="o", ms=4, lw=1.4, capsize=3, label=f"{robot} (95 % intervals)", zorder=3)
+        if change is not None and change.change == "trend":
+            t = np.array([own["t"].min(), own["t"].max()])
+            ax.plot(t, change.baseline + change.slope_per_day * (t - t[0]), color="#1f77b4", lw=1.2, label=f"trend {100 * change.rate_per_day:+.1f} %/day (z = {change.z:.1f})")
+        elif change is not None and change.change == "step":
+            k = float(own.loc[own["day"] == change.step_day, "t"].iloc[0])
+            t0, t1 = float(own["t"].min()), float(own["t"].max())
+            ax.plot([t0, k - 0.5, k - 0.5, t1], [change.step_before, change.step_before, change.step_after, change.step_after], color="#1f77b4", lw=1.2, label=f"step ×{change.step_ratio:.3g} from {change.step_day} (z = {change.step_z:.1f})")
+        ax.set_xticks(days["t"], days["day"], fontsize=7, rotation=30 if len(days) > 6 else 0)
+        ax.set_xlabel("day")
+        ax.set_ylabel(unit or "value")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+        fig.tight_layout()
+        buf = io.StringIO()
+        fig.savefig(buf, format="svg")
+        svg = buf.getvalue()
+    finally:
+        plt.close(fig)
+    return svg[svg.index("<svg") :]
+
+
+TESTS = {
+    "trend": "trend test: weighted line over the days, intervals at the fleet's scale, |z| ≥ {z_drift:g} and ≥ {rate:g} %/day",
+    "step": "change-point test: best single split, intervals at the fleet's scale, |z| ≥ {z_drift:g} and a step ≥ {step:g} %",
+    "neutral": "neutral test: against the effect's neutral value with the robot's own interval, |z| ≥ {z_outlier:g} (an effect the fleet does not have)",
+    "fleet": "fleet test: robust z ≥ {z_outlier:g} against the fleet's median (MAD floored at {rel:g} % and the unit's minimum, with the robot's interval)",
+}
+
+
+def write_html(result: FleetResult, path: str | os.PathLike[str], *, findings: Findings | None = None, title: str = "fleet", **thresholds: Any) -> None:
+    """Writes the fleet report of ``result`` to ``path``. ``findings`` (:func:`find` of the
+    same result) is computed with ``thresholds`` (as in :func:`simgap.fleet.find`) when not
+    given. Needs matplotlib."""
+    import matplotlib  # noqa: F401 - fail before anything is written, with the module named
+
     table = result.table
-    dr = trends.drift(table, z_drift=z_drift, min_rate_per_day=min_rate_per_day)
-    ol = trends.outliers(table, z_outlier=z_outlier, rel_floor=rel_floor, drift_table=dr)
-    flags = flagged_robots(dr, ol)
+    f = findings if findings is not None else find(table, result.reports, **thresholds)
+    dr, ol, flags = f.drift, f.outliers, f.flags
+    th = {"z_drift": 4.0, "min_rate_per_day": 0.02, "min_step": 0.10, "z_outlier": 4.0, "rel_floor": 0.05, "min_flagged_days": 2} | thresholds
+    words = {k: v.format(z_drift=th["z_drift"], rate=100 * th["min_rate_per_day"], step=100 * th["min_step"], z_outlier=th["z_outlier"], rel=100 * th["rel_floor"]) for k, v in TESTS.items()}
     tasks = result.tasks
     ok = int((tasks["status"] == "ok").sum())
     robots = tasks["robot"].nunique()
-    days = tasks["day"].nunique()
+    n_days = tasks["day"].nunique()
     h: list[str] = []
     h.append(f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>simgap fleet: {html.escape(title)}</title>\n<style>{CSS}</style></head><body>')
     h.append(f"<h1>simgap fleet report: <code>{html.escape(title)}</code></h1>")
     wall = f", {result.wall_seconds:.1f} s on {result.workers} worker(s)" if math.isfinite(result.wall_seconds) else ""
-    h.append(f'<p class="meta">{robots} robots × {days} days: {ok} of {len(tasks)} robot-days diagnosed{wall}.</p>')
+    h.append(f'<p class="meta">{robots} robots × {n_days} days: {ok} of {len(tasks)} robot-days diagnosed{wall}.</p>')
     if len(flags):
         names = sorted(set(flags["robot"]))
         h.append(f'<p class="verdict">{len(names)} robot(s) flagged: ' + "; ".join(f"<b>{html.escape(n)}</b> ({', '.join(sorted(set(flags.loc[flags['robot'] == n, 'finding'])))})" for n in names) + ".</p>")
-        h.append("<h2>Flagged robots</h2>" + _table_html(flags))
+        h.append("<h2>Findings</h2>" + _table_html(flags))
     else:
-        h.append('<p class="verdict">No robot drifts or stands out from the fleet.</p>')
+        h.append('<p class="verdict">No robot changes, carries an effect the fleet does not have, or stands out from the fleet.</p>')
     h.append(
-        f"<h2>Method</h2><p>Each robot-day is one diagnosis (fit logs / held-out logs). <b>Drift</b>: per robot and parameter, a weighted least-squares line over the days "
-        f"on which the effect was selected (weights 1/σ², σ = 95 % half-width / 1.96, standard error inflated by √χ²ᵣ when the scatter exceeds σ); flagged when "
-        f"|slope| ≥ {z_drift:g} standard errors and ≥ {100 * min_rate_per_day:g} % of the mean per day. <b>Outlier</b>: per day and parameter, robust z = (x − median) / "
-        f"√(max(1.4826·MAD, {100 * rel_floor:g} % of |median|)² + σ²) across the robots diagnosed that day (where fewer than half of them have the effect, the others "
-        f"count at its neutral value, 0 for most); flagged when |z| ≥ {z_outlier:g}, unless that robot's parameter is flagged as drift.</p>"
+        "<h2>Method</h2><p>Each robot-day is one diagnosis (fit logs / held-out logs); only parameters with a finite 95 % interval are tested "
+        "(counts and directions the data do not resolve never are). <b>Changes over the days</b>, per robot and parameter: a "
+        + html.escape(words["trend"]) + "; a " + html.escape(words["step"]) + "; where both hold, the smaller BIC names the change. "
+        "The intervals' scale is calibrated on the fleet (the median reduced χ² of every robot's line), both ways. "
+        "<b>Per day</b>, where at least half of the robots have the effect: " + html.escape(words["fleet"]) + "; where fewer do: " + html.escape(words["neutral"]) + ". "
+        f"A per-day finding is reported once the robot is flagged on {th['min_flagged_days']:g} day(s). "
+        "A parameter that changes over the days is reported once, as the change.</p>"
     )
     series = trends.series_table(table)
     days = pd.DataFrame({"day": sorted(set(tasks["day"]))})
@@ -134,16 +181,30 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: fl
     t_of_day = dict(zip(days["day"], days["t"]))
     series = series.assign(t=series["day"].map(t_of_day))
     ol = ol.assign(t=ol["day"].map(t_of_day))
-    h.append("<h2>Parameters over time</h2><p class=\"meta\">One plot per parameter compared across the fleet; every value is in the table (Parquet).</p>")
-    # one plot per parameter compared across the fleet (or drifting): not the coordinates of
+    changes = {(r.robot, r.effect, r.joint, r.parameter): r for r in dr[dr["drifting"]].itertuples(index=False)}
+    if len(flags):
+        h.append('<h2>Flagged robots, day by day</h2><p class="meta">Each finding: the robot\'s values with their 95 % intervals, what it was judged against, and the test that flagged it.</p>')
+        for r in flags.itertuples(index=False):
+            key = (r.effect, r.joint, r.parameter)
+            own = series[(series["robot"] == r.robot) & (series["effect"] == r.effect) & (series["joint"] == r.joint) & (series["parameter"] == r.parameter)]
+            if own.empty:
+                continue
+            scored = ol[(ol["effect"] == r.effect) & (ol["joint"] == r.joint) & (ol["parameter"] == r.parameter)]
+            unit = str(own["unit"].dropna().iloc[0]) if own["unit"].notna().any() else ""
+            name = " · ".join(str(x) for x in key if x)
+            svg = _finding_plot(r.robot, own, scored, changes.get((r.robot, *key)), days, f"{r.robot}: {name} ({r.finding} since {r.since})", unit, float(th["z_outlier"]))
+            alt = f"<br>Also explained by (the robot-days' own reports): {html.escape(r.alternatives)}" if r.alternatives else ""
+            h.append(f"<figure>{svg}<figcaption><b>{html.escape(r.robot)}</b>, {html.escape(name)} [{html.escape(unit)}]: {html.escape(r.detail)}.<br>Flagged by the {html.escape(words[r.test])}.{alt}</figcaption></figure>")
+    h.append('<h2>Parameters over time</h2><p class="meta">One plot per parameter compared across the fleet; every value is in the table (Parquet).</p>')
+    # one plot per parameter compared across the fleet (or flagged): not the coordinates of
     # an effect only one robot has, which stay in the table
-    plotted = {tuple(k) for k in ol[trends.KEY].drop_duplicates().itertuples(index=False)} | {tuple(k) for k in dr.loc[dr["drifting"], trends.KEY].itertuples(index=False)}
+    plotted = {tuple(k) for k in ol.loc[ol["reference"] == "fleet", trends.KEY].drop_duplicates().itertuples(index=False)} | {tuple(k) for k in flags[trends.KEY].itertuples(index=False)}
     for (effect, joint, parameter), g in series.groupby(trends.KEY, sort=True):
         key = (effect, joint, parameter)
         if key not in plotted:
             continue
         scored = ol[(ol["effect"] == effect) & (ol["joint"] == joint) & (ol["parameter"] == parameter)]
-        band = scored[["day", "t", "median", "spread"]].drop_duplicates("day")
+        band = scored.loc[scored["reference"] == "fleet", ["day", "t", "median", "spread"]].drop_duplicates("day")
         absent = scored[~scored["present"].astype(bool)]
         mark: dict[str, str] = {}
         for r in flags.itertuples(index=False):
@@ -151,30 +212,32 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, z_drift: fl
                 mark[r.robot] = f"{r.finding} since {r.since}" if r.robot not in mark else mark[r.robot] + f", {r.finding}"
         unit = str(g["unit"].dropna().iloc[0]) if g["unit"].notna().any() else ""
         name = f"{effect} · {joint} · {parameter}" if joint else f"{effect} · {parameter}"
-        h.append(f"<figure>{_plot(g, band, absent, days, mark, name, unit, z_outlier)}<figcaption>{html.escape(name)} [{html.escape(unit)}], one point per robot-day with its 95 % bar.</figcaption></figure>")
+        h.append(f"<figure>{_plot(g, band, absent, days, mark, name, unit, float(th['z_outlier']))}<figcaption>{html.escape(name)} [{html.escape(unit)}], one point per robot-day with its 95 % bar.</figcaption></figure>")
     h.append("<h2>Robot-days</h2>")
     days_table = tasks[["robot", "day", "status", "effects", "l2_before", "l2_after", "kstep_horizon_s", "kstep_before", "kstep_after", "seconds", "error"]].rename(
-        columns={"l2_before": "held-out L² before [rad]", "l2_after": "L² after [rad]", "kstep_horizon_s": "k-step horizon [s]", "kstep_before": "k-step error before [rad]", "kstep_after": "k-step after [rad]", "seconds": "task [s]"}
+        columns={"l2_before": "held-out L² before", "l2_after": "L² after", "kstep_horizon_s": "k-step horizon [s]", "kstep_before": "k-step error before", "kstep_after": "k-step after", "seconds": "task [s]"}
     )
     h.append(_table_html(days_table, bad=tasks["status"] != "ok"))
-    h.append("<h2>Trend tests</h2>" + _table_html(dr, bad=dr["drifting"]))
+    h.append("<h2>Change tests</h2>" + _table_html(dr, bad=dr["drifting"]))
     h.append("</body></html>\n")
-    with open(path, "w", encoding="utf-8") as f:
-        f.write("\n".join(h))
+    with open(path, "w", encoding="utf-8") as out:
+        out.write("\n".join(h))
 
 
-def summary_text(result: FleetResult, **thresholds: Any) -> str:
-    """The terminal summary: robot-days, failures, flagged robots."""
-    dr = trends.drift(result.table, **{k: v for k, v in thresholds.items() if k in ("z_drift", "min_rate_per_day")})
-    ol = trends.outliers(result.table, drift_table=dr, **{k: v for k, v in thresholds.items() if k in ("z_outlier", "rel_floor")})
-    flags = flagged_robots(dr, ol)
+def summary_text(result: FleetResult, findings: Findings | None = None, **thresholds: Any) -> str:
+    """The terminal summary: robot-days, failures, findings."""
+    flags = (findings if findings is not None else find(result.table, result.reports, **thresholds)).flags
     tasks = result.tasks
     lines = [f"{int((tasks['status'] == 'ok').sum())} of {len(tasks)} robot-days diagnosed ({tasks['robot'].nunique()} robots, {tasks['day'].nunique()} days)"]
     for r in result.failed.itertuples(index=False):
         lines.append(f"  FAILED {r.robot} {r.day}: {r.error}")
     if len(flags):
-        with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 80):
-            lines.append(flags.to_string(index=False))
+        with pd.option_context("display.width", 250, "display.max_columns", 20, "display.max_colwidth", 120):
+            lines.append(flags[["robot", "finding", "effect", "joint", "parameter", "since", "test"]].to_string(index=False))
+            lines.append("")
+            for r in flags.itertuples(index=False):
+                alt = f" [also explained by: {r.alternatives}]" if r.alternatives else ""
+                lines.append(f"  {r.robot} {r.effect}{' ' + r.joint if r.joint else ''} {r.parameter}: {r.detail}{alt}")
     else:
-        lines.append("no robot drifts or stands out")
+        lines.append("no robot changes or stands out")
     return "\n".join(lines)
