@@ -335,7 +335,7 @@ def effect_vocabulary() -> list[dict[str, Any]]:
     """Every effect of the vocabulary, in the documented order.
 
     Each entry is ``{"name": str, "whole_robot": bool, "parameters": [{"name": str,
-    "unit": {"revolute": str, "prismatic": str}, "neutral": float | None, "estimated": bool}]}``.
+    "quantity": str, "unit": {"revolute": str, "prismatic": str}, "neutral": float | None, "estimated": bool}]}``.
     ``neutral`` is the value at which the effect is absent (``None`` where there is none);
     ``estimated`` is false for values searched on a grid and for counts (no interval).
     """

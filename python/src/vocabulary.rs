@@ -10,7 +10,8 @@ use simgap_sim::EffectKind;
 /// --
 ///
 /// Every effect of the vocabulary, in the documented order, as
-/// ``{"name": str, "whole_robot": bool, "parameters": [{"name": str, "unit": {"revolute": str,
+/// ``{"name": str, "whole_robot": bool, "parameters": [{"name": str, "quantity": str,
+/// "unit": {"revolute": str,
 /// "prismatic": str}, "neutral": float | None, "estimated": bool}]}``. ``neutral`` is the value
 /// at which the effect is absent (``None`` where there is none, e.g. a period count);
 /// ``estimated`` is false for values searched on a grid and for counts, which carry no interval.
@@ -25,6 +26,7 @@ pub(crate) fn effect_vocabulary(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
             unit.set_item("prismatic", spec.quantity.unit(JointKind::Prismatic))?;
             let p = PyDict::new(py);
             p.set_item("name", spec.name)?;
+            p.set_item("quantity", spec.quantity.name())?;
             p.set_item("unit", unit)?;
             p.set_item("neutral", spec.neutral)?;
             p.set_item("estimated", spec.estimated)?;

@@ -124,7 +124,7 @@ def test_units_follow_the_joint_type() -> None:
     rows = fleet.report_rows("r", "d", report, joint_types={"slide": "prismatic", "hinge": "revolute"})
     assert [(r["joint"], r["joint_type"], r["unit"]) for r in rows] == [("slide", "prismatic", "N·s/m"), ("hinge", "revolute", "N·m·s/rad")]
     assert fleet.unit("coulomb_friction", "fc", "prismatic") == "N" and fleet.unit("armature", "ia", "prismatic") == "kg"
-    assert fleet.unit("payload", "com[1]", "") == "m" and fleet.unit("torque_gain", "k") == "–"
+    assert fleet.unit("payload", "com[1]", "") == "m" and fleet.unit("torque_gain", "k") == "-"
     with pytest.raises(ValueError, match="joint type"):
         fleet.unit("viscous_friction", "b", "spherical")
 

@@ -293,7 +293,8 @@ impl Effect {
         // `mass`, `com`, `inertia`: the spellings of one link's change
         let known: Vec<&str> = match kind {
             EffectKind::InertialError => vec!["joint", "mass", "com", "inertia"],
-            k => k.parameters().iter().map(|p| p.name).collect(),
+            // the smoothing width is the simulation's (`SimParams::coulomb_width`), not an effect's
+            k => k.parameters().iter().filter(|p| p.quantity != crate::kind::Quantity::Width).map(|p| p.name).collect(),
         };
         if let Some((k, _)) = params.iter().find(|(k, _)| !known.contains(&k.as_str())) {
             return Err(invalid(name, format!("unknown parameter '{k}'; expected {}", if known.is_empty() { "none".into() } else { known.join(", ") })));

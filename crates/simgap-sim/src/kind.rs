@@ -66,6 +66,12 @@ pub enum Quantity {
     Time,
     /// A dimensionless ratio [-].
     Ratio,
+    /// The width of a smoothed sign, tanh(q̇ / w), in joint velocity units (rad/s, m/s): how
+    /// the effect is simulated, not a property of the robot.
+    Width,
+    /// A count (periods per revolution, identifiable directions): reported, never a physical
+    /// parameter to test [-].
+    Count,
 }
 
 impl Quantity {
@@ -79,8 +85,8 @@ impl Quantity {
             (Quantity::Damping, true) => "N·s/m",
             (Quantity::Stiffness, false) => "N·m/rad",
             (Quantity::Stiffness, true) => "N/m",
-            (Quantity::Velocity, false) => "rad/s",
-            (Quantity::Velocity, true) => "m/s",
+            (Quantity::Velocity | Quantity::Width, false) => "rad/s",
+            (Quantity::Velocity | Quantity::Width, true) => "m/s",
             (Quantity::Position, false) => "rad",
             (Quantity::Position, true) => "m",
             (Quantity::JointInertia, false) => "kg·m²",
@@ -89,7 +95,26 @@ impl Quantity {
             (Quantity::Length, _) => "m",
             (Quantity::LinkInertia, _) => "kg·m²",
             (Quantity::Time, _) => "s",
-            (Quantity::Ratio, _) => "-",
+            (Quantity::Ratio | Quantity::Count, _) => "-",
+        }
+    }
+
+    /// The quantity's name (`effort`, `damping`, …, `count`), as other languages read it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Quantity::Effort => "effort",
+            Quantity::Damping => "damping",
+            Quantity::Stiffness => "stiffness",
+            Quantity::Velocity => "velocity",
+            Quantity::Position => "position",
+            Quantity::JointInertia => "joint_inertia",
+            Quantity::Mass => "mass",
+            Quantity::Length => "length",
+            Quantity::LinkInertia => "link_inertia",
+            Quantity::Time => "time",
+            Quantity::Ratio => "ratio",
+            Quantity::Width => "width",
+            Quantity::Count => "count",
         }
     }
 }
@@ -113,23 +138,23 @@ const fn p(name: &'static str, quantity: Quantity, neutral: Option<f64>, estimat
     ParamSpec { name, quantity, neutral, estimated }
 }
 
-use Quantity::{Damping, Effort, JointInertia, Length, LinkInertia, Mass, Ratio, Time, Velocity};
+use Quantity::{Count, Damping, Effort, JointInertia, Length, LinkInertia, Mass, Ratio, Time, Velocity, Width};
 const VISCOUS: &[ParamSpec] = &[p("b", Damping, Some(0.0), true)];
-const COULOMB: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true)];
-const STRIBECK: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("fs", Effort, Some(0.0), true), p("vs", Velocity, None, false)];
+const COULOMB: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("w", Width, None, false)];
+const STRIBECK: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("fs", Effort, Some(0.0), true), p("vs", Velocity, None, false), p("w", Width, None, false)];
 const ARMATURE: &[ParamSpec] = &[p("ia", JointInertia, Some(0.0), true)];
 const PAYLOAD: &[ParamSpec] = &[p("mass", Mass, Some(0.0), true), p("com", Length, None, false)];
 const INERTIAL: &[ParamSpec] = &[
     p("delta_mass", Mass, Some(0.0), false),
     p("delta_com", Length, Some(0.0), false),
     p("delta_inertia", LinkInertia, Some(0.0), false),
-    p("identifiable_directions", Ratio, None, false),
+    p("identifiable_directions", Count, None, false),
 ];
 const GAIN: &[ParamSpec] = &[p("k", Ratio, Some(1.0), true)];
 const OFFSET: &[ParamSpec] = &[p("offset", Effort, Some(0.0), true)];
 const SATURATION: &[ParamSpec] = &[p("limit", Effort, Some(f64::INFINITY), false)];
 const DELAY: &[ParamSpec] = &[p("delay", Time, Some(0.0), false)];
-const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Ratio, None, false)];
+const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.

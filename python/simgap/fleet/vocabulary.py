@@ -1,9 +1,10 @@
 """The effects' parameters as the fleet tests read them: unit, neutral value, smallest change
 worth a finding, and whether a reported number is a parameter at all.
 
-This is the fleet's only table of the effects vocabulary (BRIEF §3.2); everything else in
-:mod:`simgap.fleet` asks these functions. It is meant to be sourced from the Rust effect
-vocabulary later, so the interface is four functions of ``(effect, param[, joint_type])``:
+The names, units by joint type and neutral values come from the one list of effects,
+:func:`simgap.effect_vocabulary` (Rust's ``EffectKind``); this module adds only the fleet's
+policy, the smallest change worth a finding per quantity. Everything else in
+:mod:`simgap.fleet` asks these four functions of ``(effect, param[, joint_type])``:
 
 - :func:`neutral` ``(effect, param) -> float | None``: the value of the parameter when the
   effect is absent (0 for a friction, 1 for a torque gain), None where an absent effect has no
@@ -24,63 +25,41 @@ new effect is tested (against 0) rather than dropped.
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Any, Literal
 
 __all__ = ["JOINT_TYPES", "is_parameter", "min_change", "neutral", "unit"]
 
 JointType = Literal["revolute", "prismatic", ""]
 JOINT_TYPES = ("revolute", "prismatic")
 
-# quantity -> (revolute unit, prismatic unit, smallest change worth a finding, in that unit)
-_QUANTITY: dict[str, tuple[str, str, float]] = {
-    "damping": ("N·m·s/rad", "N·s/m", 1e-3),
-    "torque": ("N·m", "N", 1e-2),
-    "velocity": ("rad/s", "m/s", 1e-3),
-    "rotor_inertia": ("kg·m²", "kg", 1e-5),
-    "stiffness": ("N·m/rad", "N/m", 1e-2),
-    "position": ("rad", "m", 1e-3),
-    "mass": ("kg", "kg", 5e-3),
-    "length": ("m", "m", 1e-3),
-    "link_inertia": ("kg·m²", "kg·m²", 1e-5),
-    "time": ("s", "s", 1e-4),
-    "ratio": ("–", "–", 5e-3),
+# the smallest change worth a finding, per quantity of the Rust vocabulary, in its SI unit
+# (fleet policy: the vocabulary itself has names, units and neutral values)
+_MIN_CHANGE: dict[str, float] = {
+    "damping": 1e-3,
+    "effort": 1e-2,
+    "velocity": 1e-3,
+    "joint_inertia": 1e-5,
+    "stiffness": 1e-2,
+    "position": 1e-3,
+    "mass": 5e-3,
+    "length": 1e-3,
+    "link_inertia": 1e-5,
+    "time": 1e-4,
+    "ratio": 5e-3,
 }
-_NOT_PARAMETER = {"count": "–", "setting_velocity": ""}
+# quantities that are reported but are no physical parameter to test
+_NOT_PARAMETER = {"count", "width"}
 
-# (effect, param) -> (quantity, neutral value or None)
-_PARAMS: dict[tuple[str, str], tuple[str, float | None]] = {
-    ("viscous_friction", "b"): ("damping", 0.0),
-    ("coulomb_friction", "fc"): ("torque", 0.0),
-    ("coulomb_friction", "w"): ("setting_velocity", None),
-    ("stribeck_friction", "fc"): ("torque", 0.0),
-    ("stribeck_friction", "fs"): ("torque", 0.0),
-    ("stribeck_friction", "vs"): ("velocity", None),
-    ("stribeck_friction", "w"): ("setting_velocity", None),
-    ("armature", "ia"): ("rotor_inertia", 0.0),
-    ("payload", "mass"): ("mass", 0.0),
-    ("payload", "com"): ("length", None),
-    ("inertial_error", "delta_mass"): ("mass", 0.0),
-    ("inertial_error", "delta_com"): ("length", 0.0),
-    ("inertial_error", "delta_inertia"): ("link_inertia", 0.0),
-    ("inertial_error", "identifiable_directions"): ("count", None),
-    ("torque_gain", "k"): ("ratio", 1.0),
-    ("torque_offset", "offset"): ("torque", 0.0),
-    ("torque_saturation", "limit"): ("torque", None),
-    ("time_delay", "delay"): ("time", 0.0),
-    ("cogging", "amplitude"): ("torque", 0.0),
-    ("cogging", "periods_per_rev"): ("count", None),
-    ("directional_friction", "fc_pos"): ("torque", 0.0),
-    ("directional_friction", "fc_neg"): ("torque", 0.0),
-    ("directional_friction", "b_pos"): ("damping", 0.0),
-    ("directional_friction", "b_neg"): ("damping", 0.0),
-    ("directional_friction", "w"): ("setting_velocity", None),
-    ("load_friction", "fc"): ("torque", 0.0),
-    ("load_friction", "mu"): ("ratio", 0.0),
-    ("load_friction", "w"): ("setting_velocity", None),
-    ("joint_spring", "k"): ("stiffness", 0.0),
-    ("joint_spring", "q0"): ("position", None),
-    ("back_emf", "kb"): ("damping", 0.0),
-}
+
+def _vocabulary() -> dict[tuple[str, str], dict[str, Any]]:
+    """(effect, param) -> the parameter's entry of :func:`simgap.effect_vocabulary`."""
+    from simgap import effect_vocabulary
+
+    return {(e["name"], p["name"]): p for e in effect_vocabulary() for p in e["parameters"]}
+
+
+_PARAMS = _vocabulary()
 
 
 def _base(param: str) -> str:
@@ -88,7 +67,13 @@ def _base(param: str) -> str:
 
 
 def _entry(effect: str, param: str) -> tuple[str, float | None] | None:
-    return _PARAMS.get((effect, _base(param)))
+    """(quantity, neutral value) of a parameter; a neutral value that is not finite (no
+    saturation: an infinite limit) is no value to judge against."""
+    p = _PARAMS.get((effect, _base(param)))
+    if p is None:
+        return None
+    n = p["neutral"]
+    return (str(p["quantity"]), float(n) if n is not None and math.isfinite(n) else None)
 
 
 def neutral(effect: str, param: str) -> float | None:
@@ -105,12 +90,8 @@ def unit(effect: str, param: str, joint_type: str = "revolute") -> str:
     e = _entry(effect, param)
     if e is None:
         return ""
-    if e[0] in _NOT_PARAMETER:
-        if e[0] == "setting_velocity":
-            return "m/s" if joint_type == "prismatic" else "rad/s"
-        return _NOT_PARAMETER[e[0]]
-    rev, pri, _ = _QUANTITY[e[0]]
-    return pri if joint_type == "prismatic" else rev
+    p = _PARAMS[(effect, _base(param))]
+    return str(p["unit"]["prismatic" if joint_type == "prismatic" else "revolute"])
 
 
 def min_change(effect: str, param: str, joint_type: str = "revolute") -> float:
@@ -120,7 +101,7 @@ def min_change(effect: str, param: str, joint_type: str = "revolute") -> float:
     e = _entry(effect, param)
     if e is None or e[0] in _NOT_PARAMETER:
         return 0.0
-    return _QUANTITY[e[0]][2]
+    return _MIN_CHANGE.get(e[0], 0.0)
 
 
 def is_parameter(effect: str, param: str) -> bool:
