@@ -2,9 +2,8 @@
 //!
 //! `diagnose` reads the logs given as paths and runs `simgap_diag::diagnose` on its own thread
 //! while this one, with the GIL released in between, checks for Ctrl-C every 50 ms (as
-//! `sim::simulate` does). The diagnosis has no stop flag of its own: on Ctrl-C the next progress
-//! report unwinds the worker (`resume_unwind`, caught on that thread, no panic message), and
-//! `KeyboardInterrupt` is raised once the worker has ended.
+//! `sim::simulate` does). On Ctrl-C the diagnosis's stop flag is set, it stops at its next step
+//! with `Error::Interrupted`, and `KeyboardInterrupt` is raised once the worker has ended.
 //!
 //! A `Report` holds the whole `Diagnosis` (for `to_html`) and its JSON text; every attribute is
 //! the JSON parsed by Python's `json` module, so `to_dict()` has exactly the keys of the CLI's
@@ -12,9 +11,9 @@
 
 use std::any::Any;
 use std::collections::BTreeMap;
-use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use pyo3::exceptions::{PyKeyError, PyTypeError};
@@ -63,33 +62,10 @@ impl Source {
             Source::Path(path) => Ok(simgap_log::read_log(path, &simgap_log::LogOptions::default()).map_err(simgap_sim::Error::from)?),
         }
     }
-
-    /// Whether two arguments are the same log (the same object, or the same file).
-    fn same_as(&self, other: &Source) -> bool {
-        match (self, other) {
-            (Source::Run(a), Source::Run(b)) => Arc::ptr_eq(a, b),
-            (Source::Path(a), Source::Path(b)) => same_file(a, b),
-            _ => false,
-        }
-    }
-
-    fn describe(&self) -> String {
-        match self {
-            Source::Run(run) => format!("run '{}'", run.source),
-            Source::Path(path) => path.display().to_string(),
-        }
-    }
 }
 
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
     obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "an unknown type".into())
-}
-
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => a == b,
-    }
 }
 
 /// The latest progress report of a diagnosis: stage, steps done, steps in all.
@@ -107,9 +83,6 @@ struct Job {
     latest: Latest,
 }
 
-/// The payload that unwinds a diagnosis stopped by Ctrl-C.
-struct Cancelled;
-
 /// How the worker ended.
 enum Outcome {
     Done(Box<simgap_diag::Result<Diagnosis>>),
@@ -118,13 +91,10 @@ enum Outcome {
 }
 
 impl Job {
-    /// Reads the logs and diagnoses; `stop` unwinds at the next progress report.
-    fn run(&self, stop: &AtomicBool) -> simgap_diag::Result<Diagnosis> {
-        for f in &self.fit {
-            if let Some(h) = self.holdout.iter().find(|h| f.same_as(h)) {
-                return Err(simgap_diag::Error::Input(format!("{}: given both as fit and as held-out log; held-out runs must never be used for fitting", h.describe())));
-            }
-        }
+    /// Reads the logs and diagnoses; the diagnosis stops at its next step once `stop` is set
+    /// (by Ctrl-C or an exception from the progress callback) with `Error::Interrupted`. Whether
+    /// a held-out log repeats a fit log is the library's one rule (same samples).
+    fn run(&self, stop: &Arc<AtomicBool>) -> simgap_diag::Result<Diagnosis> {
         let load = |s: &Source| -> simgap_diag::Result<Run> {
             let mut run = s.load()?;
             if run.experiment.is_none() {
@@ -138,19 +108,16 @@ impl Job {
             if let Ok(mut latest) = self.latest.lock() {
                 *latest = Some((p.stage.to_string(), p.done, p.total));
             }
-            if stop.load(Ordering::Relaxed) {
-                // unwinds to `run_caught` without invoking the panic hook
-                resume_unwind(Box::new(Cancelled));
-            }
         };
-        simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &DiagnoseOptions::default(), &mut progress)
+        let options = DiagnoseOptions { stop: Some(stop.clone()), ..DiagnoseOptions::default() };
+        simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &options, &mut progress)
     }
 
-    /// `run`, with unwinding caught: never a panic out of the worker thread.
-    fn run_caught(&self, stop: &AtomicBool) -> Outcome {
+    /// `run`, with a panic caught: never a panic out of the worker thread.
+    fn run_caught(&self, stop: &Arc<AtomicBool>) -> Outcome {
         match catch_unwind(AssertUnwindSafe(|| self.run(stop))) {
+            Ok(Err(simgap_diag::Error::Interrupted)) => Outcome::Cancelled,
             Ok(result) => Outcome::Done(Box::new(result)),
-            Err(payload) if payload.is::<Cancelled>() => Outcome::Cancelled,
             Err(payload) => Outcome::Panicked(panic_message(payload.as_ref())),
         }
     }

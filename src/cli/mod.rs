@@ -68,10 +68,10 @@ impl std::error::Error for Interrupted {}
 pub(crate) mod interrupt {
     use std::path::PathBuf;
     use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Mutex;
+    use std::sync::{Arc, LazyLock, Mutex};
 
-    /// Raised by Ctrl-C.
-    pub(crate) static STOP: AtomicBool = AtomicBool::new(false);
+    /// Raised by Ctrl-C (shared, so that a library call can watch it too).
+    pub(crate) static STOP: LazyLock<Arc<AtomicBool>> = LazyLock::new(|| Arc::new(AtomicBool::new(false)));
     /// Whether the running command stops by itself on [`STOP`].
     static COOPERATIVE: AtomicBool = AtomicBool::new(false);
     /// Temporary files being written, removed on exit.

@@ -289,7 +289,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let bar = super::progress_bar(samples, "{spinner} simulating  [{bar:30}] {pos}/{len} samples  {elapsed}");
     let mut memory = MemorySink::new();
     let start = std::time::Instant::now();
-    let end = simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut Counting { inner: &mut memory, bar: &bar }, Some(&super::interrupt::STOP));
+    let end = simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut Counting { inner: &mut memory, bar: &bar }, Some(super::interrupt::STOP.as_ref()));
     bar.finish_and_clear();
     let end = end?;
     let elapsed = start.elapsed();
