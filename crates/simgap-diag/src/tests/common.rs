@@ -21,3 +21,15 @@ pub(crate) fn replay(run: &mut Run, period: f64) {
         extra: Default::default(),
     });
 }
+
+/// Whether the data folder `dir` a test needs is there. Without it the test is skipped with a
+/// message, except in CI (the environment variable `CI` set), where a test that cannot see its
+/// data must fail rather than pass silently.
+pub(crate) fn have_data(test: &str, dir: &Path) -> bool {
+    if dir.is_dir() {
+        return true;
+    }
+    assert!(std::env::var_os("CI").is_none(), "{test}: the data it needs is not at {} (CI is set: a test without its data fails)", dir.display());
+    println!("SKIPPED {test}: the data is not at {}", dir.display());
+    false
+}

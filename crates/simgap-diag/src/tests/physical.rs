@@ -6,7 +6,7 @@
 //! The DFKI part needs `../shared/data` next to the repository; without it, it prints why and
 //! passes.
 
-use super::common::{replay, shared_data};
+use super::common::{have_data, replay, shared_data};
 use crate::check::bench::{demo_specs, generate};
 use crate::lsq::inertial::{link_is_physical, link_reach};
 use crate::lsq::{solve, solve_bounded, Problem};
@@ -248,8 +248,7 @@ fn head(mut run: Run, seconds: f64) -> Run {
 fn no_effect_is_physically_impossible_on_dfki_runs() {
     let root = shared_data();
     let dp = root.join("dfki-double-pendulum");
-    if !dp.is_dir() {
-        println!("SKIPPED no_effect_is_physically_impossible_on_dfki_runs: the DFKI data is not at {}", root.display());
+    if !have_data("no_effect_is_physically_impossible_on_dfki_runs", &dp) {
         return;
     }
     // double pendulum C.0, open-loop replays: the first 4 s of 00 and 03 fitted, of 04 held out

@@ -79,8 +79,7 @@ fn a_flipped_gravity_is_named() {
 #[test]
 fn dfki_double_pendulum_inertia_pitfall() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/dfki-double-pendulum");
-    if !root.is_dir() {
-        println!("SKIPPED dfki_double_pendulum_inertia_pitfall: the DFKI data is not at {}", root.display());
+    if !super::common::have_data("dfki_double_pendulum_inertia_pitfall", &root) {
         return;
     }
     // the published C.0 URDF places DFKI's inertias about the joint axes as COM inertias

@@ -4,7 +4,7 @@
 //! The DFKI part needs `../shared/data` next to the repository; without it, it prints why and
 //! passes.
 
-use super::common::{replay, shared_data};
+use super::common::{have_data, replay, shared_data};
 
 use crate::check::bench::{demo_specs, generate};
 use crate::lsq::Problem;
@@ -96,8 +96,7 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
 fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let root = shared_data();
     let dp = root.join("dfki-double-pendulum");
-    if !dp.is_dir() {
-        println!("SKIPPED dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run: the DFKI data is not at {}", root.display());
+    if !have_data("dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run", &dp) {
         return;
     }
     // C.0 open-loop runs 00, 01, 03, 04 fitted, run 02 held out (the fold where the torque-residual
