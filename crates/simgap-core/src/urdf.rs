@@ -4,7 +4,12 @@
 //! their parent link; the chain runs from the unique root link to a tip link (by default the
 //! end of the unique chain of movable joints); subtrees hanging off the chain (gripper fingers,
 //! sensors) are merged rigidly at their zero position into the chain link they hang from, with
-//! a warning when they contain movable joints. Mesh paths are never resolved.
+//! a warning when they contain movable joints. Mesh paths are never resolved. An element
+//! repeated where urdfdom reads one (a joint's `<origin>`, a link's `<inertial>`, ...) is read
+//! as urdfdom reads it, the first one, with a warning for each one left out
+//! ([`duplicates`]).
+
+mod duplicates;
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
@@ -97,10 +102,12 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
     build_model(src, &doc, &joints, &link_inertia, &chain, world_welds)
 }
 
-/// The parsed document: the robot as urdf-rs reads it, and which links have an `<inertial>`.
+/// The parsed document: the robot as urdf-rs reads it, which links have an `<inertial>`, and
+/// the warnings of the reading (repeated elements left out).
 struct Document {
     robot: urdf_rs::Robot,
     has_inertial: HashMap<String, bool>,
+    warnings: Vec<String>,
 }
 
 /// Line (1-based) of byte offset `pos` in `text`.
@@ -246,16 +253,28 @@ fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
     Ok(())
 }
 
-/// Phase 1: the document is checked (nesting, xacro, well-formedness, the `<robot>` root, names,
-/// references and numbers, each error naming its element) and parsed by urdf-rs.
+/// Phase 1: the document is checked (nesting, xacro, well-formedness, the `<robot>` root),
+/// the elements urdfdom would not read are left out with a warning each, the rest is checked
+/// (names, references and numbers, each error naming its element) and parsed by urdf-rs.
 fn parse(text: &str, src: &str) -> Result<Document> {
     prescan(text, src)?;
     // well-formedness first: roxmltree gives line numbers, and tells which links have <inertial>
-    let doc = roxmltree::Document::parse(text).map_err(|e| malformed(src, e.to_string()))?;
-    let root_el = doc.root_element();
+    let original = roxmltree::Document::parse(text).map_err(|e| malformed(src, e.to_string()))?;
+    let root_el = original.root_element();
     if root_el.tag_name().name() != "robot" {
         return Err(malformed(src, format!("root element is <{}>; expected <robot>", root_el.tag_name().name())));
     }
+    // repeated elements: the first is read, as urdfdom reads it; lines stay where they were
+    let (first_only, warnings) = duplicates::first_of_each(&original, text, src);
+    let reparsed;
+    let (text, doc) = match &first_only {
+        Some(t) => {
+            reparsed = roxmltree::Document::parse(t).map_err(|e| malformed(src, e.to_string()))?;
+            (t.as_str(), &reparsed)
+        }
+        None => (text, &original),
+    };
+    let root_el = doc.root_element();
     let mut has_inertial: HashMap<String, bool> = HashMap::new();
     let mut seen_joints = HashSet::new();
     for el in root_el.children().filter(|n| n.is_element()) {
@@ -286,9 +305,9 @@ fn parse(text: &str, src: &str) -> Result<Document> {
     if has_inertial.is_empty() {
         return Err(Error::NoLinks { source_name: src.into() });
     }
-    check_numbers(&doc, src)?;
+    check_numbers(doc, src)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| malformed(src, e.to_string()))?;
-    Ok(Document { robot, has_inertial })
+    Ok(Document { robot, has_inertial, warnings })
 }
 
 /// Phase 2a: every link's inertia about its frame origin, validated.
@@ -526,7 +545,8 @@ fn build_model(src: &str, doc: &Document, joints: &[RawJoint], link_inertia: &Ha
         }
         visit_link(&j.child, &placement, body, &mut out);
     }
-    let mut warnings = world_welds;
+    let mut warnings = doc.warnings.clone();
+    warnings.extend(world_welds);
     if !locked.is_empty() {
         warnings.push(format!("{src}: joints {locked:?} are off the chain to '{}' and are locked at their zero position", chain.tip));
     }
