@@ -8,6 +8,7 @@ pub mod effects;
 pub mod error;
 pub mod integrate;
 pub mod l2;
+pub mod paper;
 pub mod plant;
 pub mod reference;
 pub mod run;
