@@ -225,6 +225,20 @@ const NUMBER_ATTRIBUTES: [(&str, &str, u8); 16] = [
     ("dynamics", "friction", 1),
 ];
 
+/// An element named for a message: `<mass> of link 'forearm'`, `joint 'elbow'`.
+fn described(el: &roxmltree::Node<'_, '_>) -> String {
+    let tag = el.tag_name().name();
+    if let (t @ ("link" | "joint"), Some(n)) = (tag, el.attribute("name")) {
+        return format!("{t} '{n}'");
+    }
+    // name the element by the link or joint it belongs to
+    let owner = el.ancestors().skip(1).find_map(|a| match (a.tag_name().name(), a.attribute("name")) {
+        (t @ ("link" | "joint"), Some(n)) => Some(format!(" of {t} '{n}'")),
+        _ => None,
+    });
+    format!("<{tag}>{}", owner.unwrap_or_default())
+}
+
 /// Checks every number attribute of links and joints, so that a bad one is named with its
 /// element, attribute and line (urdf-rs says only "invalid float literal").
 fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
@@ -234,20 +248,67 @@ fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
             let Some(value) = el.attribute(attr) else { continue };
             let parts: Vec<&str> = value.split_whitespace().collect();
             if parts.len() != usize::from(count) || parts.iter().any(|p| p.parse::<f64>().is_err()) {
-                // name the element by its own name or by the link or joint it belongs to
-                let owner = el.ancestors().find_map(|a| match (a.tag_name().name(), a.attribute("name")) {
-                    (t @ ("link" | "joint"), Some(n)) => Some(format!(" of {t} '{n}'")),
-                    _ => None,
-                });
                 return Err(Error::BadNumber {
                     source_name: src.into(),
                     line: doc.text_pos_at(el.range().start).row,
-                    element: format!("<{tag}>{}", owner.unwrap_or_default()),
+                    element: described(&el),
                     attribute: attr,
                     value: value.into(),
                     count,
                 });
             }
+        }
+    }
+    Ok(())
+}
+
+/// What urdfdom requires of an element, and urdf-rs refuses without naming the element
+/// ("missing field `mass`").
+struct Required {
+    /// The element's tag.
+    element: &'static str,
+    /// The tag of the element it is required in (`robot` for the top level).
+    within: &'static str,
+    /// Children it must have.
+    children: &'static [&'static str],
+    /// Attributes it must have.
+    attributes: &'static [&'static str],
+    /// What is expected, for the message.
+    expected: &'static str,
+}
+
+/// Every [`Required`] checked.
+const REQUIRED: [Required; 5] = [
+    Required {
+        element: "inertial",
+        within: "link",
+        children: &["mass", "inertia"],
+        attributes: &[],
+        expected: "<mass value=\"...\"/> and <inertia ixx=... izz=.../> in every <inertial>",
+    },
+    Required { element: "mass", within: "inertial", children: &[], attributes: &["value"], expected: "<mass value=\"...\"/> (kg)" },
+    Required {
+        element: "inertia",
+        within: "inertial",
+        children: &[],
+        attributes: &["ixx", "ixy", "ixz", "iyy", "iyz", "izz"],
+        expected: "all of ixx, ixy, ixz, iyy, iyz and izz (kg·m²)",
+    },
+    Required { element: "joint", within: "robot", children: &[], attributes: &["type"], expected: "type=\"revolute\", \"continuous\", \"prismatic\" or \"fixed\"" },
+    Required { element: "limit", within: "joint", children: &[], attributes: &["velocity"], expected: "velocity=\"...\" in every <limit> of a joint" },
+];
+
+/// Checks the children and attributes of [`REQUIRED`], naming the element, its link or joint,
+/// its line and what was expected.
+fn check_required(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
+    for el in doc.descendants().filter(|n| n.is_element()) {
+        let parent = el.parent_element().map(|p| p.tag_name().name());
+        let Some(req) = REQUIRED.iter().find(|r| r.element == el.tag_name().name() && Some(r.within) == parent) else { continue };
+        let missing_child = req.children.iter().find(|c| !el.children().any(|n| n.has_tag_name(**c))).map(|c| format!("<{c}>"));
+        let missing = missing_child.or_else(|| req.attributes.iter().find(|a| el.attribute(**a).is_none()).map(|a| format!("{a} attribute")));
+        if let Some(missing) = missing {
+            let line = doc.text_pos_at(el.range().start).row;
+            return Err(malformed(src, format!("line {line}: {} has no {missing}; expected {}", described(&el), req.expected)));
         }
     }
     Ok(())
@@ -306,6 +367,7 @@ fn parse(text: &str, src: &str) -> Result<Document> {
         return Err(Error::NoLinks { source_name: src.into() });
     }
     check_numbers(doc, src)?;
+    check_required(doc, src)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| malformed(src, e.to_string()))?;
     Ok(Document { robot, has_inertial, warnings })
 }
