@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Import circles among the modules of one crate.
 
-Reads every `.rs` file under SRC (default crates/simgap-core/src), takes every `crate::a::b`
-path outside comments (`use` lines and paths written inline alike), maps it to the module file
-that defines it (the longest prefix of the path that is a module; an item re-exported at the
-crate root to the module it comes from), and prints the strongly connected components of more than one file
-of that graph, or `no import circle` and exits 0. lib.rs's own `mod`/`pub use` lines are left
-out: the root declares and re-exports every module by design.
+Reads every `.rs` file under SRC (default crates/simgap-core/src) and takes every `crate::a::b`
+path outside comments (`use` lines and paths written inline alike). Each path goes to the
+module file that defines it: the longest prefix of the path that is a module, an item
+re-exported at the crate root to the module it comes from. Prints the strongly connected
+components of more than one file of that graph (and exits 1), or `no import circle` (and
+exits 0). lib.rs's own `mod` and `pub use` lines are left out: the root declares and
+re-exports every module by design.
 
     python3 scripts/module_cycles.py [SRC]
 """
