@@ -24,9 +24,11 @@
 //!
 //! # Model and workspace
 //!
-//! A [`Model`] holds parameters and never changes during evaluation; a [`Workspace`] holds
-//! every temporary. Each algorithm takes `(model, ws, q, qd, ...)` and comes as an allocating
-//! function and an `_into` twin that writes into caller-owned buffers without allocating.
+//! A [`Model`] holds parameters only and never changes during evaluation; a [`Workspace`] holds
+//! every temporary and what the algorithms derive from a model's parameters (the closed form
+//! of a two-joint arm, generated on the first call that needs it), as Pinocchio's `Data`.
+//! Each algorithm takes `(model, ws, q, qd, ...)` and comes as an allocating function and an
+//! `_into` twin that writes into caller-owned buffers without allocating.
 //!
 //! ```
 //! use simgap_core::{Model, Workspace, Formulation, dynamics_terms, coriolis_matrix, mass_matrix_derivative};
