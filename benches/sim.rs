@@ -19,11 +19,11 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use simgap::core::robots::paper_arm;
 use simgap::core::{Formulation, Model};
 use simgap::log::McapSink;
 use simgap::sim::integrate::Rk4;
-use simgap::sim::{simulate, Effect, Experiment, MemorySink, Pd, Plant, RunEnd, Sample, SimParams, Sink, Step};
+use simgap::sim::paper;
+use simgap::sim::{simulate, Effect, Experiment, MemorySink, Plant, RunEnd, Sample, SimParams, Sink};
 
 /// A sink that drops every sample.
 struct NullSink;
@@ -43,7 +43,7 @@ impl Sink for NullSink {
 
 fn paper_experiment(c: &mut Criterion) {
     let model = Model::paper_arm();
-    let reference = Step { target: paper_arm::Q_DESIRED.to_vec() };
+    let reference = paper::reference();
     let params = SimParams::default();
     let mut group = c.benchmark_group("simulate");
     group.measurement_time(Duration::from_secs(5));
@@ -53,7 +53,7 @@ fn paper_experiment(c: &mut Criterion) {
             b.iter(|| {
                 // the plant is built inside: the diagnosis builds one per candidate
                 let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, effects).unwrap();
-                let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+                let mut pd = paper::controller();
                 simulate(&plant, &mut pd, &reference, &params, &mut NullSink, None).unwrap()
             })
         });
@@ -61,7 +61,7 @@ fn paper_experiment(c: &mut Criterion) {
     group.bench_function("paper_experiment_memory", |b| {
         b.iter(|| {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
-            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut pd = paper::controller();
             let mut sink = MemorySink::new();
             simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap();
             sink.into_run()
@@ -74,7 +74,7 @@ fn paper_experiment(c: &mut Criterion) {
     group.bench_function("paper_experiment_mcap", |b| {
         b.iter(|| {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
-            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut pd = paper::controller();
             let mut sink = McapSink::create(&path).unwrap();
             simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap()
         })
@@ -85,14 +85,14 @@ fn paper_experiment(c: &mut Criterion) {
     group.bench_function("paper_30s", |b| {
         b.iter(|| {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
-            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut pd = paper::controller();
             simulate(&plant, &mut pd, &reference, &long, &mut NullSink, None).unwrap()
         })
     });
     group.bench_function("paper_30s_mcap", |b| {
         b.iter(|| {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
-            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut pd = paper::controller();
             let mut sink = McapSink::create(&path).unwrap();
             simulate(&plant, &mut pd, &reference, &long, &mut sink, None).unwrap()
         })
@@ -104,8 +104,8 @@ fn paper_experiment(c: &mut Criterion) {
 /// The paper's experiment as `simgap paper` runs it, per formulation, 2 s.
 fn paper(c: &mut Criterion) {
     let model = Model::paper_arm();
-    let reference = Step { target: paper_arm::Q_DESIRED.to_vec() };
-    let params = SimParams { duration: 2.0, sample_period: paper_arm::SAMPLE_PERIOD, ..SimParams::default() };
+    let reference = paper::reference();
+    let params = SimParams { duration: 2.0, sample_period: paper::SAMPLE_PERIOD, ..SimParams::default() };
     let mut group = c.benchmark_group("paper");
     group.measurement_time(Duration::from_secs(3));
     let general = [Effect::Armature { ia: vec![1e-300; 2] }];
@@ -117,7 +117,7 @@ fn paper(c: &mut Criterion) {
         group.bench_function(id, |b| {
             b.iter(|| {
                 let plant = Plant::new(black_box(&model), formulation, effects).unwrap();
-                let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+                let mut pd = paper::controller();
                 let mut sink = MemorySink::new();
                 simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap();
                 sink.into_run()

@@ -192,3 +192,35 @@ fn summary_lists_selected_effects_by_rank_with_joints_in_model_order() {
     // units on every parameter of the summary
     assert!(section.contains("N·m·s/rad") && section.contains("N·m"), "{section}");
 }
+
+#[test]
+fn terms_prints_a_warning_per_repeated_urdf_element_and_reads_the_first() {
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/simgap-core/models");
+    let state = ["--q", "0.3,-0.7", "--qd", "1.2,0.4"];
+    let repeated = simgap(&[&["terms", "--urdf", s(&models.join("paper_arm_repeated_elements.urdf"))][..], &state].concat());
+    let paper = simgap(&[&["terms", "--urdf", s(&models.join("paper_arm.urdf"))][..], &state].concat());
+    assert!(repeated.status.success() && paper.status.success(), "{}{}", text(&repeated), text(&paper));
+    let stderr = String::from_utf8_lossy(&repeated.stderr);
+    assert!(
+        stderr.contains("warning: ") && stderr.contains("paper_arm_repeated_elements.urdf: line 52: joint 'upper_arm_end' has a second <origin> (the first is at line 51)"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.lines().filter(|l| l.starts_with("warning: ")).count(), 14, "{stderr}");
+    // the terms are the paper arm's, to rounding
+    let (a, b): (Value, Value) = (serde_json::from_slice(&repeated.stdout).unwrap(), serde_json::from_slice(&paper.stdout).unwrap());
+    for key in ["H", "C", "Hdot", "g"] {
+        let flat = |v: &Value| -> Vec<f64> {
+            let mut out = Vec::new();
+            let mut stack = vec![v[key].clone()];
+            while let Some(x) = stack.pop() {
+                match x {
+                    Value::Array(xs) => stack.extend(xs),
+                    x => out.push(x.as_f64().unwrap()),
+                }
+            }
+            out
+        };
+        let (x, y) = (flat(&a), flat(&b));
+        assert!(x.len() == y.len() && x.iter().zip(&y).all(|(p, q)| (p - q).abs() < 1e-12), "{key}: {x:?} vs {y:?}");
+    }
+}

@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context};
 use plotters::prelude::*;
-use simgap::core::robots::paper_arm;
 use simgap::core::{Formulation, Model};
 use simgap::log::McapSink;
-use simgap::sim::{l2_between, l2_tracking, simulate, MemorySink, Pd, Plant, Run, RunEnd, SimParams, Step};
+use simgap::sim::paper;
+use simgap::sim::{l2_between, l2_tracking, simulate, MemorySink, Plant, Run, RunEnd, SimParams};
 
 use super::diagnose::write_atomically;
 use super::simulate::Tee;
@@ -33,9 +33,9 @@ const ZOOM: (f64, f64) = (1.070, 1.115);
 
 fn simulate_paper(model: &Model, formulation: Formulation, duration: f64, out: Option<&Path>) -> anyhow::Result<Run> {
     let plant = Plant::new(model, formulation, &[])?;
-    let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
-    let reference = Step { target: paper_arm::Q_DESIRED.to_vec() };
-    let params = SimParams { duration, sample_period: paper_arm::SAMPLE_PERIOD, ..SimParams::default() };
+    let mut pd = paper::controller();
+    let reference = paper::reference();
+    let params = SimParams { duration, sample_period: paper::SAMPLE_PERIOD, ..SimParams::default() };
     let mut memory = MemorySink::new();
     let end = match out {
         Some(path) => {
@@ -113,7 +113,7 @@ fn plot(el: &Run, simple: &Run, path: &Path) -> anyhow::Result<()> {
         let (pa, pb) = (pts(&a), pts(&b));
         let (mut lo, mut hi) = pa.iter().chain(&pb).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, q)| (lo.min(*q), hi.max(*q)));
         if full {
-            hi = hi.max(paper_arm::Q_DESIRED[0]);
+            hi = hi.max(paper::Q_DESIRED[0]);
         }
         let pad = ((hi - lo) * 0.08).max(1e-7);
         lo -= pad;
@@ -158,7 +158,7 @@ fn plot(el: &Run, simple: &Run, path: &Path) -> anyhow::Result<()> {
             .legend(|(x, y)| plotters::element::DashedPathElement::new(vec![(x, y), (x + 20, y)], 6, 4, RED.stroke_width(2)));
         if full {
             chart
-                .draw_series(LineSeries::new(vec![(t0, paper_arm::Q_DESIRED[0]), (t1, paper_arm::Q_DESIRED[0])], BLACK.mix(0.5)))
+                .draw_series(LineSeries::new(vec![(t0, paper::Q_DESIRED[0]), (t1, paper::Q_DESIRED[0])], BLACK.mix(0.5)))
                 .map_err(|x| e(&x))?
                 .label("target q_d = π/4")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));

@@ -232,21 +232,21 @@ impl Sink for Counting<'_> {
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
-    use simgap::core::robots::paper_arm;
+    use simgap::sim::paper;
     check_args(&args)?;
     let model = args.model.load()?;
     let n = model.dof();
-    let paper = is_paper_arm(&model);
+    let on_paper_arm = is_paper_arm(&model);
     // gains and reference (the paper's experiment by default on the paper arm)
     let gains = |what: &str, given: &Option<String>, default: &[f64]| -> anyhow::Result<Vec<f64>> {
         match given {
             Some(s) => parse_list(what, s, n),
-            None if paper => Ok(default.to_vec()),
+            None if on_paper_arm => Ok(default.to_vec()),
             None => bail!("--{what} is required for a model other than the paper arm"),
         }
     };
-    let kp = gains("kp", &args.kp, &paper_arm::KP)?;
-    let kv = gains("kv", &args.kv, &paper_arm::KV)?;
+    let kp = gains("kp", &args.kp, &paper::KP)?;
+    let kv = gains("kv", &args.kv, &paper::KV)?;
     let mut controller: Box<dyn Controller> = match args.controller.as_str() {
         "pd" => Box::new(Pd { kp, kv }),
         "pd_gravity" => Box::new(PdGravity::new(kp, kv, model.clone())),
@@ -255,7 +255,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     let reference: Box<dyn Reference> = if args.fourier.is_empty() {
         let target = match &args.target {
             Some(s) => parse_list("target", s, n)?,
-            None if paper => paper_arm::Q_DESIRED.to_vec(),
+            None if on_paper_arm => paper::Q_DESIRED.to_vec(),
             None => bail!("--target or --fourier is required for a model other than the paper arm"),
         };
         Box::new(Step { target })

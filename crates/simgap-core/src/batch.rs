@@ -28,8 +28,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::DMatrix;
 
-use crate::algorithms::coriolis::Formulation;
 use crate::algorithms::soa::{self, InertiaLevel, SoaWs, Wanted};
+use crate::formulation::Formulation;
 use crate::lanes::Lanes;
 use crate::model::Model;
 use crate::workspace::Workspace;

@@ -6,9 +6,6 @@
 //! instruction each. No operation is fused (no FMA), so every lane computes exactly what the
 //! same code computes on one `f64`.
 
-// The sin/cos constants are fdlibm's, digit for digit (as in `sincos.rs`).
-#![allow(clippy::excessive_precision)]
-
 use std::ops::{Add, AddAssign, Mul, Neg, Sub};
 
 use nalgebra::{Matrix3, Vector3};
@@ -31,86 +28,13 @@ impl<const W: usize> Lanes<W> {
         Lanes([0.0; W])
     }
 
-    /// `(sin x, cos x)` lane by lane, the same numbers as [`crate::spatial::sin_cos`]: its
-    /// reduction and kernels, vectorised; lanes needing more than one reduction round (or
-    /// beyond its range) are redone by the scalar function.
+    /// `(sin x, cos x)` lane by lane, the same numbers as [`crate::sincos::sin_cos`] bit for
+    /// bit (see `sincos::sin_cos_lanes`).
     #[inline(always)]
     pub(crate) fn sin_cos(self) -> (Self, Self) {
-        const TOINT: f64 = 1.5 / f64::EPSILON;
-        const INVPIO2: f64 = std::f64::consts::FRAC_2_PI;
-        const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
-        const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
-        let x = self.0;
-        let mut y0 = [0.0; W];
-        let mut y1 = [0.0; W];
-        let mut quadrant = [0u64; W];
-        let mut slow = false;
-        // one Cody–Waite round in every lane (none where |x| <= π/4)
-        for k in 0..W {
-            let ix = (x[k].to_bits() >> 32) & 0x7fff_ffff;
-            let small = ix <= 0x3fe9_21fb;
-            let t = x[k] * INVPIO2 + TOINT;
-            let fk = if small { 0.0 } else { t - TOINT };
-            quadrant[k] = if small { 0 } else { t.to_bits() & 3 };
-            let r = x[k] - fk * PIO2_1;
-            let w = fk * PIO2_1T;
-            let y = r - w;
-            let ex = (ix >> 20) as i64;
-            let ey = ((y.to_bits() >> 52) & 0x7ff) as i64;
-            slow |= (ix >= 0x4139_21fb) | (!small & (ex - ey > 16));
-            y0[k] = if small { x[k] } else { y };
-            y1[k] = if small { 0.0 } else { (r - y) - w };
-        }
-        // polynomial kernels on [−π/4, π/4], then the quadrant
-        let mut s = [0.0; W];
-        let mut c = [0.0; W];
-        for k in 0..W {
-            let (sk, ck) = (sin_kernel(y0[k], y1[k]), cos_kernel(y0[k], y1[k]));
-            let swap = quadrant[k] & 1 == 1;
-            let (sk, ck) = if swap { (ck, sk) } else { (sk, ck) };
-            s[k] = if quadrant[k] & 2 == 2 { -sk } else { sk };
-            c[k] = if (quadrant[k] == 1) | (quadrant[k] == 2) { -ck } else { ck };
-        }
-        if slow {
-            for k in 0..W {
-                (s[k], c[k]) = crate::spatial::sin_cos(x[k]);
-            }
-        }
+        let (s, c) = crate::sincos::sin_cos_lanes(self.0);
         (Lanes(s), Lanes(c))
     }
-}
-
-/// sin(x + y) for |x + y| <= π/4 (musl `__sin`, as in [`crate::spatial::sin_cos`]).
-#[inline(always)]
-fn sin_kernel(x: f64, y: f64) -> f64 {
-    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
-    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
-    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
-    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
-    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
-    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
-    let z = x * x;
-    let w = z * z;
-    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
-    let v = z * x;
-    x - ((z * (0.5 * y - v * r) - y) - v * S1)
-}
-
-/// cos(x + y) for |x + y| <= π/4 (musl `__cos`).
-#[inline(always)]
-fn cos_kernel(x: f64, y: f64) -> f64 {
-    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
-    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
-    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
-    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
-    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
-    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
-    let z = x * x;
-    let w = z * z;
-    let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
-    let hz = 0.5 * z;
-    let w = 1.0 - hz;
-    w + (((1.0 - w) - hz) + (z * r - x * y))
 }
 
 macro_rules! lane_op {
@@ -482,28 +406,5 @@ impl<const W: usize> Add for Rate<W> {
     #[inline(always)]
     fn add(self, o: Self) -> Self {
         Rate { h: self.h + o.h, i: self.i + o.i }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn lane_sin_cos_equals_the_scalar_sin_cos_bit_for_bit() {
-        let mut x: f64 = -2.0e3;
-        let mut checked = 0;
-        while x < 2.0e3 {
-            let xs = [x, x * 1e-3, x * 1e-7, 2.0e6 * x, std::f64::consts::FRAC_PI_2 * (x / 7.0).round(), std::f64::consts::FRAC_PI_4 * (1.0 + 1e-12 * x), -x, f64::NAN];
-            let (s, c) = Lanes::<8>(xs).sin_cos();
-            for k in 0..8 {
-                let (s0, c0) = crate::spatial::sin_cos(xs[k]);
-                assert!(s.0[k].to_bits() == s0.to_bits() || (s0.is_nan() && s.0[k].is_nan()), "sin({}) = {} vs {}", xs[k], s.0[k], s0);
-                assert!(c.0[k].to_bits() == c0.to_bits() || (c0.is_nan() && c.0[k].is_nan()), "cos({}) = {} vs {}", xs[k], c.0[k], c0);
-                checked += 1;
-            }
-            x += 0.012_345_678_9;
-        }
-        assert!(checked > 1_000_000);
     }
 }

@@ -24,9 +24,11 @@
 //!
 //! # Model and workspace
 //!
-//! A [`Model`] holds parameters and never changes during evaluation; a [`Workspace`] holds
-//! every temporary. Each algorithm takes `(model, ws, q, qd, ...)` and comes as an allocating
-//! function and an `_into` twin that writes into caller-owned buffers without allocating.
+//! A [`Model`] holds parameters only and never changes during evaluation; a [`Workspace`] holds
+//! every temporary and what the algorithms derive from a model's parameters (the closed form
+//! of a two-joint arm, generated on the first call that needs it), as Pinocchio's `Data`.
+//! Each algorithm takes `(model, ws, q, qd, ...)` and comes as an allocating function and an
+//! `_into` twin that writes into caller-owned buffers without allocating.
 //!
 //! ```
 //! use simgap_core::{Model, Workspace, Formulation, dynamics_terms, coriolis_matrix, mass_matrix_derivative};
@@ -58,6 +60,7 @@
 pub mod algorithms;
 pub mod batch;
 pub mod error;
+pub mod formulation;
 pub(crate) mod lanes;
 pub mod model;
 pub mod robots;
@@ -67,7 +70,7 @@ pub mod urdf;
 pub mod workspace;
 
 pub use algorithms::aba::forward_dynamics_aba_into;
-pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matrix_derivative, mass_matrix_derivative_into, Formulation};
+pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matrix_derivative, mass_matrix_derivative_into};
 pub use algorithms::crba::{mass_matrix, mass_matrix_into};
 pub use algorithms::energy::{kinetic_energy, potential_energy};
 pub use algorithms::forward_dynamics::{forward_dynamics, forward_dynamics_crba_into, forward_dynamics_into, solve_spd_in_place, try_solve_spd_in_place, ABA_MIN_DOF};
@@ -82,6 +85,7 @@ pub use batch::{
     mass_matrix_derivative_batch,
 };
 pub use error::{Error, Result};
+pub use formulation::Formulation;
 pub use model::{Joint, JointKind, JointLimits, Model, STANDARD_GRAVITY};
 pub use robots::{ARM7_URDF, PAPER_ARM_URDF, PENDULUM_URDF};
 pub use spatial::{Force, Motion, SpatialInertia, Transform};

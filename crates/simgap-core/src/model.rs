@@ -1,8 +1,9 @@
 //! The immutable [`Model`]: joint placements, axes, link inertias and gravity of a serial chain.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use nalgebra::{Matrix3, Vector3};
 
-use crate::algorithms::two_joint::TwoJoint;
 use crate::error::{Error, Result};
 use crate::spatial::{SpatialInertia, Transform};
 
@@ -92,8 +93,10 @@ pub(crate) struct JointCache {
 /// A serial chain: the immutable parameters of every dynamics algorithm.
 ///
 /// Built once (from URDF with [`Model::from_urdf_file`], or in code with [`Model::new`]) and
-/// shared freely; all scratch space lives in a [`Workspace`](crate::Workspace).
-#[derive(Clone, Debug, PartialEq)]
+/// shared freely. It holds parameters only: all scratch space, and everything derived from the
+/// parameters by running an algorithm (the closed form of a two-joint arm), lives in a
+/// [`Workspace`](crate::Workspace), as Pinocchio splits `Model` and `Data`.
+#[derive(Clone, Debug)]
 pub struct Model {
     name: String,
     base_link: String,
@@ -101,8 +104,24 @@ pub struct Model {
     gravity: Vector3<f64>,
     cache: Vec<JointCache>,
     warnings: Vec<String>,
-    /// Closed form of a two-joint rotational arm, generated from the parameters.
-    two_joint: Option<Box<TwoJoint>>,
+    /// See [`Model::revision`].
+    revision: u64,
+}
+
+/// Equal parameters, names and warnings; the revision is not compared (two models built alike
+/// are equal).
+impl PartialEq for Model {
+    fn eq(&self, other: &Self) -> bool {
+        let Model { name, base_link, joints, gravity, cache, warnings, revision: _ } = self;
+        *name == other.name && *base_link == other.base_link && *joints == other.joints && *gravity == other.gravity && *cache == other.cache && *warnings == other.warnings
+    }
+}
+
+/// The next [`Model::revision`].
+static NEXT_REVISION: AtomicU64 = AtomicU64::new(1);
+
+fn next_revision() -> u64 {
+    NEXT_REVISION.fetch_add(1, Ordering::Relaxed)
 }
 
 /// Standard gravity along −z [m/s²].
@@ -136,9 +155,7 @@ impl Model {
             return Err(Error::Massless { source_name: "<code>".into(), links: joints.iter().map(|j| j.link.clone()).collect() });
         }
         let cache = joints.iter().map(JointCache::new).collect();
-        let mut model = Model { name: name.into(), base_link: base_link.into(), joints, gravity: STANDARD_GRAVITY, cache, warnings: Vec::new(), two_joint: None };
-        model.refresh_closed_forms();
-        Ok(model)
+        Ok(Model { name: name.into(), base_link: base_link.into(), joints, gravity: STANDARD_GRAVITY, cache, warnings: Vec::new(), revision: next_revision() })
     }
 
     /// Robot name.
@@ -180,7 +197,7 @@ impl Model {
     /// Sets gravity [m/s²] (default −9.81 along z).
     pub fn set_gravity(&mut self, gravity: Vector3<f64>) {
         self.gravity = gravity;
-        self.refresh_closed_forms();
+        self.revision = next_revision();
     }
 
     /// Replaces the inertia of the link moved by joint `index`.
@@ -193,7 +210,7 @@ impl Model {
     pub fn set_link_inertia(&mut self, index: usize, inertia: SpatialInertia) -> Result<()> {
         check_inertia("<code>", &self.joints[index].link, &inertia).map_err(|e| Error::InvalidModel(e.to_string()))?;
         self.joints[index].inertia = inertia;
-        self.refresh_closed_forms();
+        self.revision = next_revision();
         Ok(())
     }
 
@@ -219,16 +236,13 @@ impl Model {
         self.warnings.push(w);
     }
 
-    /// Regenerates the closed forms after a parameter changed.
-    fn refresh_closed_forms(&mut self) {
-        self.two_joint = None;
-        self.two_joint = TwoJoint::of(self).map(Box::new);
-    }
-
-    /// The closed form of a two-joint rotational arm, if this is one.
+    /// Identifies the parameters of this model within the process: a number drawn from a
+    /// process-wide counter when the model is built and again whenever a parameter the
+    /// dynamics depend on changes ([`Model::set_gravity`], [`Model::set_link_inertia`]); a
+    /// clone keeps it. A [`Workspace`](crate::Workspace) keys what it derives from a model by it.
     #[inline]
-    pub(crate) fn two_joint(&self) -> Option<&TwoJoint> {
-        self.two_joint.as_deref()
+    pub(crate) fn revision(&self) -> u64 {
+        self.revision
     }
 
     /// The precomputed pieces of joint `i`'s transform.

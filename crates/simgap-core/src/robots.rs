@@ -8,7 +8,8 @@ use crate::spatial::{SpatialInertia, Transform};
 /// The seed paper's arm as URDF text (`models/paper_arm.urdf`).
 pub const PAPER_ARM_URDF: &str = include_str!("../models/paper_arm.urdf");
 
-/// Table 2 of Sánchez-Sánchez & Arteaga-Pérez (2012).
+/// Table 2 of Sánchez-Sánchez & Arteaga-Pérez (2012): the arm and its drives. The experiment
+/// the paper runs on it (gains, set point, sample period) is `simgap_sim::paper`.
 pub mod paper_arm {
     /// Link lengths [m].
     pub const L1: f64 = 0.45;
@@ -32,14 +33,6 @@ pub mod paper_arm {
     pub const TORQUE_LIMITS: [f64; 2] = [200.0, 15.0];
     /// Encoder counts per revolution.
     pub const COUNTS_PER_REV: f64 = 1_024_000.0;
-    /// PD gains of the experiment (§5, Table 3).
-    pub const KP: [f64; 2] = [64.72, 32.36];
-    /// PD gains of the experiment (§5, Table 3).
-    pub const KV: [f64; 2] = [48.54, 6.472];
-    /// Desired position of the experiment [rad].
-    pub const Q_DESIRED: [f64; 2] = [std::f64::consts::FRAC_PI_4, std::f64::consts::FRAC_PI_2];
-    /// Controller sample period [s].
-    pub const SAMPLE_PERIOD: f64 = 0.0025;
 }
 
 impl Model {

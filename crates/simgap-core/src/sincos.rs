@@ -1,10 +1,25 @@
 //! `sin` and `cos` of one angle at once, inlined: the kernel of every revolute joint's
-//! transform.
+//! transform, for one angle ([`sin_cos`]) and for the `W` lanes of the batch functions
+//! (`sin_cos_lanes`, the same numbers bit for bit).
 //!
 //! A port of musl's (FreeBSD's) `sin`/`cos`: argument reduction by π/2 in three parts
 //! (Cody–Waite) and the minimax polynomials `__sin`/`__cos` on [−π/4, π/4]. The constants are
-//! musl's, digit for digit.
+//! musl's, digit for digit; this is the only copy of them.
 #![allow(clippy::excessive_precision)]
+
+/// `1.5 / ε`: adding and subtracting it rounds to an integer.
+const TOINT: f64 = 1.5 / f64::EPSILON;
+/// 2/π.
+const INVPIO2: f64 = std::f64::consts::FRAC_2_PI;
+/// The first 33 bits of π/2, and π/2 − `PIO2_1`.
+const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
+const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
+/// The second 33 bits of π/2, and π/2 − (`PIO2_1` + `PIO2_2`).
+const PIO2_2: f64 = 6.077_100_506_303_965_976_60e-11;
+const PIO2_2T: f64 = 2.022_266_248_795_950_631_54e-21;
+/// The third 33 bits of π/2, and π/2 − (`PIO2_1` + `PIO2_2` + `PIO2_3`).
+const PIO2_3: f64 = 2.022_266_248_711_166_455_80e-21;
+const PIO2_3T: f64 = 8.478_427_660_368_899_569_97e-32;
 
 /// `(sin x, cos x)`, within 1 ulp of the correctly rounded values, inlined.
 ///
@@ -14,14 +29,6 @@
 /// minimax polynomials on [−π/4, π/4]; larger or non-finite arguments go to libm.
 #[inline]
 pub fn sin_cos(x: f64) -> (f64, f64) {
-    const TOINT: f64 = 1.5 / f64::EPSILON;
-    const INVPIO2: f64 = std::f64::consts::FRAC_2_PI;
-    const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
-    const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
-    const PIO2_2: f64 = 6.077_100_506_303_965_976_60e-11;
-    const PIO2_2T: f64 = 2.022_266_248_795_950_631_54e-21;
-    const PIO2_3: f64 = 2.022_266_248_711_166_455_80e-21;
-    const PIO2_3T: f64 = 8.478_427_660_368_899_569_97e-32;
     let ix = (x.to_bits() >> 32) as u32 & 0x7fff_ffff;
     if ix <= 0x3fe9_21fb {
         // |x| <= π/4: no reduction
@@ -64,6 +71,50 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
         2 => (-s, -c),
         _ => (-c, s),
     }
+}
+
+/// `(sin x, cos x)` of `W` angles, lane by lane: the same numbers as [`sin_cos`] bit for bit,
+/// its reduction and kernels written as loops over the lanes (one vector instruction each
+/// inside a `#[target_feature]` function); lanes that need more than one reduction round (or
+/// are beyond its range) are redone by [`sin_cos`].
+#[inline(always)]
+pub(crate) fn sin_cos_lanes<const W: usize>(x: [f64; W]) -> ([f64; W], [f64; W]) {
+    let mut y0 = [0.0; W];
+    let mut y1 = [0.0; W];
+    let mut quadrant = [0u64; W];
+    let mut slow = false;
+    // one Cody–Waite round in every lane (none where |x| <= π/4)
+    for k in 0..W {
+        let ix = (x[k].to_bits() >> 32) & 0x7fff_ffff;
+        let small = ix <= 0x3fe9_21fb;
+        let t = x[k] * INVPIO2 + TOINT;
+        let fk = if small { 0.0 } else { t - TOINT };
+        quadrant[k] = if small { 0 } else { t.to_bits() & 3 };
+        let r = x[k] - fk * PIO2_1;
+        let w = fk * PIO2_1T;
+        let y = r - w;
+        let ex = (ix >> 20) as i64;
+        let ey = ((y.to_bits() >> 52) & 0x7ff) as i64;
+        slow |= (ix >= 0x4139_21fb) | (!small & (ex - ey > 16));
+        y0[k] = if small { x[k] } else { y };
+        y1[k] = if small { 0.0 } else { (r - y) - w };
+    }
+    // polynomial kernels on [−π/4, π/4], then the quadrant
+    let mut s = [0.0; W];
+    let mut c = [0.0; W];
+    for k in 0..W {
+        let (sk, ck) = (sin_kernel(y0[k], y1[k]), cos_kernel(y0[k], y1[k]));
+        let swap = quadrant[k] & 1 == 1;
+        let (sk, ck) = if swap { (ck, sk) } else { (sk, ck) };
+        s[k] = if quadrant[k] & 2 == 2 { -sk } else { sk };
+        c[k] = if (quadrant[k] == 1) | (quadrant[k] == 2) { -ck } else { ck };
+    }
+    if slow {
+        for k in 0..W {
+            (s[k], c[k]) = sin_cos(x[k]);
+        }
+    }
+    (s, c)
 }
 
 /// sin(x + y) for |x + y| <= π/4, y the tail of x (musl `__sin`).
@@ -118,5 +169,23 @@ mod tests {
             let ((s, c), (s0, c0)) = (sin_cos(v), v.sin_cos());
             assert!(close(s, s0) && close(c, c0), "sin_cos({v}) = ({s}, {c}), libm ({s0}, {c0})");
         }
+    }
+
+    #[test]
+    fn lane_sin_cos_equals_the_scalar_sin_cos_bit_for_bit() {
+        let mut x: f64 = -2.0e3;
+        let mut checked = 0;
+        while x < 2.0e3 {
+            let xs = [x, x * 1e-3, x * 1e-7, 2.0e6 * x, std::f64::consts::FRAC_PI_2 * (x / 7.0).round(), std::f64::consts::FRAC_PI_4 * (1.0 + 1e-12 * x), -x, f64::NAN];
+            let (s, c) = sin_cos_lanes(xs);
+            for k in 0..8 {
+                let (s0, c0) = sin_cos(xs[k]);
+                assert!(s[k].to_bits() == s0.to_bits() || (s0.is_nan() && s[k].is_nan()), "sin({}) = {} vs {}", xs[k], s[k], s0);
+                assert!(c[k].to_bits() == c0.to_bits() || (c0.is_nan() && c[k].is_nan()), "cos({}) = {} vs {}", xs[k], c[k], c0);
+                checked += 1;
+            }
+            x += 0.012_345_678_9;
+        }
+        assert!(checked > 1_000_000);
     }
 }

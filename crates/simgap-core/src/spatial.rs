@@ -209,7 +209,7 @@ impl SpatialInertia {
     }
 
     /// The same inertia expressed in the parent frame of `x`.
-    #[inline]
+    #[inline(always)]
     pub fn transformed(&self, x: &Transform) -> SpatialInertia {
         let r = &x.rotation;
         let t = &x.translation;
@@ -228,7 +228,7 @@ impl SpatialInertia {
 
     /// Time derivative of this inertia for a body moving with spatial velocity `v`
     /// (both in this fixed frame): `İ = v ×* I − I v×`.
-    #[inline]
+    #[inline(always)]
     pub fn rate(&self, v: &Motion) -> InertiaRate {
         let w = &v.angular;
         let v0 = &v.linear;

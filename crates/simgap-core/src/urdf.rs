@@ -4,7 +4,12 @@
 //! their parent link; the chain runs from the unique root link to a tip link (by default the
 //! end of the unique chain of movable joints); subtrees hanging off the chain (gripper fingers,
 //! sensors) are merged rigidly at their zero position into the chain link they hang from, with
-//! a warning when they contain movable joints. Mesh paths are never resolved.
+//! a warning when they contain movable joints. Mesh paths are never resolved. An element
+//! repeated where urdfdom reads one (a joint's `<origin>`, a link's `<inertial>`, ...) is read
+//! as urdfdom reads it, the first one, with a warning for each one left out
+//! ([`duplicates`]).
+
+mod duplicates;
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
@@ -97,10 +102,12 @@ fn from_urdf(text: &str, src: &str, options: &UrdfOptions) -> Result<Model> {
     build_model(src, &doc, &joints, &link_inertia, &chain, world_welds)
 }
 
-/// The parsed document: the robot as urdf-rs reads it, and which links have an `<inertial>`.
+/// The parsed document: the robot as urdf-rs reads it, which links have an `<inertial>`, and
+/// the warnings of the reading (repeated elements left out).
 struct Document {
     robot: urdf_rs::Robot,
     has_inertial: HashMap<String, bool>,
+    warnings: Vec<String>,
 }
 
 /// Line (1-based) of byte offset `pos` in `text`.
@@ -218,6 +225,20 @@ const NUMBER_ATTRIBUTES: [(&str, &str, u8); 16] = [
     ("dynamics", "friction", 1),
 ];
 
+/// An element named for a message: `<mass> of link 'forearm'`, `joint 'elbow'`.
+fn described(el: &roxmltree::Node<'_, '_>) -> String {
+    let tag = el.tag_name().name();
+    if let (t @ ("link" | "joint"), Some(n)) = (tag, el.attribute("name")) {
+        return format!("{t} '{n}'");
+    }
+    // name the element by the link or joint it belongs to
+    let owner = el.ancestors().skip(1).find_map(|a| match (a.tag_name().name(), a.attribute("name")) {
+        (t @ ("link" | "joint"), Some(n)) => Some(format!(" of {t} '{n}'")),
+        _ => None,
+    });
+    format!("<{tag}>{}", owner.unwrap_or_default())
+}
+
 /// Checks every number attribute of links and joints, so that a bad one is named with its
 /// element, attribute and line (urdf-rs says only "invalid float literal").
 fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
@@ -227,15 +248,10 @@ fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
             let Some(value) = el.attribute(attr) else { continue };
             let parts: Vec<&str> = value.split_whitespace().collect();
             if parts.len() != usize::from(count) || parts.iter().any(|p| p.parse::<f64>().is_err()) {
-                // name the element by its own name or by the link or joint it belongs to
-                let owner = el.ancestors().find_map(|a| match (a.tag_name().name(), a.attribute("name")) {
-                    (t @ ("link" | "joint"), Some(n)) => Some(format!(" of {t} '{n}'")),
-                    _ => None,
-                });
                 return Err(Error::BadNumber {
                     source_name: src.into(),
                     line: doc.text_pos_at(el.range().start).row,
-                    element: format!("<{tag}>{}", owner.unwrap_or_default()),
+                    element: described(&el),
                     attribute: attr,
                     value: value.into(),
                     count,
@@ -246,16 +262,80 @@ fn check_numbers(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
     Ok(())
 }
 
-/// Phase 1: the document is checked (nesting, xacro, well-formedness, the `<robot>` root, names,
-/// references and numbers, each error naming its element) and parsed by urdf-rs.
+/// What urdfdom requires of an element, and urdf-rs refuses without naming the element
+/// ("missing field `mass`").
+struct Required {
+    /// The element's tag.
+    element: &'static str,
+    /// The tag of the element it is required in (`robot` for the top level).
+    within: &'static str,
+    /// Children it must have.
+    children: &'static [&'static str],
+    /// Attributes it must have.
+    attributes: &'static [&'static str],
+    /// What is expected, for the message.
+    expected: &'static str,
+}
+
+/// Every [`Required`] checked.
+const REQUIRED: [Required; 5] = [
+    Required {
+        element: "inertial",
+        within: "link",
+        children: &["mass", "inertia"],
+        attributes: &[],
+        expected: "<mass value=\"...\"/> and <inertia ixx=... izz=.../> in every <inertial>",
+    },
+    Required { element: "mass", within: "inertial", children: &[], attributes: &["value"], expected: "<mass value=\"...\"/> (kg)" },
+    Required {
+        element: "inertia",
+        within: "inertial",
+        children: &[],
+        attributes: &["ixx", "ixy", "ixz", "iyy", "iyz", "izz"],
+        expected: "all of ixx, ixy, ixz, iyy, iyz and izz (kg·m²)",
+    },
+    Required { element: "joint", within: "robot", children: &[], attributes: &["type"], expected: "type=\"revolute\", \"continuous\", \"prismatic\" or \"fixed\"" },
+    Required { element: "limit", within: "joint", children: &[], attributes: &["velocity"], expected: "velocity=\"...\" in every <limit> of a joint" },
+];
+
+/// Checks the children and attributes of [`REQUIRED`], naming the element, its link or joint,
+/// its line and what was expected.
+fn check_required(doc: &roxmltree::Document<'_>, src: &str) -> Result<()> {
+    for el in doc.descendants().filter(|n| n.is_element()) {
+        let parent = el.parent_element().map(|p| p.tag_name().name());
+        let Some(req) = REQUIRED.iter().find(|r| r.element == el.tag_name().name() && Some(r.within) == parent) else { continue };
+        let missing_child = req.children.iter().find(|c| !el.children().any(|n| n.has_tag_name(**c))).map(|c| format!("<{c}>"));
+        let missing = missing_child.or_else(|| req.attributes.iter().find(|a| el.attribute(**a).is_none()).map(|a| format!("{a} attribute")));
+        if let Some(missing) = missing {
+            let line = doc.text_pos_at(el.range().start).row;
+            return Err(malformed(src, format!("line {line}: {} has no {missing}; expected {}", described(&el), req.expected)));
+        }
+    }
+    Ok(())
+}
+
+/// Phase 1: the document is checked (nesting, xacro, well-formedness, the `<robot>` root),
+/// the elements urdfdom would not read are left out with a warning each, the rest is checked
+/// (names, references and numbers, each error naming its element) and parsed by urdf-rs.
 fn parse(text: &str, src: &str) -> Result<Document> {
     prescan(text, src)?;
     // well-formedness first: roxmltree gives line numbers, and tells which links have <inertial>
-    let doc = roxmltree::Document::parse(text).map_err(|e| malformed(src, e.to_string()))?;
-    let root_el = doc.root_element();
+    let original = roxmltree::Document::parse(text).map_err(|e| malformed(src, e.to_string()))?;
+    let root_el = original.root_element();
     if root_el.tag_name().name() != "robot" {
         return Err(malformed(src, format!("root element is <{}>; expected <robot>", root_el.tag_name().name())));
     }
+    // repeated elements: the first is read, as urdfdom reads it; lines stay where they were
+    let (first_only, warnings) = duplicates::first_of_each(&original, text, src);
+    let reparsed;
+    let (text, doc) = match &first_only {
+        Some(t) => {
+            reparsed = roxmltree::Document::parse(t).map_err(|e| malformed(src, e.to_string()))?;
+            (t.as_str(), &reparsed)
+        }
+        None => (text, &original),
+    };
+    let root_el = doc.root_element();
     let mut has_inertial: HashMap<String, bool> = HashMap::new();
     let mut seen_joints = HashSet::new();
     for el in root_el.children().filter(|n| n.is_element()) {
@@ -286,9 +366,10 @@ fn parse(text: &str, src: &str) -> Result<Document> {
     if has_inertial.is_empty() {
         return Err(Error::NoLinks { source_name: src.into() });
     }
-    check_numbers(&doc, src)?;
+    check_numbers(doc, src)?;
+    check_required(doc, src)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| malformed(src, e.to_string()))?;
-    Ok(Document { robot, has_inertial })
+    Ok(Document { robot, has_inertial, warnings })
 }
 
 /// Phase 2a: every link's inertia about its frame origin, validated.
@@ -526,7 +607,8 @@ fn build_model(src: &str, doc: &Document, joints: &[RawJoint], link_inertia: &Ha
         }
         visit_link(&j.child, &placement, body, &mut out);
     }
-    let mut warnings = world_welds;
+    let mut warnings = doc.warnings.clone();
+    warnings.extend(world_welds);
     if !locked.is_empty() {
         warnings.push(format!("{src}: joints {locked:?} are off the chain to '{}' and are locked at their zero position", chain.tip));
     }

@@ -1,7 +1,10 @@
-//! The [`Workspace`]: every per-link temporary of the algorithms, allocated once per model.
+//! The [`Workspace`]: every per-link temporary of the algorithms, allocated once per model, and
+//! what the algorithms derive from a model's parameters (the closed form of a two-joint arm).
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::algorithms::soa::SoaWs;
+use crate::algorithms::two_joint::TwoJoint;
 use crate::model::Model;
 use crate::spatial::{Force, InertiaRate, Motion, SpatialInertia, Transform};
 
@@ -11,7 +14,10 @@ use crate::spatial::{Force, InertiaRate, Motion, SpatialInertia, Transform};
 /// allocate. Its fields hold the results of the last pass (world-frame quantities about the
 /// world origin) and may be read after a call, as Pinocchio's `Data`.
 /// [`forward_dynamics`](crate::forward_dynamics) (articulated-body algorithm, two-joint closed
-/// form) and [`dynamics_terms`](crate::dynamics_terms) of a two-joint arm leave them untouched.
+/// form) and [`dynamics_terms`](crate::dynamics_terms) of a two-joint arm leave them untouched,
+/// except on their first call with a model, which generates the closed form by running the
+/// general algorithms (and allocates). A workspace may serve several models with the same
+/// number of joints: it regenerates the closed form when the model's parameters differ.
 #[derive(Clone, Debug)]
 pub struct Workspace {
     pub(crate) dof: usize,
@@ -38,7 +44,10 @@ pub struct Workspace {
     pub(crate) scratch_matrix: DMatrix<f64>,
     pub(crate) scratch_vector: DVector<f64>,
     /// One-lane scratch of the fast paths (small chains, articulated-body algorithm).
-    pub(crate) lanes: crate::algorithms::soa::SoaWs<1>,
+    pub(crate) lanes: SoaWs<1>,
+    /// The closed form of the model of this revision ([`Model::revision`]), `None` inside when
+    /// that model has none; filled by [`closed_forms`](crate::algorithms::closed_forms).
+    pub(crate) closed_form: Option<(u64, Option<TwoJoint>)>,
 }
 
 impl Workspace {
@@ -60,7 +69,8 @@ impl Workspace {
             forces: vec![Force::ZERO; n],
             scratch_matrix: DMatrix::zeros(n, n),
             scratch_vector: DVector::zeros(n),
-            lanes: crate::algorithms::soa::SoaWs::new(n),
+            lanes: SoaWs::new(n),
+            closed_form: None,
         }
     }
 

@@ -119,3 +119,33 @@ fn two_joint_closed_form_follows_gravity_and_inertia_changes() {
     assert_close("g", t.gravity_torques.as_slice(), gravity_torques(&model, &mut ws, &q).as_slice(), 1e-10);
     assert_close("H", &row_major(&t.mass_matrix), &row_major(&mass_matrix(&model, &mut ws, &q)), 1e-10);
 }
+
+#[test]
+fn one_workspace_serves_two_joint_arms_of_other_parameters() {
+    // the closed form lives in the workspace: meeting another arm (or the same arm changed),
+    // the workspace regenerates it instead of using the first arm's
+    let arms = two_joint_arms();
+    let mut shared = Workspace::new(&arms[0]);
+    let (q, qd, tau) = ([0.4, -1.1], [0.7, 2.0], [1.5, -0.3]);
+    for round in 0..2 {
+        for (k, model) in arms.iter().enumerate() {
+            let what = format!("arm {k}, round {round}");
+            let mut own = Workspace::new(model);
+            let t = dynamics_terms(model, &mut shared, &q, &qd, Formulation::EulerLagrange);
+            assert_close(&format!("{what} H"), &row_major(&t.mass_matrix), &row_major(&mass_matrix(model, &mut own, &q)), 1e-10);
+            assert_close(&format!("{what} g"), t.gravity_torques.as_slice(), gravity_torques(model, &mut own, &q).as_slice(), 1e-10);
+            let (mut fast, mut general) = ([0.0; 2], [0.0; 2]);
+            forward_dynamics_into(model, &mut shared, &q, &qd, &tau, Formulation::Simplified, &mut fast);
+            forward_dynamics_crba_into(model, &mut own, &q, &qd, &tau, Formulation::Simplified, &mut general);
+            assert_close(&format!("{what} qdd"), &fast, &general, 1e-10);
+        }
+    }
+    // a parameter changed after the workspace met the model
+    let mut model = Model::paper_arm();
+    let mut ws = Workspace::new(&model);
+    let before = dynamics_terms(&model, &mut ws, &q, &qd, Formulation::EulerLagrange);
+    model.set_gravity(Vector3::new(0.0, 0.0, -1.62));
+    let after = dynamics_terms(&model, &mut ws, &q, &qd, Formulation::EulerLagrange);
+    assert_close("g after set_gravity", after.gravity_torques.as_slice(), gravity_torques(&model, &mut Workspace::new(&model), &q).as_slice(), 1e-10);
+    assert!((after.gravity_torques[0] - before.gravity_torques[0]).abs() > 1.0, "g did not follow the new gravity");
+}

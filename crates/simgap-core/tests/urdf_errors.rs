@@ -300,3 +300,21 @@ fn number_that_is_not_a_number_names_element_attribute_and_owner() {
     let (_, msg) = load_text(&text);
     assert_mentions(&msg, &["<axis> of joint 'hinge'", "xyz=\"0 1\"", "expected 3 numbers"]);
 }
+
+#[test]
+fn missing_required_element_or_attribute_names_the_element_its_owner_its_line_and_what_was_expected() {
+    // what urdfdom refuses and urdf-rs reported only as "missing field `mass`"
+    let cases: [(&str, &str, &[&str]); 6] = [
+        ("<mass value=\"2.0\"/>", "", &["line 18", "<inertial> of link 'bob' has no <mass>", "expected <mass value="]),
+        ("<inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" izz=\"0.02\"/>", "", &["line 18", "<inertial> of link 'bob' has no <inertia>", "and <inertia ixx="]),
+        ("<mass value=\"2.0\"/>", "<mass/>", &["line 20", "<mass> of link 'bob' has no value attribute", "expected"]),
+        ("ixz=\"0\" ", "", &["line 21", "<inertia> of link 'bob' has no ixz attribute", "ixx, ixy, ixz, iyy, iyz and izz"]),
+        ("<joint name=\"hinge\" type=\"revolute\">", "<joint name=\"hinge\">", &["line 10", "joint 'hinge' has no type attribute", "revolute"]),
+        (" velocity=\"10\"", "", &["line 15", "<limit> of joint 'hinge' has no velocity attribute", "expected"]),
+    ];
+    for (from, to, parts) in cases {
+        let (err, msg) = load_text(&pendulum_with(from, to));
+        assert!(matches!(err, Error::MalformedUrdf { .. }), "{err:?}");
+        assert_mentions(&msg, parts);
+    }
+}

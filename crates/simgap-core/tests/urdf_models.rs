@@ -188,3 +188,94 @@ fn continuous_joint_is_periodic_and_unwrapped() {
     let (g, gq) = (gravity_torques(&model, &mut ws, &q), gravity_torques(&model, &mut ws, &q_turned));
     assert!((g - gq).norm() < 1e-12);
 }
+
+/// The ignored elements of `paper_arm_repeated_elements.urdf`: (line, where, tag, line of the
+/// element read instead).
+const REPEATED: [(u32, &str, &str, u32); 14] = [
+    (11, "material 'grey'", "color", 10),
+    (16, "joint 'shoulder'", "parent", 15),
+    (19, "joint 'shoulder'", "origin", 18),
+    (21, "joint 'shoulder'", "axis", 20),
+    (23, "joint 'shoulder'", "limit", 22),
+    (28, "<inertial> of link 'upper_arm'", "origin", 27),
+    (30, "<inertial> of link 'upper_arm'", "mass", 29),
+    (32, "<inertial> of link 'upper_arm'", "inertia", 31),
+    (34, "link 'upper_arm'", "inertial", 26),
+    (42, "<geometry> of <visual> of link 'upper_arm'", "box", 41),
+    (45, "<visual> of link 'upper_arm'", "material", 44),
+    (52, "joint 'upper_arm_end'", "origin", 51),
+    (67, "joint 'elbow'", "dynamics", 66),
+    (77, "<collision> of link 'forearm'", "origin", 76),
+];
+
+/// Largest difference of H, both C and g between two models at a few states.
+fn largest_difference(a: &Model, b: &Model) -> f64 {
+    let (mut wa, mut wb) = (Workspace::new(a), Workspace::new(b));
+    let mut worst: f64 = 0.0;
+    for (q, qd) in [([0.3, -0.7], [1.2, 0.4]), ([2.0, 1.1], [-0.5, 3.0]), ([-1.4, 0.2], [0.0, -2.2])] {
+        for f in Formulation::ALL {
+            let (ta, tb) = (dynamics_terms(a, &mut wa, &q, &qd, f), dynamics_terms(b, &mut wb, &q, &qd, f));
+            worst = worst
+                .max((&ta.mass_matrix - &tb.mass_matrix).amax())
+                .max((&ta.coriolis_matrix - &tb.coriolis_matrix).amax())
+                .max((&ta.gravity_torques - &tb.gravity_torques).amax());
+        }
+    }
+    worst
+}
+
+#[test]
+fn repeated_elements_are_read_first_wins_as_urdfdom_with_a_warning_naming_each() {
+    let model = Model::from_urdf_file(model_path("paper_arm_repeated_elements.urdf")).unwrap();
+    let paper = Model::from_urdf_file(model_path("paper_arm.urdf")).unwrap();
+    // read first-wins, the file is the paper's arm: chain, limits and every dynamics term
+    assert_eq!(model.joint_names(), paper.joint_names());
+    assert_eq!(model.joints()[0].axis, Vector3::y());
+    assert_eq!(model.joints()[0].limits, paper.joints()[0].limits, "the first <limit> (effort 200 N·m) is read");
+    let d = largest_difference(&model, &paper);
+    assert!(d < 1e-12, "H, C or g differ from paper_arm.urdf by {d:e}");
+    // one warning per ignored element, naming the file, the element, its link or joint and both lines
+    let w = model.warnings();
+    assert_eq!(w.len(), REPEATED.len(), "{w:#?}");
+    for (line, owner, tag, first) in REPEATED {
+        let needle = format!("line {line}: {owner} has a second <{tag}> (the first is at line {first}); the first is used");
+        assert!(w.iter().any(|x| x.contains(&needle) && x.contains("paper_arm_repeated_elements.urdf")), "no warning {needle:?} in {w:#?}");
+    }
+}
+
+#[test]
+fn repeated_elements_read_second_would_change_the_dynamics() {
+    // each first element deleted from the text: the second is then the only one, and read
+    let text = std::fs::read_to_string(model_path("paper_arm_repeated_elements.urdf")).unwrap();
+    let first_wins = Model::from_urdf_str(&text).unwrap();
+    let inertial = text.find("<inertial>").unwrap()..text.find("</inertial>").unwrap() + "</inertial>".len();
+    let variants = [
+        ("the fixed joint's <origin>", text.replacen(r#"<origin xyz="0 0 -0.45" rpy="0 0 0"/>"#, "", 1)),
+        ("the shoulder's <axis>", text.replacen(r#"<axis xyz="0 1 0"/>"#, "", 1)),
+        ("the upper arm's <mass>", text.replacen(r#"<mass value="23.902"/>"#, "", 1)),
+        ("the upper arm's <inertia>", text.replacen(r#"<inertia ixx="1.266" ixy="0" ixz="0" iyy="1.266" iyz="0" izz="0.05"/>"#, "", 1)),
+        ("the upper arm's first <inertial>", format!("{}{}", &text[..inertial.start], &text[inertial.end..])),
+    ];
+    for (what, edited) in variants {
+        assert_ne!(edited, text, "{what}: not found in the fixture");
+        let second_wins = Model::from_urdf_str(&edited).unwrap_or_else(|e| panic!("{what}: {e}"));
+        let d = largest_difference(&first_wins, &second_wins);
+        assert!(d > 1e-2, "reading the second instead of {what} changes H, C and g by only {d:e}");
+    }
+}
+
+#[test]
+fn repeated_elements_urdfdom_would_refuse_are_still_refused() {
+    // the first <parent> has no link: urdfdom reads that one and refuses the joint
+    let text = std::fs::read_to_string(model_path("paper_arm_repeated_elements.urdf")).unwrap();
+    let edited = text.replacen(r#"<parent link="base_link"/>"#, "<parent/>", 1);
+    let err = Model::from_urdf_str_with(&edited, "edited.urdf", &UrdfOptions::default()).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("edited.urdf") && msg.contains("joint 'shoulder'") && msg.contains("<parent link="), "{msg}");
+    // a malformed number in an ignored element is never read, in the element read it is refused
+    let ignored = text.replacen(r#"<mass value="1.0"/>"#, r#"<mass value="heavy"/>"#, 1);
+    assert!(Model::from_urdf_str(&ignored).is_ok());
+    let read = text.replacen(r#"<mass value="23.902"/>"#, r#"<mass value="heavy"/>"#, 1);
+    let msg = Model::from_urdf_str(&read).unwrap_err().to_string();
+    assert!(msg.contains("line 29") && msg.contains("<mass> of link 'upper_arm'") && msg.contains("expected a number"), "{msg}");
+}

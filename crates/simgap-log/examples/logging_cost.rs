@@ -6,10 +6,10 @@
 
 use std::time::{Duration, Instant};
 
-use simgap_core::robots::paper_arm;
 use simgap_core::{Formulation, Model};
 use simgap_log::{Compression, McapSink, SinkOptions};
-use simgap_sim::{simulate, Experiment, Pd, Plant, RunEnd, Sample, SimParams, Sink, Step};
+use simgap_sim::paper;
+use simgap_sim::{simulate, Experiment, Plant, RunEnd, Sample, SimParams, Sink};
 
 /// A sink that drops every sample.
 struct NullSink;
@@ -36,13 +36,13 @@ fn main() {
     };
     let options = SinkOptions { compression, ..SinkOptions::default() };
     let model = Model::paper_arm();
-    let reference = Step { target: paper_arm::Q_DESIRED.to_vec() };
+    let reference = paper::reference();
     let params = SimParams { duration: 30.0, ..SimParams::default() };
     let path = std::env::temp_dir().join(format!("simgap-logging-cost-{}.mcap", std::process::id()));
     let once = |logged: bool| -> Duration {
         let start = Instant::now();
         let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
-        let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+        let mut pd = paper::controller();
         let end = if logged {
             let mut sink = McapSink::create_with_options(&path, options.clone()).unwrap();
             let end = simulate(&plant, &mut pd, &reference, &params, &mut sink, None).unwrap();

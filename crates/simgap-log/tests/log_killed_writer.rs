@@ -7,10 +7,10 @@
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use simgap_core::robots::paper_arm;
 use simgap_core::{Formulation, Model};
 use simgap_log::{read_log_with_warnings, LogOptions, McapSink, SinkOptions};
-use simgap_sim::{simulate, Pd, Plant, SimParams, Step};
+use simgap_sim::paper;
+use simgap_sim::{simulate, Plant, SimParams};
 
 const CHILD_ENV: &str = "SIMGAP_LOG_KILLED_WRITER_PATH";
 const TEST_NAME: &str = "killed_writer_leaves_a_log_recovered_by_a_linear_scan";
@@ -19,10 +19,10 @@ const TEST_NAME: &str = "killed_writer_leaves_a_log_recovered_by_a_linear_scan";
 fn child(path: &str) {
     let model = Model::paper_arm();
     let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
-    let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+    let mut pd = paper::controller();
     let params = SimParams { duration: 3600.0, ..SimParams::default() };
     let mut sink = McapSink::create_with_options(path.as_ref(), SinkOptions { chunk_size: 32 * 1024, ..SinkOptions::default() }).unwrap();
-    simulate(&plant, &mut pd, &Step { target: paper_arm::Q_DESIRED.to_vec() }, &params, &mut sink, None).unwrap();
+    simulate(&plant, &mut pd, &paper::reference(), &params, &mut sink, None).unwrap();
     unreachable!("the parent kills this process long before an hour is simulated");
 }
 

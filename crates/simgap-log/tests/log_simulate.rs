@@ -1,10 +1,10 @@
 //! The simulator writing MCAP logs: what the MCAP sink writes is what the memory sink holds,
 //! and a diverged run still leaves a readable file that says so.
 
-use simgap_core::robots::paper_arm;
 use simgap_core::{Formulation, Model};
 use simgap_log::{read_log, LogOptions, McapSink};
-use simgap_sim::{simulate, MemorySink, Pd, Plant, Run, RunEnd, SensorParams, SimParams, Step};
+use simgap_sim::paper;
+use simgap_sim::{simulate, MemorySink, Pd, Plant, Run, RunEnd, SensorParams, SimParams};
 
 fn tmp(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("simgap-log-sim-{}", std::process::id()));
@@ -25,8 +25,8 @@ fn simulated_run_logged_to_mcap_reads_back_as_the_memory_run() {
     let model = Model::paper_arm();
     let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
     let params = SimParams { duration: 0.5, ..SimParams::default() };
-    let step = Step { target: paper_arm::Q_DESIRED.to_vec() };
-    let pd = || Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+    let step = paper::reference();
+    let pd = || paper::controller();
     let mut memory = MemorySink::new();
     simulate(&plant, &mut pd(), &step, &params, &mut memory, None).unwrap();
     let path = tmp("paper_pd.mcap");
@@ -48,7 +48,7 @@ fn diverged_simulation_leaves_a_readable_mcap() {
     let path = tmp("diverged.mcap");
     let mut sink = McapSink::create(&path).unwrap();
     let params = SimParams { sensor: SensorParams::exact(), ..SimParams::default() };
-    let end = simulate(&plant, &mut pd, &Step { target: paper_arm::Q_DESIRED.to_vec() }, &params, &mut sink, None).unwrap();
+    let end = simulate(&plant, &mut pd, &paper::reference(), &params, &mut sink, None).unwrap();
     assert!(matches!(end, RunEnd::Diverged { .. }), "{end:?}");
     drop(sink);
     let run = read_log(&path, &LogOptions::default()).unwrap();

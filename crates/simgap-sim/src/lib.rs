@@ -9,6 +9,7 @@ pub mod error;
 pub mod integrate;
 pub mod kind;
 pub mod l2;
+pub mod paper;
 pub mod plant;
 pub mod reference;
 pub mod run;

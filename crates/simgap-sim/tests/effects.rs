@@ -3,20 +3,21 @@
 use simgap_core::robots::paper_arm;
 use simgap_core::{gravity_torques, kinetic_energy, potential_energy, Formulation, Model, Workspace};
 use simgap_sim::effects::{friction_slope_bound, smooth_sign};
+use simgap_sim::paper;
 use simgap_sim::{
-    applied_torque, friction_torque, simulate, Controller, Effect, EffectKind, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, Step, ZeroTorque,
+    applied_torque, friction_torque, simulate, Controller, Effect, EffectKind, LinkDelta, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams, ZeroTorque,
 };
 
 fn run(model: &Model, effects: &[Effect], controller: &mut dyn Controller, params: &SimParams) -> Run {
     let plant = Plant::new(model, Formulation::EulerLagrange, effects).unwrap();
     let mut sink = MemorySink::new();
-    let end = simulate(&plant, controller, &Step { target: paper_arm::Q_DESIRED.to_vec() }, params, &mut sink, None).unwrap();
+    let end = simulate(&plant, controller, &paper::reference(), params, &mut sink, None).unwrap();
     assert_eq!(end, RunEnd::Completed);
     sink.into_run()
 }
 
 fn paper_pd() -> Pd {
-    Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() }
+    paper::controller()
 }
 
 fn exact(duration: f64) -> SimParams {
@@ -147,7 +148,7 @@ fn payload_and_heavier_links_increase_the_gravity_sag() {
     let plant = Plant::new(&Model::paper_arm(), Formulation::EulerLagrange, &[Effect::Payload { mass: 1.0, com: [0.0, 0.0, -0.45] }]).unwrap();
     let g = gravity_torques(plant.model(), &mut Workspace::new(plant.model()), &payload);
     for i in 0..2 {
-        assert!((paper_arm::KP[i] * (paper_arm::Q_DESIRED[i] - payload[i]) - g[i]).abs() < 1e-3);
+        assert!((paper::KP[i] * (paper::Q_DESIRED[i] - payload[i]) - g[i]).abs() < 1e-3);
     }
     // a negative payload that makes the link massless is refused
     assert!(Plant::new(&Model::paper_arm(), Formulation::EulerLagrange, &[Effect::Payload { mass: -10.0, com: [0.0; 3] }]).is_err());
@@ -186,7 +187,7 @@ fn saturation_equals_replaying_clamped_commands() {
 fn time_delay_equals_replaying_shifted_commands() {
     let model = Model::paper_arm();
     let m = 3;
-    let delayed = pd_run(&[Effect::TimeDelay { delay: m as f64 * paper_arm::SAMPLE_PERIOD }], 1.0);
+    let delayed = pd_run(&[Effect::TimeDelay { delay: m as f64 * paper::SAMPLE_PERIOD }], 1.0);
     // the plant applied τ_cmd,k−m (τ_cmd,0 before the start)
     let n = 2;
     let shifted: Vec<f64> = (0..delayed.len()).flat_map(|k| delayed.row(&delayed.tau, k.saturating_sub(m)).to_vec()).collect();
@@ -194,8 +195,8 @@ fn time_delay_equals_replaying_shifted_commands() {
     let d = delayed.q.iter().zip(&replayed.q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     assert!(d < 1e-12, "{d}");
     // a fractional delay lies between its neighbours
-    let half = pd_run(&[Effect::TimeDelay { delay: 2.5 * paper_arm::SAMPLE_PERIOD }], 1.0);
-    let two = pd_run(&[Effect::TimeDelay { delay: 2.0 * paper_arm::SAMPLE_PERIOD }], 1.0);
+    let half = pd_run(&[Effect::TimeDelay { delay: 2.5 * paper::SAMPLE_PERIOD }], 1.0);
+    let two = pd_run(&[Effect::TimeDelay { delay: 2.0 * paper::SAMPLE_PERIOD }], 1.0);
     let k = 40 * n;
     let (lo, hi) = (two.q[k].min(delayed.q[k]), two.q[k].max(delayed.q[k]));
     assert!(half.q[k] > lo && half.q[k] < hi, "{} not in [{lo}, {hi}]", half.q[k]);
@@ -226,7 +227,7 @@ fn coriolis_structure_swaps_the_formulation() {
     let simplified = {
         let plant = Plant::new(&model, Formulation::Simplified, &[]).unwrap();
         let mut sink = MemorySink::new();
-        simulate(&plant, &mut paper_pd(), &Step { target: paper_arm::Q_DESIRED.to_vec() }, &exact(1.5), &mut sink, None).unwrap();
+        simulate(&plant, &mut paper_pd(), &paper::reference(), &exact(1.5), &mut sink, None).unwrap();
         sink.into_run()
     };
     assert_eq!(swapped.q, simplified.q);
@@ -249,7 +250,7 @@ fn a_non_physical_armature_diverges_instead_of_panicking() {
     let model = Model::paper_arm();
     let plant = Plant::new(&model, Formulation::EulerLagrange, &[Effect::Armature { ia: vec![0.0, -1.0] }]).unwrap();
     let mut sink = MemorySink::new();
-    let end = simulate(&plant, &mut paper_pd(), &Step { target: paper_arm::Q_DESIRED.to_vec() }, &exact(1.0), &mut sink, None).unwrap();
+    let end = simulate(&plant, &mut paper_pd(), &paper::reference(), &exact(1.0), &mut sink, None).unwrap();
     assert!(matches!(end, RunEnd::Diverged { .. }), "{end:?}");
     assert!(sink.into_run().q.iter().all(|x| x.is_finite()));
 }

@@ -5,17 +5,18 @@ use std::sync::Arc;
 
 use simgap_core::robots::paper_arm;
 use simgap_core::{kinetic_energy, potential_energy, Formulation, Model, Workspace};
+use simgap_sim::paper;
 use simgap_sim::{
     reference_from_run, simulate, simulate_experiment, Controller, ControllerKind, Experiment, Integrator, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams,
     Step, ZeroTorque, DEFAULT_SUBSTEPS,
 };
 
 fn paper_pd() -> Pd {
-    Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() }
+    paper::controller()
 }
 
 fn paper_step() -> Step {
-    Step { target: paper_arm::Q_DESIRED.to_vec() }
+    paper::reference()
 }
 
 fn run_with(plant: &Plant, controller: &mut dyn Controller, reference: &dyn simgap_sim::Reference, params: &SimParams) -> (Run, RunEnd) {
@@ -212,9 +213,9 @@ fn resimulating_a_logged_run_reproduces_it() {
     let exp = Experiment {
         controller: ControllerKind::Pd,
         joints: vec!["elbow".into(), "shoulder".into()],
-        kp: vec![paper_arm::KP[1], paper_arm::KP[0]],
-        kv: vec![paper_arm::KV[1], paper_arm::KV[0]],
-        sample_period: paper_arm::SAMPLE_PERIOD,
+        kp: vec![paper::KP[1], paper::KP[0]],
+        kv: vec![paper::KV[1], paper::KV[0]],
+        sample_period: paper::SAMPLE_PERIOD,
         extra: Default::default(),
     };
     let params = SimParams { t0: 1000.0, duration: 1.5, ..SimParams::default() };
@@ -240,7 +241,7 @@ fn pd_reaches_the_paper_steady_state() {
     let q = run.row(&run.q, k);
     let g = simgap_core::gravity_torques(&model, &mut Workspace::new(&model), q);
     for i in 0..2 {
-        let residual = paper_arm::KP[i] * (paper_arm::Q_DESIRED[i] - q[i]) - g[i];
+        let residual = paper::KP[i] * (paper::Q_DESIRED[i] - q[i]) - g[i];
         assert!(residual.abs() < 1e-3, "joint {i}: Kp q̃ − g = {residual}");
     }
 }

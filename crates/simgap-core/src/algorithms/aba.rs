@@ -1,8 +1,8 @@
 //! The articulated-body algorithm: forward dynamics in O(n).
 
-use crate::algorithms::coriolis::Formulation;
 use crate::algorithms::kinematics::check_len;
 use crate::algorithms::soa::{self, InertiaLevel};
+use crate::formulation::Formulation;
 use crate::lanes::Lanes;
 use crate::model::Model;
 use crate::workspace::Workspace;

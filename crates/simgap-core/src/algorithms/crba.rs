@@ -7,7 +7,7 @@ use crate::model::Model;
 use crate::workspace::Workspace;
 
 /// Accumulates composite inertias `Ic_i = Σ_{l ≥ i} I_l` into `ws.composites`.
-#[inline]
+#[inline(always)]
 pub(crate) fn composite_inertias(model: &Model, ws: &mut Workspace) {
     let n = model.dof();
     // backward pass: add each subtree's inertia to its parent

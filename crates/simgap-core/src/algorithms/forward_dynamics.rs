@@ -2,17 +2,18 @@
 
 use nalgebra::DVector;
 
-use crate::algorithms::coriolis::Formulation;
+use crate::algorithms::closed_forms;
 use crate::algorithms::crba::{composite_inertias, fill_mass_matrix};
 use crate::algorithms::kinematics::check_len;
 use crate::algorithms::rnea::bias_torques_into;
+use crate::formulation::Formulation;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
 /// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
 ///
 /// The algorithm is picked by the model: for an arm of two rotational joints, a closed form
-/// generated from the model when it was built; from [`ABA_MIN_DOF`] joints on, the
+/// generated from the model into `ws` on the first call with it; from [`ABA_MIN_DOF`] joints on, the
 /// articulated-body algorithm ([`forward_dynamics_aba_into`](crate::forward_dynamics_aba_into)),
 /// O(n); below, the bias torques (Newton–Euler), the mass matrix (composite rigid body
 /// algorithm) and an in-place Cholesky solve ([`forward_dynamics_crba_into`]), O(n³). All
@@ -41,7 +42,7 @@ pub const ABA_MIN_DOF: usize = 2;
 /// As [`forward_dynamics`].
 pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
     let n = model.dof();
-    if let Some(arm) = model.two_joint() {
+    if let Some(arm) = closed_forms::two_joint(model, ws) {
         check_len(model, "q", q);
         check_len(model, "qd", qd);
         check_len(model, "tau", tau);

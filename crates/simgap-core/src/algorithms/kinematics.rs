@@ -32,7 +32,7 @@ pub fn forward_kinematics(model: &Model, ws: &mut Workspace, q: &[f64]) {
 }
 
 /// Link inertias in world coordinates into `ws.inertias` (after [`forward_kinematics`]).
-#[inline]
+#[inline(always)]
 pub(crate) fn world_inertias(model: &Model, ws: &mut Workspace) {
     for (i, joint) in model.joints().iter().enumerate() {
         ws.inertias[i] = joint.inertia.transformed(&ws.poses[i]);
@@ -41,7 +41,7 @@ pub(crate) fn world_inertias(model: &Model, ws: &mut Workspace) {
 
 /// Link velocities `v_i = v_{i-1} + S_i q̇_i` and subspace rates `Ṡ_i = v_i × S_i` into
 /// `ws.velocities` and `ws.subspace_rates` (after [`forward_kinematics`]).
-#[inline]
+#[inline(always)]
 pub(crate) fn velocities(model: &Model, ws: &mut Workspace, qd: &[f64]) {
     check_len(model, "qd", qd);
     // forward pass: accumulate joint velocities from the root

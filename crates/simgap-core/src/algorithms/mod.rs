@@ -2,6 +2,7 @@
 //! for the equation of motion and the conventions.
 
 pub mod aba;
+pub(crate) mod closed_forms;
 pub mod coriolis;
 pub mod crba;
 pub mod energy;

@@ -3,8 +3,8 @@
 
 use nalgebra::{DVector, Vector3};
 
-use crate::algorithms::coriolis::Formulation;
 use crate::algorithms::kinematics::{check_len, forward_kinematics, velocities, world_inertias};
+use crate::formulation::Formulation;
 use crate::model::Model;
 use crate::spatial::{Force, Motion};
 use crate::workspace::Workspace;

@@ -7,7 +7,7 @@
 //! articulated-body algorithm of one state. Every function here is `#[inline(always)]` so that it
 //! is compiled with the target features of the batch entry point that calls it.
 
-use crate::algorithms::coriolis::Formulation;
+use crate::formulation::Formulation;
 use crate::lanes::{Frc, Ine, Lanes, Mot, Rate, Sym, M3, V3};
 use crate::model::Model;
 

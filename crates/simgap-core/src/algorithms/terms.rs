@@ -2,8 +2,11 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::algorithms::coriolis::{fill_second_order, second_order_pass, Formulation, SecondOrderOut};
+use crate::algorithms::closed_forms;
+use crate::algorithms::coriolis::{fill_second_order, second_order_pass, SecondOrderOut};
+use crate::algorithms::kinematics::check_len;
 use crate::algorithms::rnea::gravity_from_composites;
+use crate::formulation::Formulation;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -29,8 +32,8 @@ impl DynamicsTerms {
 
 /// H(q), C(q, q̇) and g(q) in one call, cheaper than three: the kinematics, composite
 /// inertias and momenta are computed once. An arm of two rotational joints uses its closed
-/// form, generated when the model was built (the general algorithms give the same numbers to
-/// rounding).
+/// form, generated into `ws` on the first call with the model (the general algorithms give the
+/// same numbers to rounding).
 ///
 /// # Panics
 /// If a length or `ws` does not match the model.
@@ -48,9 +51,9 @@ pub fn dynamics_terms(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], 
 pub fn dynamics_terms_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], formulation: Formulation, out: &mut DynamicsTerms) {
     let n = model.dof();
     assert!(out.mass_matrix.shape() == (n, n) && out.coriolis_matrix.shape() == (n, n) && out.gravity_torques.len() == n, "dynamics terms output shape");
-    if let Some(arm) = model.two_joint() {
-        crate::algorithms::kinematics::check_len(model, "q", q);
-        crate::algorithms::kinematics::check_len(model, "qd", qd);
+    if let Some(arm) = closed_forms::two_joint(model, ws) {
+        check_len(model, "q", q);
+        check_len(model, "qd", qd);
         arm.terms_into(q, qd, formulation, &mut out.mass_matrix, &mut out.coriolis_matrix, &mut out.gravity_torques);
         return;
     }

@@ -1,19 +1,19 @@
 //! Closed forms of two-joint arms with rotational joints (the seed paper's arm): H, C, g and
-//! forward dynamics in a few dozen flops and two `sin_cos`, generated from the [`Model`].
+//! forward dynamics in a few dozen flops and two `sin_cos`, from coefficients generated from
+//! the model by [`closed_forms`](crate::algorithms::closed_forms).
 //!
 //! For a serial chain whose two joints rotate, every entry of H depends on q2 alone and is a
 //! trigonometric polynomial of degree 2 (the second link's inertia rotated by q2 twice), and
 //! the potential energy U is of degree 1 in q1 times degree 1 in q2. The coefficients are
-//! computed once, when the model is built, by sampling the general algorithms (H at eight
+//! computed once per model and workspace by sampling the general algorithms (H at eight
 //! values of q2, U on a 4 × 4 grid: exact discrete Fourier transforms for these degrees); then
 //! `g = ∂U/∂q`, `∂H/∂q2` and the Christoffel symbols follow analytically. The general
 //! algorithms remain the reference (the tests compare both to 1e-10 relative).
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::algorithms::coriolis::Formulation;
+use crate::formulation::Formulation;
 use crate::lanes::Lanes;
-use crate::model::Model;
 
 /// The generated closed form of a two-joint arm.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,42 +34,11 @@ pub(crate) struct Terms {
 }
 
 impl TwoJoint {
-    /// The closed form of `model`, if it has exactly two joints and both rotate.
-    pub(crate) fn of(model: &Model) -> Option<TwoJoint> {
-        if model.dof() != 2 || !model.joints().iter().all(|j| j.kind.is_rotational()) {
-            return None;
-        }
-        let mut ws = crate::Workspace::new(model);
-        let pi = std::f64::consts::PI;
-        // H at q2 = kπ/4, k = 0..8: a discrete Fourier transform of degree 2
-        let mut h = [[0.0; 3]; 5];
-        for k in 0..8 {
-            let t = k as f64 * pi / 4.0;
-            let m = crate::mass_matrix(model, &mut ws, &[0.0, t]);
-            let entries = [m[(0, 0)], m[(0, 1)], m[(1, 1)]];
-            let weights = [1.0 / 8.0, t.cos() / 4.0, t.sin() / 4.0, (2.0 * t).cos() / 4.0, (2.0 * t).sin() / 4.0];
-            for (row, w) in h.iter_mut().zip(weights) {
-                for (x, e) in row.iter_mut().zip(entries) {
-                    *x += w * e;
-                }
-            }
-        }
-        // U on the grid (q1, q2) = (aπ/2, bπ/2): degree 1 in each angle
-        let mut u = [[0.0; 3]; 3];
-        for a in 0..4 {
-            for b in 0..4 {
-                let (t1, t2) = (a as f64 * pi / 2.0, b as f64 * pi / 2.0);
-                let e = crate::potential_energy(model, &mut ws, &[t1, t2]);
-                let w1 = [1.0 / 4.0, t1.cos() / 2.0, t1.sin() / 2.0];
-                let w2 = [1.0 / 4.0, t2.cos() / 2.0, t2.sin() / 2.0];
-                for (ua, wa) in u.iter_mut().zip(w1) {
-                    for (x, wb) in ua.iter_mut().zip(w2) {
-                        *x += wa * wb * e;
-                    }
-                }
-            }
-        }
-        Some(TwoJoint { h, u })
+    /// The closed form with H's coefficients `h` (`[h11, h12, h22]` of `1, cos q2, sin q2,
+    /// cos 2q2, sin 2q2`) and U's coefficients `u` (`u[a][b]` of `φ_a(q1) φ_b(q2)`,
+    /// `φ = (1, cos, sin)`), as [`closed_forms`](crate::algorithms::closed_forms) samples them.
+    pub(crate) fn from_coefficients(h: [[f64; 3]; 5], u: [[f64; 3]; 3]) -> TwoJoint {
+        TwoJoint { h, u }
     }
 
     /// H, C of `formulation` and g at `(q, qd)`.

@@ -167,7 +167,7 @@ pub fn demo_effects() -> Vec<Effect> {
 /// The demo's runs on the paper arm: three 4 s fit runs (the paper's step, an excitation and
 /// set-points) and one 8 s held-out run, seeded.
 pub fn demo_specs(seed: u64) -> (Vec<RunSpec>, Vec<RunSpec>) {
-    use simgap_core::robots::paper_arm::{KP, KV, Q_DESIRED};
+    use simgap_sim::paper::{KP, KV, Q_DESIRED};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (kp, kv) = (KP.to_vec(), KV.to_vec());
     let fit = vec![

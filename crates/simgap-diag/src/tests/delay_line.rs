@@ -6,8 +6,8 @@ use std::collections::BTreeMap;
 
 use crate::predict::kstep::{predict, PredictionRun};
 use crate::{FitData, PrepareOptions};
-use simgap_core::robots::paper_arm::{KP, KV, Q_DESIRED};
 use simgap_core::{Formulation, Model};
+use simgap_sim::paper::{KP, KV, Q_DESIRED};
 use simgap_sim::{simulate_experiment, ControllerKind, Effect, Experiment, Fourier, Run, SensorParams, SimParams, Step};
 
 const PERIOD: f64 = 0.0025;
