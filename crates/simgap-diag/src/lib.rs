@@ -37,6 +37,7 @@ pub mod dataset;
 pub mod differentiate;
 pub mod effects;
 pub mod error;
+pub mod export;
 pub mod fit;
 pub mod html;
 pub mod inertial;
