@@ -204,7 +204,8 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// before and after (never for fitting). Each is a sequence of `Run` (from `read_log` or
 /// `simulate`) or paths to logs (read like `read_log`), or a single one. Every run must carry
 /// its experiment (controller, gains, sample period) to be re-simulated in closed loop.
-/// `formulation`: the C of the model under test, "euler_lagrange" or "simplified".
+/// `formulation`: the C of the model under test, "euler_lagrange" or "simplified". `urdf`: the
+/// URDF file `model` was loaded from, kept for `Report.export_urdf`.
 ///
 /// Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
 /// FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
@@ -375,7 +376,8 @@ impl PyReport {
         let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
         py.detach(move || {
             use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions};
-            let timestep = sample_period_of(&diagnosis.holdout).ok_or_else(|| Kind::Simgap.err("export_mjcf: the held-out logs have no sample period (no experiment sample_period, fewer than two stamps)"))?;
+            let timestep = sample_period_of(&diagnosis.holdout)
+                .ok_or_else(|| Kind::Simgap.err("export_mjcf: the held-out logs have no sample period (no experiment sample_period, fewer than two stamps)"))?;
             let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), ..MjcfOptions::new(timestep) };
             let file = export_mjcf(&model, &diagnosis.report.selected_effects, &options).map_err(from_export)?;
             write_export(&path, &file)

@@ -185,7 +185,12 @@ fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::
         write_atomically(path, |tmp| std::fs::write(tmp, &file.text).map_err(Into::into))?;
         let side = sidecar_path(path);
         write_atomically(&side, |tmp| std::fs::write(tmp, file.sidecar.to_json() + "\n").map_err(Into::into))?;
-        println!("wrote {} and {} ({} selected effects the file does not hold)", path.display(), side.display(), file.sidecar.selected_effects.len());
+        let left = match file.sidecar.selected_effects.len() {
+            0 => "it holds every selected effect".to_string(),
+            1 => "1 selected effect it does not hold".to_string(),
+            k => format!("{k} selected effects it does not hold"),
+        };
+        println!("wrote {} and {} ({left})", path.display(), side.display());
         Ok(())
     };
     if let Some(path) = job.export_urdf {

@@ -109,7 +109,12 @@ fn exported_urdf_keeps_every_other_byte_and_writes_friction_into_dynamics() {
     let model = arm7();
     let out = export_urdf(ARM7_URDF, "arm7.urdf", &model, &arm7_effects()).unwrap();
     // the leading comment, untouched links and joints are byte for byte the input's
-    let untouched = ["<!-- A 7-DOF arm shaped like the Franka Emika Panda", "<link name=\"panda_link2\">", "<origin xyz=\"-0.0031 -0.0287 0.0035\" rpy=\"0 0 0\"/>", "<link name=\"panda_link8\"/>"];
+    let untouched = [
+        "<!-- A 7-DOF arm shaped like the Franka Emika Panda",
+        "<link name=\"panda_link2\">",
+        "<origin xyz=\"-0.0031 -0.0287 0.0035\" rpy=\"0 0 0\"/>",
+        "<link name=\"panda_link8\"/>",
+    ];
     for s in untouched {
         assert!(out.text.contains(s), "lost: {s}");
     }

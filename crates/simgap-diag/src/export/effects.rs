@@ -108,12 +108,7 @@ fn inertial_effect(model: &Model, e: &EffectReport) -> Result<Option<Effect>, Ex
             let deltas = idx
                 .iter()
                 .enumerate()
-                .map(|(k, &joint)| LinkDelta {
-                    joint,
-                    mass: dm[k][0],
-                    com: [dc[k][0], dc[k][1], dc[k][2]],
-                    inertia: [di[k][0], di[k][1], di[k][2], di[k][3], di[k][4], di[k][5]],
-                })
+                .map(|(k, &joint)| LinkDelta { joint, mass: dm[k][0], com: [dc[k][0], dc[k][1], dc[k][2]], inertia: [di[k][0], di[k][1], di[k][2], di[k][3], di[k][4], di[k][5]] })
                 .collect();
             Ok(Some(Effect::InertialError { deltas }))
         }

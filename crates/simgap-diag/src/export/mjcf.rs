@@ -85,7 +85,11 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
 
     // header: compiler, option, visual defaults
     let mut s = String::new();
-    let _ = writeln!(s, "<!-- {}: the corrected model of a simgap diagnosis (docs/export.md). Selected effects MJCF cannot hold are in the .effects.json beside it. -->", xml(model.name()));
+    let _ = writeln!(
+        s,
+        "<!-- {}: the corrected model of a simgap diagnosis (docs/export.md). Selected effects MJCF cannot hold are in the .effects.json beside it. -->",
+        xml(model.name())
+    );
     let _ = writeln!(s, "<mujoco model=\"{}\">", xml(model.name()));
     let _ = writeln!(s, "  <compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"false\"/>");
     let _ = writeln!(s, "  <option timestep=\"{}\" gravity=\"{} {} {}\" integrator=\"{}\"/>", num(options.timestep), num(g.x), num(g.y), num(g.z), options.integrator);

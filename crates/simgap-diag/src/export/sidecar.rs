@@ -77,7 +77,13 @@ impl Sidecar {
     /// Records `e` as not held, with how to apply it in a simulator.
     pub(super) fn defer(&mut self, e: &EffectReport, format: Format) {
         let units = e.parameters.keys().map(|k| (k.clone(), e.units.get(k).cloned().unwrap_or_else(|| param_unit(&e.effect, k).to_string()))).collect();
-        self.selected_effects.push(SidecarEntry { effect: e.effect.clone(), joints: e.joints.clone(), parameters: e.parameters.clone(), units, apply: how_to_apply(&e.effect, format) });
+        self.selected_effects.push(SidecarEntry {
+            effect: e.effect.clone(),
+            joints: e.joints.clone(),
+            parameters: e.parameters.clone(),
+            units,
+            apply: how_to_apply(&e.effect, format),
+        });
     }
 }
 

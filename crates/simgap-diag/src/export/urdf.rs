@@ -44,7 +44,8 @@ pub fn export_urdf(urdf_text: &str, source_name: &str, model: &Model, effects: &
         return Err(urdf_err(&format!("<{}>", root.tag_name().name()), "root element; expected <robot>".into()));
     }
     let tip = model.joints().last().map(|j| j.link.clone());
-    let nominal = Model::from_urdf_str_with(urdf_text, source_name, &UrdfOptions { tip: tip.clone() })?;
+    let nominal = Model::from_urdf_str_with(urdf_text, source_name, &UrdfOptions { tip: tip.clone() })
+        .map_err(|e| urdf_err("robot", format!("does not load as the chain of the model diagnosed ({e}): not the URDF the model was loaded from")))?;
     check_same_chain(&nominal, model).map_err(|m| urdf_err("robot", m))?;
 
     // the corrections, and the edits that write them
@@ -82,7 +83,9 @@ pub fn export_urdf(urdf_text: &str, source_name: &str, model: &Model, effects: &
             if let Some(d) = dynamics {
                 let nonzero = ["damping", "friction"].iter().filter(|a| d.attribute(**a).and_then(|v| v.trim().parse::<f64>().ok()).is_some_and(|v| v != 0.0)).count();
                 if nonzero > 0 {
-                    sidecar.notes.push(format!("joint '{}' keeps its URDF <dynamics>, which simgap's model does not use: the file's joint friction there is not simgap's (none)", names[i]));
+                    sidecar
+                        .notes
+                        .push(format!("joint '{}' keeps its URDF <dynamics>, which simgap's model does not use: the file's joint friction there is not simgap's (none)", names[i]));
                 }
             }
             continue;
