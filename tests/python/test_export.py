@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -160,6 +162,17 @@ def test_exported_urdf_loads_in_pinocchio_and_simgap_with_the_corrected_h_and_g(
         assert line in text
 
 
+def full_mass_matrix(m: Any, d: Any) -> np.ndarray:
+    """MuJoCo's dense mass matrix (armature included) after mj_forward: ``mj_fullM(m, d, dst)``
+    from MuJoCo 4, ``mj_fullM(m, dst, d.qM)`` before."""
+    full = np.zeros((m.nv, m.nv))
+    if hasattr(d, "qM"):
+        mujoco.mj_fullM(m, full, d.qM)
+    else:
+        mujoco.mj_fullM(m, d, full)
+    return full
+
+
 def test_exported_mjcf_compiles_with_the_corrected_mass_matrix_and_gravity(diagnosed: tuple[simgap.Report, simgap.Run, Path]) -> None:
     report, _, out = diagnosed
     m = mujoco.MjModel.from_xml_path(str(out / "corrected.xml"))
@@ -173,8 +186,7 @@ def test_exported_mjcf_compiles_with_the_corrected_mass_matrix_and_gravity(diagn
         d.qpos[:] = q
         d.qvel[:] = 0.0
         mujoco.mj_forward(m, d)
-        full = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, full, d.qM)
+        full = full_mass_matrix(m, d)
         h_r = pinocchio.crba(reference, d_r, q)
         h_r = np.triu(h_r) + np.triu(h_r, 1).T + np.diag(armature)
         g_r = pinocchio.computeGeneralizedGravity(reference, d_r, q)
@@ -274,12 +286,44 @@ def check_kstep(model: simgap.Model, run: simgap.Run, report_effects: list[dict[
         assert mj < 0.2 * n, f"h = {h} s: MuJoCo {mj:.3e} rad is not better than the nominal model's {n:.3e} rad"
 
 
+def prediction_gap_without_dry_friction(model: simgap.Model, run: simgap.Run, report_effects: list[dict[str, Any]], xml: Path, horizon: float = 0.5) -> float:
+    """The largest difference [rad] between MuJoCo's and simgap's predictions of the same
+    windows (not against the log) with the dry friction taken out of both: what is left of the
+    two simulators' difference once MuJoCo's constraint friction and simgap's tanh are gone."""
+    text = re.sub(r' frictionloss="[^"]*"', "", xml.read_text())
+    m = mujoco.MjModel.from_xml_string(text)
+    d = mujoco.MjData(m)
+    dt = m.opt.timestep
+    steps = round(horizon / dt)
+    specs = [spec for spec in effect_specs(report_effects, model.joint_names) if not spec.startswith("coulomb_friction")]
+    worst = 0.0
+    for k in window_starts(run, horizon, every=0.5):
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = run.q[k]
+        d.qvel[:] = run.qd[k]
+        for s in range(steps):
+            d.ctrl[:] = run.tau[k + s]
+            mujoco.mj_step(m, d)
+        pred = simgap.simulate(
+            model, run, controller="replay", replay=run, t0=float(run.t[k]), duration=steps * dt, q0=run.q[k], qd0=run.qd[k],
+            effects=specs, counts_per_rev=None, velocity="exact", sample_period=dt,
+        )
+        worst = max(worst, float(np.abs(d.qpos - pred.q[-1]).max()))
+    return worst
+
+
 def test_mujoco_predicts_the_held_out_run_as_simgap_does(diagnosed: tuple[simgap.Report, simgap.Run, Path]) -> None:
     report, held, out = diagnosed
     sidecar = json.loads((out / "corrected.xml.effects.json").read_text())
     # every selected effect is in the MJCF: the comparison is of one model in two simulators
     assert sidecar["selected_effects"] == [], sidecar["selected_effects"]
-    check_kstep(simgap.Model.from_urdf(PAPER_ARM), held, report.selected_effects, out / "corrected.xml", "paper arm + payload")
+    model = simgap.Model.from_urdf(PAPER_ARM)
+    check_kstep(model, held, report.selected_effects, out / "corrected.xml", "paper arm + payload")
+    # apart from dry friction the two simulators integrate one model: RK4 at the log's period,
+    # the torque held per sample, the same inertias, damping and rotor inertia
+    gap = prediction_gap_without_dry_friction(model, held, report.selected_effects, out / "corrected.xml")
+    print(f"paper arm + payload: MuJoCo vs simgap without dry friction, 0.5 s windows: {gap:.1e} rad")
+    assert gap < 1e-9
 
 
 # --- simgap demo writes both files and says how to load them --------------------------------
@@ -313,7 +357,7 @@ def test_demo_writes_the_corrected_urdf_and_mjcf_and_the_lines_to_load_them(demo
     for line in (pin_line, mj_line):
         assert line.startswith("python -c ")
         code = line[len("python -c ") :].strip("'")
-        subprocess.run([os.sys.executable, "-c", code], check=True, capture_output=True, timeout=120)
+        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=120)
     # the demo's saturation is a motor force range in the MJCF; the URDF's sidecar holds it
     urdf_side = json.loads((out / "corrected.urdf.effects.json").read_text())
     assert [e["effect"] for e in urdf_side["selected_effects"]] == ["torque_saturation"]
@@ -324,5 +368,20 @@ def test_mujoco_predicts_the_demo_held_out_run_as_simgap_does(demo: tuple[Path, 
     out, _ = demo
     report = json.loads((out / "report.json").read_text())
     model = simgap.Model.from_urdf(out / "paper_arm.urdf")
-    held = simgap.read_log(next(out.glob("held*.mcap")))
+    held = simgap.read_log(next(out.glob("holdout*.mcap")))
     check_kstep(model, held, report["selected_effects"], out / "corrected.xml", "simgap demo")
+    gap = prediction_gap_without_dry_friction(model, held, report["selected_effects"], out / "corrected.xml")
+    print(f"simgap demo: MuJoCo vs simgap without dry friction, 0.5 s windows: {gap:.1e} rad")
+    assert gap < 1e-9
+
+
+def test_export_errors_name_the_file_and_what_was_expected(diagnosed: tuple[simgap.Report, simgap.Run, Path], tmp_path: Path) -> None:
+    report, _, _ = diagnosed
+    pendulum = ROOT / "crates" / "simgap-core" / "models" / "pendulum.urdf"
+    with pytest.raises(simgap.UrdfError, match=r"pendulum\.urdf: robot: .*not the URDF the model was loaded from"):
+        report.export_urdf(tmp_path / "x.urdf", urdf=pendulum)
+    with pytest.raises(simgap.UrdfError, match=r"missing\.urdf: cannot read"):
+        report.export_urdf(tmp_path / "x.urdf", urdf=tmp_path / "missing.urdf")
+    with pytest.raises(simgap.SimgapError, match=r"cannot write"):
+        report.export_mjcf(tmp_path / "no-such-folder" / "x.xml")
+    assert not (tmp_path / "x.urdf").exists()
