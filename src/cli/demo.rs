@@ -6,7 +6,9 @@
 //! are simulated (Euler–Lagrange plant, 2.5 ms, 1,024,000 counts/rev, backward-difference
 //! velocity) and written as MCAP logs with the paper arm's URDF. The diagnosis reads the logs
 //! back, sees only them and the nominal URDF, and at the end the hidden truth is printed next
-//! to what was found.
+//! to what was found. The corrected model is written as `corrected.urdf` and `corrected.xml`
+//! (MJCF) with their `.effects.json` sidecars, and one line each says how to load them in
+//! Pinocchio and MuJoCo.
 
 use std::path::{Path, PathBuf};
 

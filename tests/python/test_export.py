@@ -123,7 +123,7 @@ def test_the_diagnosis_found_inertial_and_joint_effects(diagnosed: tuple[simgap.
     report, _, _ = diagnosed
     names = {e["effect"] for e in report.selected_effects}
     assert names & {"payload", "inertial_error"}, names
-    assert {"viscous_friction", "coulomb_friction"} <= names, names
+    assert {"viscous_friction", "coulomb_friction", "armature"} <= names, names
 
 
 def test_exported_urdf_loads_in_pinocchio_and_simgap_with_the_corrected_h_and_g(diagnosed: tuple[simgap.Report, simgap.Run, Path]) -> None:

@@ -247,3 +247,27 @@ fn bad_inputs_are_clear_errors() {
     assert!(err.contains("timestep = 0 s"), "{err}");
     assert_eq!(sidecar_path(std::path::Path::new("out/corrected.xml")), std::path::Path::new("out/corrected.xml.effects.json"));
 }
+
+#[test]
+fn urdf_dynamics_are_replaced_by_the_diagnosed_friction_and_kept_elsewhere_with_a_note() {
+    let urdf = PAPER_ARM_URDF
+        .replace(
+            "<limit lower=\"-3.14159265358979\" upper=\"3.14159265358979\" effort=\"200\" velocity=\"10\"/>",
+            "<limit lower=\"-3.14159265358979\" upper=\"3.14159265358979\" effort=\"200\" velocity=\"10\"/>\n    <dynamics damping=\"0.3\" friction=\"0.1\"/>",
+        )
+        .replace(
+            "<limit lower=\"-3.14159265358979\" upper=\"3.14159265358979\" effort=\"15\" velocity=\"10\"/>",
+            "<limit lower=\"-3.14159265358979\" upper=\"3.14159265358979\" effort=\"15\" velocity=\"10\"/>\n    <dynamics damping=\"0.05\"/>",
+        );
+    let model = Model::from_urdf_str(&urdf).unwrap();
+    let effects = [effect("viscous_friction", &["shoulder"], &[("b", Param::PerJoint(vec![2.5]))])];
+    let out = export_urdf(&urdf, "arm.urdf", &model, &effects).unwrap();
+    assert!(out.text.contains("<dynamics damping=\"2.5\" friction=\"0\"/>"), "{}", out.text);
+    assert!(out.text.contains("<dynamics damping=\"0.05\"/>"), "{}", out.text);
+    assert_eq!(out.text.matches("<dynamics").count(), 2);
+    assert!(out.sidecar.notes.iter().any(|n| n.contains("'shoulder'") && n.contains("damping=\"0.3\" friction=\"0.1\"") && n.contains("replaced")), "{:?}", out.sidecar.notes);
+    assert!(out.sidecar.notes.iter().any(|n| n.contains("'elbow' keeps its URDF <dynamics>")), "{:?}", out.sidecar.notes);
+    // no inertial changed: the rest of the file is the input
+    let expected = urdf.replace("<dynamics damping=\"0.3\" friction=\"0.1\"/>", "<dynamics damping=\"2.5\" friction=\"0\"/>");
+    assert_eq!(out.text, expected);
+}

@@ -45,7 +45,7 @@ pub(super) fn per_joint(model: &Model, e: &EffectReport, key: &str) -> Result<Ve
     if values.len() != idx.len() {
         return Err(bad(e, format!("parameter '{key}' has {} values for {} joints {:?}; expected one per joint", values.len(), idx.len(), e.joints)));
     }
-    if let Some(x) = values.iter().find(|x| !x.is_finite() && !(key == "limit" && **x == f64::INFINITY)) {
+    if let Some(x) = values.iter().find(|x| !(x.is_finite() || (key == "limit" && **x == f64::INFINITY))) {
         return Err(bad(e, format!("parameter '{key}' has value {x}; expected a finite number")));
     }
     Ok(idx.into_iter().zip(values).collect())

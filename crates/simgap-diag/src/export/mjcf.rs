@@ -8,6 +8,7 @@ use simgap_core::{JointKind, Model, SpatialInertia};
 
 use super::effects::Corrections;
 use super::sidecar::{Format, Sidecar};
+use super::urdf::num;
 use super::{ExportError, ExportedFile};
 use crate::effects::EffectReport;
 
@@ -253,15 +254,6 @@ fn principal_inertial(body: &SpatialInertia, floor: &Floor) -> (Vector3<f64>, f6
 fn geom_radius(model: &Model) -> f64 {
     let longest = model.joints().iter().map(|j| j.placement.translation.norm()).chain(model.joints().iter().map(|j| j.inertia.com().norm())).fold(0.0, f64::max);
     (0.04 * longest).max(0.005)
-}
-
-/// A number as written: the shortest text that reads back to the same `f64`.
-fn num(x: f64) -> String {
-    if x == 0.0 {
-        "0".into()
-    } else {
-        format!("{x}")
-    }
 }
 
 /// Text escaped for an XML attribute.

@@ -151,12 +151,15 @@ fn apply(text: &str, mut edits: Vec<Edit>) -> String {
     out
 }
 
-/// A number as written: the shortest text that reads back to the same `f64`.
-fn num(x: f64) -> String {
+/// A number as written: the shortest text that reads back to the same `f64`, with an exponent
+/// for very small and very large magnitudes (`4.1e-19`, not eighteen zeros).
+pub(super) fn num(x: f64) -> String {
     if x == 0.0 {
         "0".into()
-    } else {
+    } else if (1e-4..1e15).contains(&x.abs()) {
         format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }
 
@@ -183,7 +186,7 @@ fn child_indent(text: &str, node: &roxmltree::Node<'_, '_>) -> String {
 fn insert_child(text: &str, el: &roxmltree::Node<'_, '_>, child: &str) -> Edit {
     let range = el.range();
     let inner = child_indent(text, el);
-    if let Some(last) = el.children().filter(|c| c.is_element()).last() {
+    if let Some(last) = el.children().rfind(|c| c.is_element()) {
         let at = last.range().end;
         return Edit { range: at..at, text: format!("\n{inner}{child}") };
     }
