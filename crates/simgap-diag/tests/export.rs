@@ -271,3 +271,29 @@ fn urdf_dynamics_are_replaced_by_the_diagnosed_friction_and_kept_elsewhere_with_
     let expected = urdf.replace("<dynamics damping=\"0.3\" friction=\"0.1\"/>", "<dynamics damping=\"2.5\" friction=\"0\"/>");
     assert_eq!(out.text, expected);
 }
+
+#[test]
+fn passive_joints_and_the_sample_period_come_from_the_logs() {
+    use simgap_diag::export::{passive_joints, sample_period_of};
+    let model = Model::from_urdf_str(PAPER_ARM_URDF).unwrap();
+    // logs name the joints in another order than the model; the elbow is never commanded
+    let mut a = simgap_sim::Run::new(vec!["elbow".into(), "shoulder".into()]);
+    a.t = vec![10.0, 10.002, 10.004, 10.0061];
+    a.tau = vec![0.0, 1.0, 0.0, -2.0, 0.0, 0.5, 0.0, 0.1];
+    let mut b = a.clone();
+    b.tau = vec![0.0, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    assert_eq!(passive_joints(&model, &[a.clone(), b.clone()]), ["elbow"]);
+    // a run that commands the elbow once makes it driven
+    b.tau[6] = 1e-3;
+    assert!(passive_joints(&model, &[a.clone(), b]).is_empty());
+    assert!(passive_joints(&model, &[]).is_empty());
+    // the median stamp spacing, unless an experiment states the period
+    assert!((sample_period_of(std::slice::from_ref(&a)).unwrap() - 0.002).abs() < 1e-12);
+    let map: BTreeMap<String, String> = [("controller", "replay"), ("joints", "shoulder,elbow"), ("kp", "0,0"), ("kv", "0,0"), ("sample_period", "0.0025")]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    a.experiment = Some(simgap_sim::experiment_from_map(&map).unwrap());
+    assert_eq!(sample_period_of(&[a]), Some(0.0025));
+    assert_eq!(sample_period_of(&[simgap_sim::Run::new(vec!["elbow".into()])]), None);
+}
