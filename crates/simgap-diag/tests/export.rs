@@ -19,8 +19,22 @@ fn effect(name: &str, joints: &[&str], params: &[(&str, Param)]) -> EffectReport
         joints: joints.iter().map(|s| s.to_string()).collect(),
         parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
         uncertainty: BTreeMap::new(),
-        units: BTreeMap::new(),
+        units: params.iter().map(|(k, _)| (k.to_string(), unit(k).to_string())).collect(),
         description: String::new(),
+    }
+}
+
+/// The units a report states (revolute joints).
+fn unit(param: &str) -> &'static str {
+    match param {
+        "b" => "N·m·s/rad",
+        "fc" | "fs" | "limit" | "offset" | "amplitude" => "N·m",
+        "vs" | "w" => "rad/s",
+        "ia" | "delta_inertia" => "kg·m²",
+        "mass" | "delta_mass" => "kg",
+        "com" | "delta_com" => "m",
+        "delay" => "s",
+        _ => "-",
     }
 }
 

@@ -5,7 +5,7 @@ use simgap_core::{Model, SpatialInertia};
 use simgap_sim::{Effect, LinkDelta};
 
 use super::ExportError;
-use crate::effects::{EffectReport, Param};
+use crate::{EffectReport, Param};
 
 /// The selected effects as numbers, per joint in model order; neutral where nothing acts.
 #[derive(Clone, Debug)]

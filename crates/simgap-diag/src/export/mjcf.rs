@@ -10,7 +10,7 @@ use super::effects::Corrections;
 use super::sidecar::{Format, Sidecar};
 use super::urdf::num;
 use super::{ExportError, ExportedFile};
-use crate::effects::EffectReport;
+use crate::EffectReport;
 
 /// A revolute joint whose limits span at least this much [rad] is taken as unlimited: a
 /// `±π` range states the angle's convention, not a stop, and must not clip a run through π.

@@ -4,7 +4,7 @@
 //! cannot hold.
 //!
 //! Both take plain inputs: the [`Model`](simgap_core::Model) the diagnosis ran on, the report's
-//! `selected_effects` ([`EffectReport`](crate::effects::EffectReport)), and for the URDF the
+//! `selected_effects` ([`EffectReport`](crate::EffectReport)), and for the URDF the
 //! input URDF text; for the MJCF the logs' sample period ([`MjcfOptions`]). They return the
 //! text and the sidecar ([`ExportedFile`]) and write nothing. Units follow the joint type:
 //! revolute rad, N·m, kg·m²; prismatic m, N, kg.

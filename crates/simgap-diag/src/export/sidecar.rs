@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::effects::{param_unit, EffectReport, Param};
+use crate::{EffectReport, Param};
 
 /// One selected effect the exported format does not hold: the report's entry (`effect`,
 /// `joints`, `parameters` with `w` where the report has it, `units`) and one sentence on how
@@ -17,7 +17,7 @@ pub struct SidecarEntry {
     /// Parameters, as in the report's `selected_effects` (per-joint lists aligned with
     /// `joints`, whole-robot numbers).
     pub parameters: BTreeMap<String, Param>,
-    /// The unit of each parameter.
+    /// The unit of each parameter, as the report states it (empty where it states none).
     pub units: BTreeMap<String, String>,
     /// How to apply it, in one sentence.
     pub apply: String,
@@ -76,7 +76,7 @@ impl Sidecar {
 
     /// Records `e` as not held, with how to apply it in a simulator.
     pub(super) fn defer(&mut self, e: &EffectReport, format: Format) {
-        let units = e.parameters.keys().map(|k| (k.clone(), e.units.get(k).cloned().unwrap_or_else(|| param_unit(&e.effect, k).to_string()))).collect();
+        let units = e.parameters.keys().map(|k| (k.clone(), e.units.get(k).cloned().unwrap_or_default())).collect();
         self.selected_effects.push(SidecarEntry {
             effect: e.effect.clone(),
             joints: e.joints.clone(),

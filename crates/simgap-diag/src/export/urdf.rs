@@ -7,7 +7,7 @@ use simgap_core::{Model, SpatialInertia, Transform, UrdfOptions};
 use super::effects::{joint_indices, Corrections};
 use super::sidecar::{Format, Sidecar};
 use super::{ExportError, ExportedFile};
-use crate::effects::EffectReport;
+use crate::EffectReport;
 
 /// The URDF `urdf_text` (read from `source_name`, named in errors) with the selected effects
 /// written in, and its sidecar.
