@@ -53,6 +53,7 @@ def diagnose(
     formulation: str = "euler_lagrange",
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: bool | ProgressCallback | None = None,
+    urdf: str | PathLike[str] | None = None,
 ) -> _simgap.Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks on
@@ -71,6 +72,8 @@ def diagnose(
     line on stderr); a callable is called as ``progress(stage, done, total)`` on the calling
     thread whenever the diagnosis moves on; ``None`` or ``False`` shows nothing.
 
+    ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
+
     Returns a :class:`Report`, which a notebook displays as the HTML report. Ctrl-C raises
     KeyboardInterrupt; errors as :func:`simgap._simgap.diagnose`.
     """
@@ -85,7 +88,7 @@ def diagnose(
     else:
         raise TypeError(f"progress: expected True, False, None or a callable (stage, done, total), got {type(progress).__name__}")
     try:
-        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback)  # type: ignore[arg-type]
+        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf)  # type: ignore[arg-type]
     finally:
         if close is not None:
             close()

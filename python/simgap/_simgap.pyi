@@ -488,6 +488,28 @@ class Report:
     def to_html(self, path: str | PathLike[str]) -> None:
         """Writes the self-contained HTML report (verdict, tables, inline SVG plots of every
         held-out run) to ``path``, like the CLI's ``--html``. Raises LogError when it cannot."""
+    def export_urdf(self, path: str | PathLike[str], urdf: str | PathLike[str] | None = None) -> str:
+        """Writes the URDF the model was loaded from with the selected effects written in (the
+        corrected ``<inertial>`` of every changed link, ``<dynamics damping friction>`` for
+        viscous and Coulomb friction; every other byte kept) to ``path``, and the selected
+        effects a URDF cannot hold (rotor inertia, torque gain, delay, ...) to
+        ``path + ".effects.json"`` in the ``selected_effects`` form, each with a sentence on how
+        to apply it (the CLI's ``--export-urdf``). ``urdf``: the URDF file the model was loaded
+        from; default the one given to ``diagnose(..., urdf=...)``. Returns the sidecar's path.
+        ``pinocchio.buildModelFromUrdf(path)`` loads the file as it is.
+
+        Raises UrdfError when the URDF cannot be read or is not the model's, FitError when an
+        effect cannot be written into it, SimgapError when a file cannot be written."""
+    def export_mjcf(self, path: str | PathLike[str]) -> str:
+        """Writes an MJCF of the corrected robot to ``path`` (body inertials; joint armature,
+        damping, frictionloss, stiffness/springref; a motor per driven joint with gear and
+        forcerange; ``<option timestep>`` = the held-out logs' sample period, gravity, RK4), and
+        the selected effects MJCF cannot hold (delay, Stribeck shape, offsets, ...) to
+        ``path + ".effects.json"`` (the CLI's ``--export-mjcf``).
+        ``mujoco.MjModel.from_xml_path(path)`` loads it as it is. Returns the sidecar's path.
+
+        Raises FitError when an effect cannot be written, SimgapError when a file cannot be
+        written or the logs have no sample period."""
     def summary(self) -> str:
         """The terminal summary the CLI prints."""
     def _repr_html_(self) -> str:
@@ -510,6 +532,7 @@ def diagnose(
     formulation: _Formulation = "euler_lagrange",
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: Callable[[str, int, int], object] | None = None,
+    urdf: str | PathLike[str] | None = None,
 ) -> Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks
@@ -520,6 +543,8 @@ def diagnose(
     ``read_log`` or ``simulate``) or paths to logs (read like ``read_log``), or a single one.
     Every run must carry its experiment (controller, gains, sample period) to be re-simulated
     in closed loop. ``formulation``: the C of the model under test.
+
+    ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
 
     ``experiment``: the experiment of runs that carry none (a recorded bag, a CSV log without
     sidecar): a ``simgap.experiment`` metadata dict (``controller``, ``joints``, ``kp``,

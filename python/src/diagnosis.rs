@@ -171,14 +171,16 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// before and after (never for fitting). Each is a sequence of `Run` (from `read_log` or
 /// `simulate`) or paths to logs (read like `read_log`), or a single one. Every run must carry
 /// its experiment (controller, gains, sample period) to be re-simulated in closed loop.
-/// `formulation`: the C of the model under test, "euler_lagrange" or "simplified".
+/// `formulation`: the C of the model under test, "euler_lagrange" or "simplified". `urdf`: the
+/// URDF file `model` was loaded from, kept for `Report.export_urdf`.
 ///
 /// Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
 /// FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
 /// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
 /// TypeError for arguments that are neither runs nor paths.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None))]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
     model: &PyModel,
@@ -187,6 +189,7 @@ pub(crate) fn diagnose(
     formulation: &str,
     experiment: Option<&Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
+    urdf: Option<PathBuf>,
 ) -> PyResult<PyReport> {
     let progress = progress.filter(|p| !p.is_none());
     if let Some(p) = &progress {
@@ -206,7 +209,27 @@ pub(crate) fn diagnose(
     };
     let diagnosis = run_interruptible(py, job, progress)?;
     let json = diagnosis.report.to_json();
-    Ok(PyReport { diagnosis: Arc::new(diagnosis), model, json })
+    Ok(PyReport { diagnosis: Arc::new(diagnosis), model, json, urdf })
+}
+
+/// Maps an export error: the URDF (or the model) to UrdfError, an effect that cannot be
+/// written to FitError, anything else to SimgapError.
+fn from_export(e: simgap_diag::export::ExportError) -> PyErr {
+    use simgap_diag::export::ExportError as E;
+    let kind = match &e {
+        E::Urdf { .. } | E::Model(_) => Kind::Urdf,
+        E::Effect { .. } | E::Sim(_) => Kind::Fit,
+        _ => Kind::Simgap,
+    };
+    kind.err(e.to_string())
+}
+
+/// Writes an exported file and its sidecar; returns the sidecar's path.
+fn write_export(path: &Path, file: &simgap_diag::export::ExportedFile) -> PyResult<String> {
+    let side = simgap_diag::export::sidecar_path(path);
+    std::fs::write(path, &file.text).map_err(|e| Kind::Simgap.err(format!("{}: cannot write: {e}", path.display())))?;
+    std::fs::write(&side, file.sidecar.to_json() + "\n").map_err(|e| Kind::Simgap.err(format!("{}: cannot write: {e}", side.display())))?;
+    Ok(side.display().to_string())
 }
 
 /// The `experiment` argument: a `simgap.experiment` metadata dict (values converted with
@@ -232,6 +255,8 @@ pub(crate) struct PyReport {
     /// The model diagnosed (for inertial corrections as percentages in the HTML).
     model: Arc<Model>,
     json: String,
+    /// The URDF the model was loaded from, when `diagnose` was told (for `export_urdf`).
+    urdf: Option<PathBuf>,
 }
 
 impl PyReport {
@@ -280,6 +305,50 @@ impl PyReport {
     fn to_html(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
         py.detach(move || simgap_diag::html::write_html_for(&diagnosis, Some(&model), &path)).map_err(from_diag)
+    }
+
+    /// Writes the URDF the model was loaded from with the selected effects written in (the
+    /// corrected `<inertial>` of every changed link, `<dynamics damping friction>` for viscous
+    /// and Coulomb friction; every other byte kept) to `path`, and the selected effects a URDF
+    /// cannot hold (rotor inertia, torque gain, delay, ...) to `path + ".effects.json"`, in the
+    /// `selected_effects` form with a sentence on how to apply each (the CLI's
+    /// `--export-urdf`). `urdf`: the URDF file the model was loaded from; default the one
+    /// given to `diagnose(..., urdf=...)`. Returns the sidecar's path.
+    ///
+    /// Raises UrdfError when the URDF cannot be read or is not the model's, FitError when an
+    /// effect cannot be written into it, SimgapError when a file cannot be written.
+    #[pyo3(signature = (path, urdf = None))]
+    fn export_urdf(&self, py: Python<'_>, path: PathBuf, urdf: Option<PathBuf>) -> PyResult<String> {
+        let Some(urdf) = urdf.or_else(|| self.urdf.clone()) else {
+            return Err(Kind::Urdf.err("export_urdf: which URDF was the model loaded from? Pass export_urdf(path, urdf=...) or diagnose(..., urdf=...)"));
+        };
+        let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
+        py.detach(move || {
+            let text = std::fs::read_to_string(&urdf).map_err(|e| Kind::Urdf.err(format!("{}: cannot read: {e}", urdf.display())))?;
+            let file = simgap_diag::export::export_urdf(&text, &urdf.display().to_string(), &model, &diagnosis.report.selected_effects).map_err(from_export)?;
+            write_export(&path, &file)
+        })
+    }
+
+    /// Writes an MJCF of the corrected robot to `path` (body inertials; joint armature,
+    /// damping, frictionloss, stiffness/springref; a motor per driven joint with gear and
+    /// forcerange; `<option timestep>` = the held-out logs' sample period, gravity, RK4), and
+    /// the selected effects MJCF cannot hold (delay, Stribeck shape, offsets, ...) to
+    /// `path + ".effects.json"` (the CLI's `--export-mjcf`). `mujoco.MjModel.from_xml_path`
+    /// loads it as it is. Returns the sidecar's path.
+    ///
+    /// Raises FitError when an effect cannot be written, SimgapError when a file cannot be
+    /// written or the logs have no sample period.
+    fn export_mjcf(&self, py: Python<'_>, path: PathBuf) -> PyResult<String> {
+        let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
+        py.detach(move || {
+            use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions};
+            let timestep = sample_period_of(&diagnosis.holdout)
+                .ok_or_else(|| Kind::Simgap.err("export_mjcf: the held-out logs have no sample period (no experiment sample_period, fewer than two stamps)"))?;
+            let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), ..MjcfOptions::new(timestep) };
+            let file = export_mjcf(&model, &diagnosis.report.selected_effects, &options).map_err(from_export)?;
+            write_export(&path, &file)
+        })
     }
 
     /// The HTML report as a string: a notebook (Jupyter, VS Code) shows it in place of the repr.

@@ -6,7 +6,9 @@
 //! are simulated (Euler–Lagrange plant, 2.5 ms, 1,024,000 counts/rev, backward-difference
 //! velocity) and written as MCAP logs with the paper arm's URDF. The diagnosis reads the logs
 //! back, sees only them and the nominal URDF, and at the end the hidden truth is printed next
-//! to what was found.
+//! to what was found. The corrected model is written as `corrected.urdf` and `corrected.xml`
+//! (MJCF) with their `.effects.json` sidecars, and one line each says how to load them in
+//! Pinocchio and MuJoCo.
 
 use std::path::{Path, PathBuf};
 
@@ -66,6 +68,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
 
     // the diagnosis, blind, from the files
     let (json, html, mcap) = (dir.join("report.json"), dir.join("report.html"), dir.join("corrected.mcap"));
+    let (corrected_urdf, corrected_mjcf) = (dir.join("corrected.urdf"), dir.join("corrected.xml"));
     let diagnosis = execute(&Job {
         model: &model,
         formulation: Formulation::EulerLagrange,
@@ -76,13 +79,19 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         json: Some(&json),
         html: Some(&html),
         mcap: Some(&mcap),
+        urdf: Some(&urdf),
+        export_urdf: Some(&corrected_urdf),
+        export_mjcf: Some(&corrected_mjcf),
     })?;
 
     // the hidden truth next to the answer
     println!();
     println!("{}", truth_table(&hidden, &model, &diagnosis.report));
     println!("Reproduce the diagnosis from the files:");
-    println!("{}", reproduce_command(&urdf, &logs, &holdouts, &json, &html, &mcap));
+    println!("{}", reproduce_command(&urdf, &logs, &holdouts, &json, &html, &mcap, &corrected_urdf, &corrected_mjcf));
+    println!();
+    println!("Load the corrected model (effects the formats cannot hold are in the .effects.json beside each):");
+    println!("{}", load_lines(&corrected_urdf, &corrected_mjcf));
     Ok(())
 }
 
@@ -144,7 +153,19 @@ fn truth_table(effects: &[Effect], model: &Model, report: &Report) -> String {
     s
 }
 
-fn reproduce_command(urdf: &Path, logs: &[PathBuf], holdouts: &[PathBuf], json: &Path, html: &Path, mcap: &Path) -> String {
+/// One Python line each that loads the exported files, in Pinocchio and in MuJoCo.
+fn load_lines(urdf: &Path, mjcf: &Path) -> String {
+    let py = |p: &Path| format!("{:?}", p.display().to_string());
+    let quote = |code: String| shell_quote(&code);
+    format!(
+        "  python -c {}\n  python -c {}",
+        quote(format!("import pinocchio; print(pinocchio.buildModelFromUrdf({}))", py(urdf))),
+        quote(format!("import mujoco; print(mujoco.MjModel.from_xml_path({}).nv)", py(mjcf)))
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn reproduce_command(urdf: &Path, logs: &[PathBuf], holdouts: &[PathBuf], json: &Path, html: &Path, mcap: &Path, export_urdf: &Path, export_mjcf: &Path) -> String {
     let q = |p: &Path| shell_quote(&p.display().to_string());
     let mut c = format!("simgap diagnose --urdf {}", q(urdf));
     for l in logs {
@@ -153,7 +174,7 @@ fn reproduce_command(urdf: &Path, logs: &[PathBuf], holdouts: &[PathBuf], json: 
     for h in holdouts {
         c += &format!(" --holdout {}", q(h));
     }
-    c += &format!(" --json {} --html {} --mcap {}", q(json), q(html), q(mcap));
+    c += &format!(" --json {} --html {} --mcap {} --export-urdf {} --export-mjcf {}", q(json), q(html), q(mcap), q(export_urdf), q(export_mjcf));
     c
 }
 

@@ -53,6 +53,15 @@ pub(crate) struct Args {
     /// Write the measured, nominal and corrected held-out runs to one MCAP file here.
     #[arg(long)]
     mcap: Option<PathBuf>,
+    /// Write the URDF with the selected effects (corrected `<inertial>`, `<dynamics damping
+    /// friction>`) here, and the effects a URDF cannot hold to PATH.effects.json.
+    #[arg(long = "export-urdf", value_name = "PATH")]
+    export_urdf: Option<PathBuf>,
+    /// Write an MJCF of the corrected robot (inertials, joint armature, damping, frictionloss,
+    /// motors with gear and forcerange, the logs' time step) here, and the effects it cannot
+    /// hold to PATH.effects.json.
+    #[arg(long = "export-mjcf", value_name = "PATH")]
+    export_mjcf: Option<PathBuf>,
     /// Experiment file (controller, joints, kp, kv, sample_period) for logs that carry none
     /// (no `simgap.experiment` metadata, no sidecar `NAME.experiment.json`).
     #[arg(long)]
@@ -80,6 +89,10 @@ pub(crate) struct Job<'a> {
     pub(crate) json: Option<&'a Path>,
     pub(crate) html: Option<&'a Path>,
     pub(crate) mcap: Option<&'a Path>,
+    /// The URDF the model was loaded from (needed by `export_urdf`).
+    pub(crate) urdf: Option<&'a Path>,
+    pub(crate) export_urdf: Option<&'a Path>,
+    pub(crate) export_mjcf: Option<&'a Path>,
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
@@ -94,6 +107,9 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         json: args.json.as_deref(),
         html: args.html.as_deref(),
         mcap: args.mcap.as_deref(),
+        urdf: Some(&args.urdf),
+        export_urdf: args.export_urdf.as_deref(),
+        export_mjcf: args.export_mjcf.as_deref(),
     })?;
     Ok(())
 }
@@ -157,7 +173,40 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         write_atomically(path, |tmp| write_corrected_mcap(&diagnosis, tmp))?;
         println!("wrote {} (topics /holdout/<run>/{{joint_states,joint_reference,nominal/joint_states,measured/joint_states}})", path.display());
     }
+    let runs: Vec<Run> = fit.into_iter().chain(holdout).collect();
+    write_exports(job, &diagnosis, &runs)?;
     Ok(diagnosis)
+}
+
+/// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`.
+fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::Result<()> {
+    use simgap::diag::export::{export_mjcf, export_urdf, passive_joints, sample_period_of, sidecar_path, ExportedFile, MjcfOptions};
+    let effects = &diagnosis.report.selected_effects;
+    let write = |path: &Path, file: &ExportedFile| -> anyhow::Result<()> {
+        write_atomically(path, |tmp| std::fs::write(tmp, &file.text).map_err(Into::into))?;
+        let side = sidecar_path(path);
+        write_atomically(&side, |tmp| std::fs::write(tmp, file.sidecar.to_json() + "\n").map_err(Into::into))?;
+        let left = match file.sidecar.selected_effects.len() {
+            0 => "it holds every selected effect".to_string(),
+            1 => "1 selected effect it does not hold".to_string(),
+            k => format!("{k} selected effects it does not hold"),
+        };
+        println!("wrote {} and {} ({left})", path.display(), side.display());
+        Ok(())
+    };
+    if let Some(path) = job.export_urdf {
+        let urdf = job.urdf.context("--export-urdf needs the URDF the model was loaded from")?;
+        let text = std::fs::read_to_string(urdf).with_context(|| format!("{}: cannot read the URDF to export", urdf.display()))?;
+        let file = export_urdf(&text, &urdf.display().to_string(), job.model, effects).with_context(|| format!("cannot export the corrected URDF to {}", path.display()))?;
+        write(path, &file)?;
+    }
+    if let Some(path) = job.export_mjcf {
+        let timestep = sample_period_of(runs).context("--export-mjcf: the logs have no sample period (no experiment sample_period and fewer than two stamps)")?;
+        let options = MjcfOptions { passive: passive_joints(job.model, runs), ..MjcfOptions::new(timestep) };
+        let file = export_mjcf(job.model, effects, &options).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
+        write(path, &file)?;
+    }
+    Ok(())
 }
 
 /// Writes `path` through `X.tmp` and a rename, so it is either the old file or the whole new one.

@@ -30,6 +30,7 @@
 #[cfg(feature = "check")]
 pub mod check;
 mod error;
+pub mod export;
 mod locate;
 mod lsq;
 mod pipeline;

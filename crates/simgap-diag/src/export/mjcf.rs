@@ -1,0 +1,262 @@
+//! The corrected MJCF: the model's chain as nested MuJoCo bodies with the selected effects in
+//! their inertials, joints and motors.
+
+use std::fmt::Write;
+
+use nalgebra::{Rotation3, UnitQuaternion, Vector3};
+use simgap_core::{JointKind, Model, SpatialInertia};
+
+use super::effects::Corrections;
+use super::sidecar::{Format, Sidecar};
+use super::urdf::num;
+use super::{ExportError, ExportedFile};
+use crate::EffectReport;
+
+/// A revolute joint whose limits span at least this much [rad] is taken as unlimited: a
+/// `±π` range states the angle's convention, not a stop, and must not clip a run through π.
+pub const FULL_TURN: f64 = 2.0 * std::f64::consts::PI - 1e-3;
+
+/// Options of [`export_mjcf`].
+#[derive(Clone, Debug)]
+pub struct MjcfOptions {
+    /// `<option timestep>` [s]: the logs' sample period, so that one `mj_step` is one sample
+    /// (the logged torque held as `ctrl` over it).
+    pub timestep: f64,
+    /// `<option integrator>`: `RK4` (default; simgap integrates the same sampled dynamics with
+    /// RK4), or `Euler`, `implicit`, `implicitfast`.
+    pub integrator: String,
+    /// Joints that get no motor (passive joints, whose commanded torque is always zero).
+    pub passive: Vec<String>,
+}
+
+impl MjcfOptions {
+    /// The options for logs sampled every `timestep` seconds: RK4, every joint driven.
+    pub fn new(timestep: f64) -> Self {
+        MjcfOptions { timestep, integrator: "RK4".into(), passive: Vec::new() }
+    }
+}
+
+/// An MJCF of the corrected robot that MuJoCo compiles as it is, and its sidecar.
+///
+/// - One body per movable joint, nested along the chain and named after the link its joint
+///   moves, placed at the joint's placement at q = 0 (`pos` [m], `quat` w x y z) with the joint
+///   at its origin and its axis in the body frame (the URDF's joint axis in the child frame).
+///   Links merged by fixed joints are inside their body; the fixed base is the world body.
+/// - `<inertial pos mass quat diaginertia>`: the corrected body (payload and inertial errors
+///   applied): centre of mass [m] in the body frame, mass [kg], principal axes and moments of
+///   the inertia about the centre of mass [kg·m²] (MuJoCo's own form, taken as written). Masses
+///   and moments below 1e-9 of the robot's largest are raised to that (MuJoCo refuses a moving
+///   body without mass or with a zero principal moment), and the sidecar says so.
+/// - Joints `hinge` (revolute, continuous) or `slide` (prismatic), with `armature` (rotor
+///   inertia), `damping` (viscous friction), `frictionloss` (Coulomb friction: MuJoCo's dry
+///   friction is a constraint, not simgap's `tanh(q̇/w)`), `stiffness` and `springref`
+///   (joint spring); `limited="true" range` only where the URDF's limits are real (not for a
+///   continuous joint, nor for a revolute range of a full turn or more, [`FULL_TURN`]).
+/// - One `motor` per driven joint: `gear` = the torque gain, `forcelimited` `forcerange` =
+///   the torque saturation of the command, `ctrllimited="false"`: `ctrl` is the commanded
+///   torque [N·m or N].
+/// - `<option timestep gravity integrator>`: the logs' sample period, the model's gravity
+///   [m/s²], RK4 by default.
+/// - Geometry: a thin capsule from each body to the next (to its centre of mass for the last),
+///   visual only (no contacts, no mass).
+///
+/// Everything else goes to the sidecar.
+///
+/// # Errors
+/// [`ExportError::Option`] for a time step that is not a positive number or an unknown
+/// integrator; [`ExportError::Effect`] for an effect naming an unknown joint or with a
+/// parameter of the wrong shape; [`ExportError::Sim`] for a correction that leaves a link
+/// non-physical.
+pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOptions) -> Result<ExportedFile, ExportError> {
+    if !(options.timestep.is_finite() && options.timestep > 0.0) {
+        return Err(ExportError::Option(format!("MJCF timestep = {} s; expected a positive number (the logs' sample period)", options.timestep)));
+    }
+    if !["Euler", "RK4", "implicit", "implicitfast"].contains(&options.integrator.as_str()) {
+        return Err(ExportError::Option(format!("MJCF integrator '{}'; expected Euler, RK4, implicit or implicitfast", options.integrator)));
+    }
+    for p in &options.passive {
+        if model.joint_index(p).is_none() {
+            return Err(ExportError::Option(format!("passive joint '{p}' is not one of the model's joints {:?}", model.joint_names())));
+        }
+    }
+    let c = Corrections::read(model, effects)?;
+    let n = model.dof();
+    let joints = model.joints();
+    let g = model.gravity();
+
+    // header: compiler, option, visual defaults
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "<!-- {}: the corrected model of a simgap diagnosis (docs/export.md). Selected effects MJCF cannot hold are in the .effects.json beside it. -->",
+        xml(model.name())
+    );
+    let _ = writeln!(s, "<mujoco model=\"{}\">", xml(model.name()));
+    let _ = writeln!(s, "  <compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"false\"/>");
+    let _ = writeln!(s, "  <option timestep=\"{}\" gravity=\"{} {} {}\" integrator=\"{}\"/>", num(options.timestep), num(g.x), num(g.y), num(g.z), options.integrator);
+    let _ = writeln!(s, "  <default>");
+    let _ = writeln!(s, "    <geom type=\"capsule\" contype=\"0\" conaffinity=\"0\" group=\"1\" mass=\"0\" rgba=\"0.6 0.6 0.7 1\"/>");
+    let _ = writeln!(s, "  </default>");
+    let _ = writeln!(s, "  <worldbody>");
+
+    // the chain: one nested body per joint; MuJoCo needs every moving body's mass and
+    // principal moments above zero, so those below a floor far under the robot's are raised
+    let radius = geom_radius(model);
+    let floor = Floor::of(&c.bodies);
+    let raised: Vec<&str> = joints.iter().zip(&c.bodies).filter(|(_, b)| floor.raises(b)).map(|(j, _)| j.link.as_str()).collect();
+    for (i, j) in joints.iter().enumerate() {
+        let pad = "  ".repeat(i + 2);
+        let p = j.placement.translation;
+        let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(j.placement.rotation));
+        let _ = writeln!(s, "{pad}<body name=\"{}\" pos=\"{} {} {}\" quat=\"{} {} {} {}\">", xml(&j.link), num(p.x), num(p.y), num(p.z), num(q.w), num(q.i), num(q.j), num(q.k));
+        let (pos, mass, quat, moments) = principal_inertial(&c.bodies[i], &floor);
+        let _ = writeln!(
+            s,
+            "{pad}  <inertial pos=\"{} {} {}\" mass=\"{}\" quat=\"{} {} {} {}\" diaginertia=\"{} {} {}\"/>",
+            num(pos.x),
+            num(pos.y),
+            num(pos.z),
+            num(mass),
+            num(quat.w),
+            num(quat.i),
+            num(quat.j),
+            num(quat.k),
+            num(moments[0]),
+            num(moments[1]),
+            num(moments[2]),
+        );
+        let kind = if j.kind == JointKind::Prismatic { "slide" } else { "hinge" };
+        let mut attrs = format!("name=\"{}\" type=\"{kind}\" pos=\"0 0 0\" axis=\"{} {} {}\"", xml(&j.name), num(j.axis.x), num(j.axis.y), num(j.axis.z));
+        let real_range = match j.kind {
+            JointKind::Continuous => false,
+            JointKind::Revolute => j.limits.lower.is_finite() && j.limits.upper.is_finite() && j.limits.upper - j.limits.lower < FULL_TURN,
+            JointKind::Prismatic => j.limits.lower.is_finite() && j.limits.upper.is_finite(),
+        };
+        if real_range {
+            let _ = write!(attrs, " limited=\"true\" range=\"{} {}\"", num(j.limits.lower), num(j.limits.upper));
+        } else {
+            attrs.push_str(" limited=\"false\"");
+        }
+        for (name, v) in [("armature", c.armature[i]), ("damping", c.viscous[i]), ("frictionloss", c.coulomb[i]), ("stiffness", c.spring_k[i])] {
+            if v != 0.0 {
+                let _ = write!(attrs, " {name}=\"{}\"", num(v));
+            }
+        }
+        if c.spring_k[i] != 0.0 {
+            let _ = write!(attrs, " springref=\"{}\"", num(c.spring_q0[i]));
+        }
+        let _ = writeln!(s, "{pad}  <joint {attrs}/>");
+        // a visual capsule to the next joint (the last body's to its centre of mass)
+        let to: Vector3<f64> = joints.get(i + 1).map_or(c.bodies[i].com(), |next| next.placement.translation);
+        if to.norm() > 1e-6 {
+            let _ = writeln!(s, "{pad}  <geom name=\"{}_geom\" fromto=\"0 0 0 {} {} {}\" size=\"{}\"/>", xml(&j.link), num(to.x), num(to.y), num(to.z), num(radius));
+        } else {
+            let _ = writeln!(s, "{pad}  <geom name=\"{}_geom\" type=\"sphere\" size=\"{}\"/>", xml(&j.link), num(radius));
+        }
+    }
+    for i in (0..n).rev() {
+        let _ = writeln!(s, "{}</body>", "  ".repeat(i + 2));
+    }
+    let _ = writeln!(s, "  </worldbody>");
+
+    // a motor per driven joint: ctrl is the commanded torque
+    let _ = writeln!(s, "  <actuator>");
+    for (i, j) in joints.iter().enumerate() {
+        if options.passive.contains(&j.name) {
+            continue;
+        }
+        let mut attrs = format!("name=\"{}_motor\" joint=\"{}\" gear=\"{}\" ctrllimited=\"false\"", xml(&j.name), xml(&j.name), num(c.gain[i]));
+        if c.limit[i].is_finite() {
+            let _ = write!(attrs, " forcelimited=\"true\" forcerange=\"{} {}\"", num(-c.limit[i]), num(c.limit[i]));
+        } else {
+            attrs.push_str(" forcelimited=\"false\"");
+        }
+        let _ = writeln!(s, "    <motor {attrs}/>");
+    }
+    let _ = writeln!(s, "  </actuator>");
+    let _ = writeln!(s, "</mujoco>");
+
+    // the sidecar
+    let mut sidecar = Sidecar::new("mjcf");
+    for e in effects {
+        match e.effect.as_str() {
+            "inertial_error" | "payload" => sidecar.hold(e, "body <inertial>", ""),
+            "viscous_friction" => sidecar.hold(e, "joint damping", ""),
+            "coulomb_friction" => sidecar.hold(
+                e,
+                "joint frictionloss",
+                "MuJoCo's frictionloss is dry friction solved as a constraint (it holds a joint at rest up to fc); simgap simulated −fc·tanh(q̇/w) (w in the parameters, or 0.01 rad/s where the report gives none)",
+            ),
+            "armature" => sidecar.hold(e, "joint armature", ""),
+            "torque_gain" => sidecar.hold(e, "motor gear", ""),
+            "torque_saturation" => sidecar.hold(e, "motor forcerange (forcelimited), applied to ctrl before the gear as simgap clamps before the gain", ""),
+            "joint_spring" => sidecar.hold(e, "joint stiffness and springref", ""),
+            _ => sidecar.defer(e, Format::Mjcf),
+        }
+    }
+    if !raised.is_empty() {
+        sidecar.notes.push(format!(
+            "MuJoCo needs every moving body's mass and principal moments above zero: bodies {raised:?} have theirs raised to at least {} kg and {} kg·m² (1e-9 of the robot's largest), a change no figure shows",
+            num(floor.mass),
+            num(floor.moment)
+        ));
+    }
+    for p in &options.passive {
+        sidecar.notes.push(format!("joint '{p}' is passive (commanded torque always zero in the logs): it has no motor"));
+    }
+    if joints.iter().any(|j| j.kind == JointKind::Revolute && j.limits.upper - j.limits.lower >= FULL_TURN) {
+        sidecar.notes.push("revolute joints whose URDF range spans a full turn are unlimited in the MJCF: a ±π range is the angle's convention, not a stop".into());
+    }
+    sidecar.notes.push(format!(
+        "simgap does not simulate joint limits; MuJoCo enforces the MJCF ranges (limited=\"true\"), which matters only for motion that reaches them. Integrator {}, one step per sample of {} s.",
+        options.integrator,
+        num(options.timestep)
+    ));
+    Ok(ExportedFile { text: s, sidecar })
+}
+
+/// The smallest mass [kg] and principal moment [kg·m²] written: 1e-9 of the robot's largest
+/// body mass and principal moment.
+struct Floor {
+    mass: f64,
+    moment: f64,
+}
+
+impl Floor {
+    fn of(bodies: &[SpatialInertia]) -> Floor {
+        let mass = bodies.iter().map(|b| b.mass).fold(0.0, f64::max);
+        let moment = bodies.iter().map(|b| b.inertia_about_com().symmetric_eigenvalues().max()).fold(0.0, f64::max);
+        Floor { mass: (1e-9 * mass).max(1e-12), moment: (1e-9 * moment).max(1e-15) }
+    }
+
+    fn raises(&self, b: &SpatialInertia) -> bool {
+        b.mass < self.mass || b.inertia_about_com().symmetric_eigenvalues().iter().any(|l| *l < self.moment)
+    }
+}
+
+/// A body's inertial as MuJoCo takes it exactly: centre of mass [m], mass [kg], the rotation of
+/// the principal axes (w x y z) and the principal moments [kg·m²], mass and moments raised to
+/// the floor.
+fn principal_inertial(body: &SpatialInertia, floor: &Floor) -> (Vector3<f64>, f64, UnitQuaternion<f64>, [f64; 3]) {
+    let ic = body.inertia_about_com();
+    let eig = ((ic + ic.transpose()) * 0.5).symmetric_eigen();
+    let mut axes = eig.eigenvectors;
+    if axes.determinant() < 0.0 {
+        axes.set_column(2, &(-axes.column(2)));
+    }
+    let quat = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(axes));
+    let m = eig.eigenvalues.map(|l| l.max(floor.moment));
+    (body.com(), body.mass.max(floor.mass), quat, [m[0], m[1], m[2]])
+}
+
+/// A capsule radius in proportion to the robot: 4 % of its longest joint-to-joint distance,
+/// at least 5 mm.
+fn geom_radius(model: &Model) -> f64 {
+    let longest = model.joints().iter().map(|j| j.placement.translation.norm()).chain(model.joints().iter().map(|j| j.inertia.com().norm())).fold(0.0, f64::max);
+    (0.04 * longest).max(0.005)
+}
+
+/// Text escaped for an XML attribute.
+fn xml(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;").replace('\'', "&apos;")
+}
