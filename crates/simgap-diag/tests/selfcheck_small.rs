@@ -6,8 +6,8 @@ use simgap_diag::selfcheck::{family_of, run_scenario, summarise, FAMILIES};
 
 #[test]
 fn fit_recovers_known_effects_in_blind_scenarios() {
-    // one cycle: four random scenarios and one of each named family
-    let n: usize = std::env::var("SIMGAP_SELFCHECK_N").ok().and_then(|s| s.parse().ok()).unwrap_or(13);
+    // two cycles: four random scenarios and one of each named family, twice
+    let n: usize = std::env::var("SIMGAP_SELFCHECK_N").ok().and_then(|s| s.parse().ok()).unwrap_or(26);
     let scores: Vec<_> = (0..n).into_par_iter().map(|i| run_scenario(42, i)).collect();
     for s in &scores {
         eprintln!(
@@ -23,8 +23,15 @@ fn fit_recovers_known_effects_in_blind_scenarios() {
             assert!(scores.iter().any(|s| s.family == *f), "family {f} not drawn in {n} scenarios");
         }
     }
+    // the 200-scenario run's targets, adjusted to this size: at least 90 % right (24 of 26),
+    // every effect-free scenario left clean, two thirds of the hidden delays found
     let right = scores.iter().filter(|s| s.right).count();
-    assert!(right * 3 >= n * 2 - 2, "only {right} of {n} scenarios right");
+    assert!(right * 10 >= n * 9, "only {right} of {n} scenarios right (the target is 90 %)");
+    if let Some((count, _, _)) = sum.by_count.get(&0) {
+        assert_eq!(sum.by_count[&0].1, *count, "an effect-free scenario selected an effect: {:?}", sum.by_count);
+    }
+    let (delays, found) = sum.delays_found;
+    assert!(found * 3 >= delays * 2, "hidden delays found: {found} of {delays}");
     // the families whose scoring has its own rule, and the delay, are right here
     for s in scores.iter().filter(|s| matches!(s.family.as_str(), "glitch" | "passive_joint" | "friction_shape" | "delay")) {
         assert!(s.right, "scenario {} ({}) is wrong: hidden {:?}, selected {:?}; {}", s.index, s.family, s.truth, s.found, s.rule);
@@ -37,8 +44,12 @@ fn fit_recovers_known_effects_in_blind_scenarios() {
     let (boot, boot_count) = same.iter().map(|s| s.interval_variants["block_bootstrap"]).fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     assert_eq!(count_same, boot_count);
     assert!(inside_same >= boot, "reported intervals hold {inside_same} of {count_same} true values, the block bootstrap's {boot}");
+    // 95 % intervals hold the truth 90–98 % of the time (a check that can fail both ways: too
+    // narrow and too wide)
     let (inside, count) = sum.coverage;
-    assert!(count == 0 || inside * 3 >= count * 2, "reported intervals hold only {inside} of {count} true values");
+    assert!(count >= 20, "only {count} parameters with an interval: too few to measure coverage");
+    let share = inside as f64 / count as f64;
+    assert!((0.90..=0.98).contains(&share), "reported 95 % intervals hold {inside} of {count} true values ({:.1} %); expected 90–98 %", 100.0 * share);
 }
 
 #[test]

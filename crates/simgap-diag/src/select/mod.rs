@@ -113,7 +113,7 @@ pub(crate) struct Context<'a> {
     /// Sample period (for the delay grid) [s].
     pub sample_period: f64,
     /// Designs already built, by term (the same grid members recur at every step).
-    cache: std::sync::Mutex<std::collections::HashMap<String, std::sync::Arc<TermDesign>>>,
+    cache: std::sync::Mutex<std::collections::HashMap<crate::vocabulary::TermKey, std::sync::Arc<TermDesign>>>,
     /// The payload's basis, built at its first search.
     payload: std::sync::OnceLock<PayloadBasis>,
 }
@@ -379,7 +379,7 @@ impl<'a> Context<'a> {
     }
 
     fn design_shared(&self, t: &Term) -> std::sync::Arc<TermDesign> {
-        let key = if matches!(t, Term::InertialError { .. }) { "inertial_error".to_string() } else { format!("{t:?}") };
+        let key = t.key();
         if let Some(d) = self.cache.lock().expect("design cache").get(&key) {
             return d.clone();
         }

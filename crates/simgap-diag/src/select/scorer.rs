@@ -8,7 +8,7 @@ use crate::lsq::{self, Grams};
 use crate::predict::kstep::{self, FOLDS_PER_RUN};
 use crate::prepare::Prepared;
 use crate::select::{self, Context};
-use crate::vocabulary::{effects, Term};
+use crate::vocabulary::{effects, Term, TermKey};
 use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Scores sets of terms by cross-validated prediction on the fit runs: the one helper for
@@ -23,7 +23,7 @@ pub(crate) struct Scorer<'a> {
     pub(crate) folds: Vec<usize>,
     /// Cross-validated errors of the sets scored so far (the selection revisits sets); `None`
     /// for a set that is no answer (inadmissible, or a prediction that failed).
-    pub(crate) memo: std::sync::Mutex<std::collections::HashMap<String, Option<std::sync::Arc<kstep::Errors>>>>,
+    pub(crate) memo: std::sync::Mutex<std::collections::HashMap<Vec<TermKey>, Option<std::sync::Arc<kstep::Errors>>>>,
 }
 
 impl Scorer<'_> {
@@ -42,9 +42,8 @@ impl Scorer<'_> {
 
     /// The cross-validated errors of every fit window (see [`Scorer::cv`]), memoised.
     pub(crate) fn cv_errors(&self, terms: &[Term]) -> Option<std::sync::Arc<kstep::Errors>> {
-        let mut key: Vec<String> = terms.iter().map(|t| format!("{t:?}")).collect();
-        key.sort();
-        let key = key.join("|");
+        let mut key: Vec<TermKey> = terms.iter().map(Term::key).collect();
+        key.sort_unstable();
         if let Some(v) = self.memo.lock().ok().and_then(|m| m.get(&key).cloned()) {
             return v;
         }

@@ -153,6 +153,27 @@ impl Term {
     }
 }
 
+/// The identity of a term as a hashable key (its effect, joint and searched parameter's bits; an
+/// inertial error by its prior), for caches keyed by sets of terms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub(crate) struct TermKey(EffectKind, usize, u64, [u64; 3]);
+
+impl Term {
+    /// The term's key (see [`TermKey`]).
+    pub(crate) fn key(&self) -> TermKey {
+        let joint = self.joint().unwrap_or(usize::MAX);
+        let k = self.kind();
+        match self {
+            Term::Stribeck { vs: x, .. } | Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } => {
+                TermKey(k, joint, x.to_bits(), [0; 3])
+            }
+            Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
+            Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
+            _ => TermKey(k, joint, 0, [0; 3]),
+        }
+    }
+}
+
 /// What a selected term occupies (see [`Term::slot`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Slot {
