@@ -198,3 +198,22 @@ fn no_motion_says_cannot_tell() {
     assert_eq!(r["selected_effects"].as_array().unwrap().len(), 0);
     assert!(std::fs::read_to_string(&html).unwrap().contains("cannot tell"));
 }
+
+/// One recording is the common case: without `--holdout` each fit log is split in time (its
+/// first 60 % fits, the rest is held out), the report says so, and the held-out part is judged.
+#[test]
+fn a_recording_without_holdout_is_split_in_time_and_says_so() {
+    let (dir, _, _) = demo();
+    let out = scratch("no-holdout");
+    let json = out.join("one.json");
+    let o = simgap(&["diagnose", "--urdf", s(&dir.join("paper_arm.urdf")), "--log", s(&dir.join("fit-excitation.mcap")), "--json", s(&json)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let holdout = r["holdout_logs"].as_array().unwrap();
+    assert_eq!(holdout.len(), 1);
+    assert!(holdout[0].as_str().unwrap().contains("fit-excitation.mcap (from "), "{holdout:?}");
+    assert!(r["fit_logs"][0].as_str().unwrap().contains("(first 60 %)"));
+    assert!(r["notes"].as_array().unwrap().iter().any(|n| n.as_str().unwrap().contains("split in time")), "{}", r["notes"]);
+    // the demo's dominant effect is found on the first 60 % alone
+    assert!(r["selected_effects"].as_array().unwrap().iter().any(|e| e["effect"] == "coulomb_friction"), "{}", r["selected_effects"]);
+}

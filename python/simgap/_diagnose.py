@@ -48,7 +48,7 @@ def _tqdm_progress() -> tuple[ProgressCallback, Callable[[], None]]:
 def diagnose(
     model: _simgap.Model,
     fit: Sequence[Any] | Any,
-    holdout: Sequence[Any] | Any,
+    holdout: Sequence[Any] | Any = (),
     *,
     formulation: str = "euler_lagrange",
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,

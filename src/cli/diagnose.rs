@@ -38,8 +38,9 @@ pub(crate) struct Args {
     /// A log to fit and select effects on (MCAP or CSV), repeatable.
     #[arg(long = "log", required = true)]
     logs: Vec<PathBuf>,
-    /// A held-out log, only used to measure how far the gap shrinks, repeatable.
-    #[arg(long = "holdout", required = true)]
+    /// A held-out log, only used to measure how far the gap shrinks, repeatable. Without one,
+    /// each fit log is split in time: the first 60 % fits, the rest is held out.
+    #[arg(long = "holdout")]
     holdouts: Vec<PathBuf>,
     /// Formulation of C under test: euler-lagrange or simplified.
     #[arg(long, default_value = "euler-lagrange")]

@@ -156,6 +156,29 @@ impl Run {
             _ => 0.0,
         }
     }
+
+    /// Samples `range` of the run (every signal it has, experiment and source kept; `range`
+    /// clamped to the run's samples).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Run {
+        let (a, b) = (range.start.min(self.len()), range.end.min(self.len()));
+        let (a, b) = (a.min(b), b);
+        let n = self.dof();
+        let rows = |m: &[f64]| if m.len() >= b * n { m[a * n..b * n].to_vec() } else { Vec::new() };
+        Run {
+            joints: self.joints.clone(),
+            t: self.t[a..b].to_vec(),
+            q: rows(&self.q),
+            qd: rows(&self.qd),
+            tau: rows(&self.tau),
+            q_ref: rows(&self.q_ref),
+            qd_ref: rows(&self.qd_ref),
+            tau_ff: rows(&self.tau_ff),
+            tau_measured: rows(&self.tau_measured),
+            start_ns: self.start_ns,
+            experiment: self.experiment.clone(),
+            source: self.source.clone(),
+        }
+    }
 }
 
 /// One sample handed to a [`Sink`](crate::sink::Sink).

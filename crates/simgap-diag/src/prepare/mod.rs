@@ -42,10 +42,20 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
     if fit.is_empty() {
         return Err(Error::Input("no fit log given; expected at least one".into()));
     }
-    if holdout.is_empty() {
-        return Err(Error::Input("no held-out log given; expected at least one (held-out runs measure how far the gap shrinks)".into()));
-    }
     let mut notes = Vec::new();
+    // one recording is the common case: without held-out logs each fit log is split in time
+    let (split_fit, split_hold);
+    let (fit, holdout) = if holdout.is_empty() {
+        (split_fit, split_hold) = split_in_time(fit, FIT_SHARE);
+        notes.push(format!(
+            "no held-out log given: each fit log is split in time, the first {:.0} % fits and the rest is held out ({})",
+            100.0 * FIT_SHARE,
+            split_hold.iter().map(|r| r.source.as_str()).collect::<Vec<_>>().join(", ")
+        ));
+        (&split_fit[..], &split_hold[..])
+    } else {
+        (fit, holdout)
+    };
     let mut fit_runs: Vec<Run> = fit.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
     let mut hold_runs: Vec<Run> = holdout.iter().map(|r| align_run(model, r)).collect::<Result<_>>()?;
     // every run carries its experiment, with a sample period its stamps allow
@@ -132,6 +142,28 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
         });
     }
     Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive })
+}
+
+/// Without held-out logs, the share of each fit log (from its start) that fits; the rest is
+/// held out.
+pub(crate) const FIT_SHARE: f64 = 0.6;
+
+/// Each run cut in time: its first `share` fits, the rest is held out (named after the run,
+/// with the time it starts at).
+fn split_in_time(runs: &[Run], share: f64) -> (Vec<Run>, Vec<Run>) {
+    let mut fit = Vec::with_capacity(runs.len());
+    let mut hold = Vec::with_capacity(runs.len());
+    for r in runs {
+        let k = ((r.len() as f64) * share).round() as usize;
+        let mut a = r.slice(0..k);
+        let mut b = r.slice(k..r.len());
+        let at = b.t.first().map_or(0.0, |t| t - r.t.first().copied().unwrap_or(0.0));
+        a.source = format!("{} (first {:.0} %)", r.source, 100.0 * share);
+        b.source = format!("{} (from {at:.3} s)", r.source);
+        fit.push(a);
+        hold.push(b);
+    }
+    (fit, hold)
 }
 
 /// The prediction horizons [s]: `given`, or [`kstep::DEFAULT_HORIZONS`] when empty.
