@@ -271,9 +271,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 alone_score[gi]
             )
         };
-        let (joints_c, parameters, uncertainty) = match rep {
-            Some(r) => (r.joints, r.parameters, r.uncertainty),
-            None => (vec![], Default::default(), Default::default()),
+        let (joints_c, parameters, uncertainty, units) = match rep {
+            Some(r) => (r.joints, r.parameters, r.uncertainty, r.units),
+            None => (vec![], Default::default(), Default::default(), Default::default()),
         };
         candidates.push(Candidate {
             rank: 0,
@@ -281,6 +281,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             joints: joints_c,
             parameters,
             uncertainty,
+            units,
             cv_residual_reduction: if selection.nominal_cv_mse > 0.0 { 1.0 - f.cv_mse / selection.nominal_cv_mse } else { 0.0 },
             holdout_l2_after: l2,
             holdout_ratio: if before > 0.0 { l2 / before } else { f64::NAN },

@@ -133,11 +133,7 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
     } else {
         let _ = writeln!(h, "<table class=\"selected\"><tr><th>effect</th><th>joints</th><th>parameters (± 95 %)</th></tr>");
         for e in &ranked_selection(r) {
-            let cell = if e.effect == "inertial_error" {
-                inertial_cell(&e.joints, &e.parameters, model)
-            } else {
-                params_cell(&e.effect, &e.parameters, Some(&e.uncertainty), Some(&e.units))
-            };
+            let cell = if e.effect == "inertial_error" { inertial_cell(&e.joints, &e.parameters, model) } else { params_cell(&e.parameters, Some(&e.uncertainty), Some(&e.units)) };
             let description = if e.description.is_empty() { String::new() } else { format!("<br><small>{}</small>", esc(&e.description)) };
             let _ = writeln!(h, "<tr><td><code>{}</code>{description}</td><td>{}</td><td>{cell}</td></tr>", esc(&e.effect), esc(&e.joints.join(", ")));
         }
@@ -236,7 +232,7 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
             c.rank,
             esc(&c.effect),
             esc(&c.joints.join(", ")),
-            if c.effect == "inertial_error" { inertial_cell(&c.joints, &c.parameters, model) } else { params_cell(&c.effect, &c.parameters, Some(&c.uncertainty), None) },
+            if c.effect == "inertial_error" { inertial_cell(&c.joints, &c.parameters, model) } else { params_cell(&c.parameters, Some(&c.uncertainty), Some(&c.units)) },
             pct(c.cv_residual_reduction),
             num(c.holdout_l2_after),
             fixed(c.holdout_ratio, 3),
@@ -292,7 +288,6 @@ fn any_finite(p: &Param) -> bool {
 
 /// Parameters as `name = value ± u unit`, one per line; units from `units` or the vocabulary.
 fn params_cell(
-    effect: &str,
     params: &std::collections::BTreeMap<String, Param>,
     unc: Option<&std::collections::BTreeMap<String, Param>>,
     units: Option<&std::collections::BTreeMap<String, String>>,
@@ -300,7 +295,7 @@ fn params_cell(
     params
         .iter()
         .map(|(k, v)| {
-            let unit = units.and_then(|u| u.get(k)).map(String::as_str).unwrap_or_else(|| crate::vocabulary::effects::param_unit(effect, k));
+            let unit = units.and_then(|u| u.get(k)).map(String::as_str).unwrap_or("-");
             let value = match unc.and_then(|u| u.get(k)).filter(|u| any_finite(u)) {
                 Some(u) => format!("{} ± {}", fmt_param(v), fmt_param(u)),
                 None => fmt_param(v),

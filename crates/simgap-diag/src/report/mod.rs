@@ -25,6 +25,8 @@ pub struct Candidate {
     /// 95 % half-widths from resampling alone (the larger of the block bootstrap and the
     /// delete-one-fold jackknife); unlike `selected_effects`, without the pipeline's shared error.
     pub uncertainty: BTreeMap<String, Param>,
+    /// The unit of each parameter, by the type of the joints it acts on.
+    pub units: BTreeMap<String, String>,
     /// Fraction of the nominal cross-validated torque residual it removes (fit runs).
     pub cv_residual_reduction: f64,
     /// Held-out L² after adding this effect alone [rad]; `null` when its fit is not physical
@@ -231,7 +233,7 @@ impl Report {
                 .parameters
                 .iter()
                 .map(|(k, v)| {
-                    let unit = e.units.get(k).map(String::as_str).unwrap_or_else(|| crate::vocabulary::effects::param_unit(&e.effect, k));
+                    let unit = e.units.get(k).map(String::as_str).unwrap_or("-");
                     let unit = if unit == "-" || unit.is_empty() { String::new() } else { format!(" {unit}") };
                     format!("{k} = {}{unit}", fmt_param(v))
                 })

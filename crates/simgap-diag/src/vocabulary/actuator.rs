@@ -5,7 +5,7 @@
 
 use simgap_sim::Effect;
 
-use super::effects::{list_per_joint, per_joint as reported, sig3, Entry, FittedTerm};
+use super::effects::{list_per_joint, per_joint as reported, sig3, unit_of, Entry, FittedTerm};
 use super::{per_joint, Column, EffectReport, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
@@ -84,9 +84,10 @@ pub(super) fn describe(e: &EffectReport) -> String {
             let parts: Vec<String> = reported(e, "k").iter().map(|(j, k)| format!("k = {} on {j} (the drive delivers {:.0} % of the command)", sig3(*k), 100.0 * k)).collect();
             format!("torque gain {}", parts.join(", "))
         }
-        "torque_offset" => format!("torque offset {}", list_per_joint(e, "offset", "N·m")),
+        "torque_offset" => format!("torque offset {}", list_per_joint(e, "offset")),
         _ => {
-            let parts: Vec<String> = reported(e, "limit").iter().map(|(j, l)| format!("±{} N·m on {j}", sig3(*l))).collect();
+            let unit = unit_of(e, "limit");
+            let parts: Vec<String> = reported(e, "limit").iter().map(|(j, l)| format!("±{} {unit} on {j}", sig3(*l))).collect();
             format!("torque saturation at {}", parts.join(", "))
         }
     }

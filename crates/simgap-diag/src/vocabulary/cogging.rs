@@ -3,7 +3,7 @@
 
 use simgap_sim::Effect;
 
-use super::effects::{per_joint as reported, sig3, Entry};
+use super::effects::{per_joint as reported, sig3, unit_of, Entry};
 use super::{per_joint, EffectReport, TermDesign};
 use crate::prepare::dataset::FitData;
 
@@ -28,10 +28,11 @@ pub(super) fn report(periods: f64, th: &[f64], sd: &[f64], entry: &mut Entry<'_>
 
 /// The cogging in words.
 pub(super) fn describe(e: &EffectReport) -> String {
+    let unit = unit_of(e, "amplitude");
     let parts: Vec<String> = reported(e, "amplitude")
         .iter()
         .zip(reported(e, "periods_per_rev"))
-        .map(|((j, a), (_, n))| format!("{} N·m, {n:.0} periods per revolution on {j}", sig3(a.abs())))
+        .map(|((j, a), (_, n))| format!("{} {unit}, {n:.0} periods per revolution on {j}", sig3(a.abs())))
         .collect();
     format!("cogging torque {}", parts.join(", "))
 }

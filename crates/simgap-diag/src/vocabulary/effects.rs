@@ -2,8 +2,8 @@
 
 use std::collections::BTreeMap;
 
-use simgap_core::Model;
-use simgap_sim::Effect;
+use simgap_core::{JointKind, Model};
+use simgap_sim::{Effect, EffectKind};
 
 use crate::vocabulary::Term;
 
@@ -22,7 +22,7 @@ pub enum Param {
 }
 
 /// One effect as the report states it.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct EffectReport {
     /// Contract name.
     pub effect: String,
@@ -39,21 +39,24 @@ pub struct EffectReport {
     pub description: String,
 }
 
-/// The SI unit of a parameter of an effect of the vocabulary (`-` for dimensionless values).
-/// Torques are written for revolute joints (`N·m`); a prismatic joint's are in `N`.
-pub(crate) fn param_unit(effect: &str, param: &str) -> &'static str {
-    match (effect, param) {
-        ("viscous_friction", "b") => "N·m·s/rad",
-        ("coulomb_friction" | "stribeck_friction", "fc" | "fs") => "N·m",
-        ("stribeck_friction", "vs") => "rad/s",
-        ("armature", "ia") => "kg·m²",
-        ("payload", "mass") | ("inertial_error", "delta_mass") => "kg",
-        ("payload", "com") | ("inertial_error", "delta_com") => "m",
-        ("inertial_error", "delta_inertia") => "kg·m²",
-        ("torque_offset", "offset") | ("torque_saturation", "limit") | ("cogging", "amplitude") => "N·m",
-        ("time_delay", "delay") => "s",
-        _ => "-",
+/// The unit of parameter `param` of `effect` on joints of types `kinds` (units follow the joint
+/// type: N·m on a revolute joint, N on a prismatic one; `-` for an unknown parameter). An
+/// effect on joints of both types states both: `N·m (revolute), N (prismatic)`.
+pub(crate) fn unit_on(effect: &str, param: &str, kinds: &[JointKind]) -> String {
+    let Ok(kind) = effect.parse::<EffectKind>() else { return "-".into() };
+    let of = |k: JointKind| kind.unit(param, k).unwrap_or("-");
+    let rotational = kinds.iter().any(|k| k.is_rotational());
+    let linear = kinds.iter().any(|k| !k.is_rotational());
+    match (rotational, linear) {
+        (true, true) if of(JointKind::Revolute) != of(JointKind::Prismatic) => format!("{} (revolute), {} (prismatic)", of(JointKind::Revolute), of(JointKind::Prismatic)),
+        (false, true) => of(JointKind::Prismatic).into(),
+        _ => of(JointKind::Revolute).into(),
     }
+}
+
+/// The unit of a parameter of a report entry, as the entry states it (`-` when it has none).
+pub(crate) fn unit_of<'a>(e: &'a EffectReport, param: &str) -> &'a str {
+    e.units.get(param).map_or("-", String::as_str)
 }
 
 /// A fitted term with its parameter values and standard deviations.
@@ -146,7 +149,14 @@ pub(crate) fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectRepo
         super::report(model, f, &mut Entry { e });
     }
     for e in &mut out {
-        e.units = e.parameters.keys().map(|k| (k.clone(), param_unit(&e.effect, k).to_string())).collect();
+        // units by the type of the joints the effect acts on (the whole robot's for a
+        // whole-robot effect)
+        let kinds: Vec<JointKind> = if e.joints.is_empty() {
+            model.joints().iter().map(|j| j.kind).collect()
+        } else {
+            e.joints.iter().filter_map(|n| model.joints().iter().find(|j| j.name == *n)).map(|j| j.kind).collect()
+        };
+        e.units = e.parameters.keys().map(|k| (k.clone(), unit_on(&e.effect, k, &kinds))).collect();
         // joints in model order, per-joint parameters along with them
         let mut order: Vec<usize> = (0..e.joints.len()).collect();
         order.sort_by_key(|&i| names.iter().position(|n| *n == e.joints[i]).unwrap_or(usize::MAX));
@@ -199,10 +209,28 @@ pub(super) fn per_joint<'a>(e: &'a EffectReport, key: &str) -> Vec<(&'a str, f64
 }
 
 /// "b = 0.17 N·m·s/rad on elbow, 0 on shoulder (at its bound: none)".
-pub(super) fn list_per_joint(e: &EffectReport, key: &str, unit: &str) -> String {
+pub(super) fn list_per_joint(e: &EffectReport, key: &str) -> String {
+    let unit = unit_of(e, key);
     per_joint(e, key)
         .iter()
         .map(|(j, v)| if *v == 0.0 { format!("{key} = 0 on {j} (at its bound: none there)") } else { format!("{key} = {} {unit} on {j}", sig3(*v)) })
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::unit_on;
+    use simgap_core::JointKind::{Continuous, Prismatic, Revolute};
+
+    #[test]
+    fn units_follow_the_type_of_the_joints_an_effect_acts_on() {
+        assert_eq!(unit_on("viscous_friction", "b", &[Prismatic]), "N·s/m");
+        assert_eq!(unit_on("coulomb_friction", "fc", &[Prismatic]), "N");
+        assert_eq!(unit_on("coulomb_friction", "fc", &[Revolute, Continuous]), "N·m");
+        assert_eq!(unit_on("armature", "ia", &[Prismatic]), "kg");
+        assert_eq!(unit_on("torque_offset", "offset", &[Revolute, Prismatic]), "N·m (revolute), N (prismatic)");
+        assert_eq!(unit_on("payload", "mass", &[Prismatic]), "kg");
+        assert_eq!(unit_on("no_such_effect", "b", &[Revolute]), "-");
+    }
 }

@@ -8,7 +8,7 @@
 
 use simgap_sim::Effect;
 
-use super::effects::{list_per_joint, per_joint as reported, sig3, Entry, FittedTerm};
+use super::effects::{list_per_joint, per_joint as reported, sig3, unit_of, Entry, FittedTerm};
 use super::{per_joint, EffectReport, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
@@ -88,12 +88,13 @@ pub(super) fn report(f: &FittedTerm, entry: &mut Entry<'_>) {
 /// The friction in words.
 pub(super) fn describe(e: &EffectReport) -> String {
     match e.effect.as_str() {
-        "viscous_friction" => format!("viscous friction {}", list_per_joint(e, "b", "N·m·s/rad")),
-        "coulomb_friction" => format!("Coulomb friction {}", list_per_joint(e, "fc", "N·m")),
+        "viscous_friction" => format!("viscous friction {}", list_per_joint(e, "b")),
+        "coulomb_friction" => format!("Coulomb friction {}", list_per_joint(e, "fc")),
         _ => {
             let (fc, fs, vs) = (reported(e, "fc"), reported(e, "fs"), reported(e, "vs"));
+            let (uf, uv) = (unit_of(e, "fc"), unit_of(e, "vs"));
             let parts: Vec<String> =
-                fc.iter().zip(&fs).zip(&vs).map(|((c, s), v)| format!("on {}: fc = {} N·m, fs = {} N·m below {} rad/s", c.0, sig3(c.1), sig3(s.1), sig3(v.1))).collect();
+                fc.iter().zip(&fs).zip(&vs).map(|((c, s), v)| format!("on {}: fc = {} {uf}, fs = {} {uf} below {} {uv}", c.0, sig3(c.1), sig3(s.1), sig3(v.1))).collect();
             format!("Stribeck friction {}", parts.join("; "))
         }
     }

@@ -26,5 +26,5 @@ pub(super) fn apply(j: usize, theta: &[f64], n: usize, out: &mut Vec<Effect>) {
 
 /// The rotor inertia in words.
 pub(super) fn describe(e: &EffectReport) -> String {
-    format!("rotor inertia (armature) {}", list_per_joint(e, "ia", "kg·m²"))
+    format!("rotor inertia (armature) {}", list_per_joint(e, "ia"))
 }
