@@ -119,13 +119,16 @@ struct ChunkIndex {
     uncompressed: u64,
 }
 
+/// A channel as written: id, schema id, topic, message encoding, metadata.
+type ChannelRecord = (u16, u16, String, String, BTreeMap<String, String>);
+
 /// Writes an MCAP file record by record (see the [module docs](self)).
 pub(crate) struct ChunkedWriter<W: Write> {
     out: W,
     pos: u64,
     compression: ChunkCompression,
     schemas: Vec<(u16, String, String, Vec<u8>)>,
-    channels: Vec<(u16, u16, String, String, BTreeMap<String, String>)>,
+    channels: Vec<ChannelRecord>,
     metadata: Vec<(u64, u64, String)>,
     chunks: Vec<ChunkIndex>,
     counts: BTreeMap<u16, u64>,
@@ -287,16 +290,7 @@ impl<W: Write> ChunkedWriter<W> {
         }
         self.record = head;
         self.span = Some(self.span.map_or((start, end), |(a, b)| (a.min(start), b.max(end))));
-        self.chunks.push(ChunkIndex {
-            start,
-            end,
-            offset,
-            length,
-            index_offsets,
-            index_length: self.pos - index_start,
-            compressed,
-            uncompressed: chunk.records.len() as u64,
-        });
+        self.chunks.push(ChunkIndex { start, end, offset, length, index_offsets, index_length: self.pos - index_start, compressed, uncompressed: chunk.records.len() as u64 });
         // hand the whole chunk to the operating system: a killed process loses no complete chunk
         self.out.flush()
     }
@@ -326,7 +320,14 @@ impl<W: Write> ChunkedWriter<W> {
         // statistics
         let (start, end) = self.span.unwrap_or((0, 0));
         let mut f = Fields::default();
-        f.u64(self.counts.values().sum()).u16(schemas.len() as u16).u32(channels.len() as u32).u32(0).u32(self.metadata.len() as u32).u32(self.chunks.len() as u32).u64(start).u64(end);
+        f.u64(self.counts.values().sum())
+            .u16(schemas.len() as u16)
+            .u32(channels.len() as u32)
+            .u32(0)
+            .u32(self.metadata.len() as u32)
+            .u32(self.chunks.len() as u32)
+            .u64(start)
+            .u64(end);
         let mut counts = Fields::default();
         for (c, n) in &self.counts {
             counts.u16(*c).u64(*n);

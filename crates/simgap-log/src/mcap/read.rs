@@ -271,16 +271,14 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
 
     // the states
     let states_topic = topics.states.topic.as_str();
-    let states = data
-        .remove(&Role::States)
-        .ok_or_else(|| {
-            let found = if other_topics.is_empty() {
-                "no channel record".to_string()
-            } else {
-                format!("topics in the file: {}", other_topics.iter().map(|(t, at)| format!("{t} ({at})")).collect::<Vec<_>>().join(", "))
-            };
-            err(format!("no {states_topic} messages ({found})"))
-        })?;
+    let states = data.remove(&Role::States).ok_or_else(|| {
+        let found = if other_topics.is_empty() {
+            "no channel record".to_string()
+        } else {
+            format!("topics in the file: {}", other_topics.iter().map(|(t, at)| format!("{t} ({at})")).collect::<Vec<_>>().join(", "))
+        };
+        err(format!("no {states_topic} messages ({found})"))
+    })?;
     let n_state_messages = states.len();
     let states = states.merge(states_topic, None).map_err(err)?;
     let joints = states.joints.clone();
@@ -378,10 +376,7 @@ fn schema_name_mismatch(schema: &Schema, stored_name: &str, topic: &str) -> Opti
             ));
         }
         if !same_name && fields == *signature {
-            return Some(format!(
-                "{topic}: the schema is named '{stored_name}' but its fields are exactly those of {known_name} ({}); read as {known_name}",
-                field_names(schema)
-            ));
+            return Some(format!("{topic}: the schema is named '{stored_name}' but its fields are exactly those of {known_name} ({}); read as {known_name}", field_names(schema)));
         }
     }
     None

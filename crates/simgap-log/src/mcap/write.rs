@@ -250,7 +250,8 @@ impl McapSink {
         if self.chunk.index.is_empty() {
             return Ok(());
         }
-        let mut next = self.recycled.as_ref().and_then(|r| r.try_recv().ok()).unwrap_or_else(|| ChunkBuf { records: Vec::with_capacity(self.chunk_size + 4096), index: Vec::new() });
+        let mut next =
+            self.recycled.as_ref().and_then(|r| r.try_recv().ok()).unwrap_or_else(|| ChunkBuf { records: Vec::with_capacity(self.chunk_size + 4096), index: Vec::new() });
         next.clear();
         let full = std::mem::replace(&mut self.chunk, next);
         self.send(Command::Chunk(full))
