@@ -191,7 +191,8 @@ def test_simulation_is_interrupted_by_ctrl_c() -> None:
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, duration=1e5)
+            # 9.6e6 samples: within the 1e7 a Run in memory may hold, seconds to simulate
+            simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, duration=24_000.0)
             time.sleep(2.0)
     finally:
         timer.cancel()
