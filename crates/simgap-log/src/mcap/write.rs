@@ -22,7 +22,7 @@ use std::thread::JoinHandle;
 use mcap::records::{MessageHeader, Metadata};
 use simgap_sim::{experiment_to_map, Experiment, Run, RunEnd, Sample, Sink};
 
-use super::cdr::encode_joint_state_into;
+use super::cdr::{encode_joint_state_into, JointStateTemplate};
 use super::chunked::{push_message, ChunkBuf, ChunkCompression, ChunkedWriter};
 use super::{CDR_ENCODING, EXPERIMENT_METADATA, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, OFFERED_QOS_PROFILES, ROS2MSG_ENCODING, RUN_END_METADATA};
 use crate::error::{write_error, Result};
@@ -30,9 +30,9 @@ use crate::topics::{JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_ST
 
 /// Chunks the writer thread may hold before [`Sink::record`] waits for it.
 pub const QUEUED_BATCHES: usize = 8;
-/// Zstandard level of the sink's chunks: level 1, measured about as small as level 3 on joint
-/// states and faster to write.
-const ZSTD_LEVEL: i32 = 1;
+/// Zstandard level of the sink's chunks: -3 (a fast level), measured 2.0x an unlogged 300 s run
+/// against 2.4x at level 1, for files 10 % larger (6.8 MB instead of 6.2 MB for 300 s).
+const ZSTD_LEVEL: i32 = -3;
 
 /// Chunk compression of written files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -92,6 +92,8 @@ pub struct McapSink {
     chunk_size: usize,
     /// Channel ids of the slots once announced to the writer thread.
     channels: [Option<u16>; 3],
+    /// The message layout of each slot (joint names and array lengths fixed).
+    templates: [Option<JointStateTemplate>; 3],
     sequence: u32,
     start_ns: i64,
     last_t: Option<f64>,
@@ -176,6 +178,7 @@ impl McapSink {
             chunk: ChunkBuf::default(),
             chunk_size: options_chunk_size,
             channels: [None; 3],
+            templates: [None, None, None],
             sequence: 0,
             start_ns: 0,
             last_t: None,
@@ -261,8 +264,13 @@ impl McapSink {
     fn push(&mut self, slot: u8, ns: i64, position: &[f64], velocity: &[f64], effort: &[f64]) -> Result<()> {
         let channel = self.channel(slot)?;
         let time = ns.max(0) as u64;
-        let (chunk, joints) = (&mut self.chunk, &self.joints);
-        let at = push_message(&mut chunk.records, channel, self.sequence, time, |buf| encode_joint_state_into(buf, ns, joints, position, velocity, effort));
+        let lens = [position.len(), velocity.len(), effort.len()];
+        let template = &mut self.templates[slot as usize];
+        if !template.as_ref().is_some_and(|t| t.fits(lens)) {
+            *template = Some(JointStateTemplate::new(&self.joints, lens));
+        }
+        let (chunk, template) = (&mut self.chunk, template.as_ref().expect("set above"));
+        let at = push_message(&mut chunk.records, channel, self.sequence, time, |buf| template.encode_into(buf, ns, [position, velocity, effort]));
         chunk.index.push((channel, time, at));
         Ok(())
     }
