@@ -108,9 +108,8 @@ impl std::fmt::Debug for McapSink {
 
 /// The writer thread: owns the file, writes what it is sent, finishes the file when the sink
 /// hangs up.
-fn writer_thread(path: PathBuf, options: SinkOptions, rx: Receiver<Command>, recycle: SyncSender<ChunkBuf>) -> std::result::Result<(), String> {
+fn writer_thread(file: File, options: SinkOptions, rx: Receiver<Command>, recycle: SyncSender<ChunkBuf>) -> std::result::Result<(), String> {
     let s = |e: std::io::Error| e.to_string();
-    let file = File::create(&path).map_err(s)?;
     let compression = match options.compression {
         Compression::None => ChunkCompression::None,
         Compression::Lz4 => ChunkCompression::Lz4,
@@ -160,14 +159,13 @@ impl McapSink {
     /// [`Error::Write`](crate::Error::Write) when the file cannot be created.
     pub fn create_with_options(path: &Path, options: SinkOptions) -> Result<McapSink> {
         // fail here, not in the thread, when the file cannot be created
-        File::create(path).map_err(|e| write_error(path, e))?;
+        let file = File::create(path).map_err(|e| write_error(path, e))?;
         let options_chunk_size = options.chunk_size.max(1024) as usize;
         let (tx, rx) = sync_channel(QUEUED_BATCHES);
         let (recycle_tx, recycle_rx) = sync_channel(QUEUED_BATCHES + 2);
-        let thread_path = path.to_path_buf();
         let thread = std::thread::Builder::new()
             .name("simgap-mcap-writer".into())
-            .spawn(move || writer_thread(thread_path, options, rx, recycle_tx))
+            .spawn(move || writer_thread(file, options, rx, recycle_tx))
             .map_err(|e| write_error(path, format!("cannot start the writer thread: {e}")))?;
         let mut sink = McapSink {
             path: path.to_path_buf(),
