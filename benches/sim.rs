@@ -3,7 +3,10 @@
 //!   1201 samples, paper encoders, default substeps), without logging (a sink that drops
 //!   samples); also `simulate/paper_experiment_memory` into a `MemorySink`,
 //!   `simulate/paper_experiment_mcap` written as ROS 2 MCAP as it goes (logging cost), and
-//!   `simulate/paper_experiment_friction` with the reported viscous and Coulomb friction.
+//!   `simulate/paper_experiment_friction` with the reported viscous and Coulomb friction;
+//!   `simulate/paper_30s[_mcap]` and `simulate/paper_300s[_mcap]`, 30 s and 300 s unlogged and
+//!   written as MCAP as they go (the 300 s ratio is the logging cost `simgap simulate --out`
+//!   pays; target at most 2 on two cores).
 //! - `paper/euler_lagrange` and `paper/simplified`: what `simgap paper` simulates per model
 //!   (2 s at 2.5 ms, RK4, paper encoders) into a `MemorySink`, plant built inside; and
 //!   `paper/euler_lagrange_general`, the same run through the general algorithms (an armature
@@ -95,6 +98,25 @@ fn paper_experiment(c: &mut Criterion) {
             let mut pd = paper::controller();
             let mut sink = McapSink::create(&path).unwrap();
             simulate(&plant, &mut pd, &reference, &long, &mut sink, None).unwrap()
+        })
+    });
+    // the logging cost as `simgap simulate --duration 300 --out RUN.mcap` pays it (120,001
+    // samples, 38.7 MB of records in 6 MB of zstd chunks): target logged / unlogged <= 2 on two
+    // cores (the writer thread compresses on the second)
+    let day_part = SimParams { duration: 300.0, ..params.clone() };
+    group.bench_function("paper_300s", |b| {
+        b.iter(|| {
+            let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
+            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            simulate(&plant, &mut pd, &reference, &day_part, &mut NullSink, None).unwrap()
+        })
+    });
+    group.bench_function("paper_300s_mcap", |b| {
+        b.iter(|| {
+            let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
+            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut sink = McapSink::create(&path).unwrap();
+            simulate(&plant, &mut pd, &reference, &day_part, &mut sink, None).unwrap()
         })
     });
     let _ = std::fs::remove_dir_all(&dir);

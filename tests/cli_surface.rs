@@ -47,12 +47,12 @@ fn refused(args: &[&str], parts: &[&str]) {
 
 #[test]
 fn sample_period_out_of_range_is_refused_with_the_range() {
-    refused(&["simulate", "--sample-period", "1e-12"], &["--sample-period 1e-12 s is out of range", "expected 1e-6 ≤ sample-period ≤ 1 s"]);
+    refused(&["simulate", "--sample-period", "1e-12"], &["invalid sample_period: 1e-12 s is out of range; expected 1e-6 ≤ sample_period ≤ 1 s"]);
 }
 
 #[test]
 fn substeps_out_of_range_is_refused_with_the_range() {
-    refused(&["simulate", "--substeps", "1000000000"], &["--substeps 1e9 is out of range", "1 ≤ substeps ≤ 10000"]);
+    refused(&["simulate", "--substeps", "1000000000"], &["invalid substeps: 1e9 is out of range; expected 1 ≤ substeps ≤ 10000"]);
 }
 
 #[test]
@@ -62,10 +62,14 @@ fn negative_counts_per_rev_is_refused() {
 
 #[test]
 fn other_numeric_options_are_checked() {
-    refused(&["simulate", "--duration", "0"], &["--duration 0 s is out of range"]);
-    refused(&["simulate", "--duration", "nan"], &["--duration NaN s is out of range"]);
-    refused(&["simulate", "--noise=-1"], &["--noise -1 rad is out of range"]);
-    refused(&["simulate", "--duration", "80000", "--sample-period", "0.001"], &["8e7 samples", "expected at most 1e7"]);
+    refused(&["simulate", "--duration", "0"], &["invalid duration: 0 s is out of range; expected 0 < duration ≤ 86400 s"]);
+    refused(&["simulate", "--duration", "nan"], &["invalid duration: NaN s is out of range"]);
+    refused(&["simulate", "--noise=-1"], &["invalid noise_std: -1 rad is out of range; expected 0 ≤ noise_std ≤ 1 rad"]);
+    refused(&["simulate", "--duration", "86401"], &["invalid duration: 86401 s is out of range"]);
+    // a CSV log is written from the run in memory; an MCAP log as the run goes, whatever its length
+    let csv = scratch("long-csv").join("long.csv");
+    refused(&["simulate", "--duration", "80000", "--sample-period", "0.001", "--out", s(&csv)], &["long.csv", "8e7 samples", "a CSV log holds at most 1e7"]);
+    assert!(!csv.exists());
     refused(&["simulate", "--duration", "1000", "--substeps", "5000"], &["integration steps", "expected at most 1e9"]);
     refused(&["selfcheck", "--scenarios", "0"], &["--scenarios 0 is out of range"]);
     refused(&["paper", "--duration", "0.5"], &["--duration 0.5 s is out of range", "1.2 ≤ duration ≤ 600"]);

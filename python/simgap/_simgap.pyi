@@ -405,7 +405,11 @@ def simulate(
     The GIL is released while simulating; Ctrl-C stops the run at its next sample and raises
     KeyboardInterrupt. Raises SimulationError when the run diverges or a parameter is invalid,
     LogError when the reference or replay run does not match the model's joints,
-    DimensionError for vectors of the wrong length.
+    DimensionError for vectors of the wrong length. Ranges are checked at once, with the
+    words of ``simgap simulate``: 1e-6 ≤ sample_period ≤ 1 s, 0 < duration ≤ 86400 s,
+    1 ≤ substeps ≤ 10000, at most 1e9 integration steps, and at most 1e7 samples (the
+    returned Run is held in memory; ``simgap simulate --out RUN.mcap`` writes longer runs as
+    they go).
     """
 
 _LogArg: TypeAlias = Run | str | PathLike[str]

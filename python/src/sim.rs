@@ -425,7 +425,10 @@ fn joint_vector(name: &str, arr: &ArrayArg<'_>, dof: usize) -> PyResult<Vec<f64>
 ///
 /// Raises SimulationError when the run diverges or a parameter is invalid, LogError when the
 /// reference or replay run does not match the model's joints, DimensionError for vectors of
-/// the wrong length, KeyboardInterrupt on Ctrl-C.
+/// the wrong length, KeyboardInterrupt on Ctrl-C. Ranges are checked at once, with the words of
+/// `simgap simulate`: 1e-6 ≤ sample_period ≤ 1 s, 0 < duration ≤ 86400 s, 1 ≤ substeps ≤
+/// 10000, at most 1e9 integration steps, and at most 1e7 samples (the returned Run is held in
+/// memory; `simgap simulate --out RUN.mcap` writes longer runs as they go).
 #[pyfunction]
 #[pyo3(signature = (
     model, reference, *, controller = None, kp = None, kv = None, replay = None,
@@ -546,6 +549,9 @@ pub(crate) fn simulate(
         qd0: state("qd0", qd0, first_state.map(|s| s.1))?,
         experiment: Some(experiment.clone()),
     };
+    // every range at once, with the CLI's words, before a thread is started or memory reserved
+    params.validate(dof).map_err(from_sim)?;
+    params.check_in_memory().map_err(from_sim)?;
     let job = Job { model: model_arc, formulation, effects, experiment, reference: reference_run, target, replay, params };
     run_interruptible(py, job).map(PyRun::from_run)
 }

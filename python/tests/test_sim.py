@@ -142,6 +142,48 @@ def test_simulation_errors() -> None:
         simgap.simulate(arm, [0.1], controller="pd", kp=KP, kv=KV)
 
 
+# Impossible parameters, the words the library refuses them with (the CLI prints the same), and
+# the keyword arguments that ask for them. Before the ranges were checked in the library, the
+# first two ran for minutes (3e12 samples; 1e9 RK4 steps per sample).
+IMPOSSIBLE = [
+    ({"sample_period": 1e-12}, "invalid sample_period: 1e-12 s is out of range; expected 1e-6 ≤ sample_period ≤ 1 s"),
+    ({"substeps": 1_000_000_000}, "invalid substeps: 1e9 is out of range; expected 1 ≤ substeps ≤ 10000"),
+    ({"duration": 86401.0}, "invalid duration: 86401 s is out of range; expected 0 < duration ≤ 86400 s"),
+    ({"duration": 0.0}, "invalid duration: 0 s is out of range; expected 0 < duration ≤ 86400 s"),
+    ({"duration": 1000.0, "substeps": 5000}, "integration steps; expected at most 1e9"),
+    ({"noise_std": -1.0}, "invalid noise_std: -1 rad is out of range; expected 0 ≤ noise_std ≤ 1 rad"),
+    ({"coulomb_width": float("nan")}, "invalid coulomb_width"),
+    # a day at 400 Hz is 3.5e7 samples: more than a Run in memory may hold
+    ({"duration": 86400.0}, "a run held in memory has at most 1e7"),
+]
+
+
+@pytest.mark.parametrize(("kwargs", "words"), IMPOSSIBLE, ids=[next(iter(k)) + "-" + str(i) for i, (k, _) in enumerate(IMPOSSIBLE)])
+def test_simulate_refuses_impossible_ranges_at_once(kwargs: dict[str, float], words: str) -> None:
+    arm = simgap.Model.paper_arm()
+    start = time.monotonic()
+    with pytest.raises(SimulationError) as e:
+        simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, **kwargs)
+    assert words in str(e.value)
+    # refused before anything is simulated (a hang guard, not a speed target: these ran for minutes)
+    assert time.monotonic() - start < 5.0
+
+
+def test_simulate_refuses_with_the_words_of_the_cli() -> None:
+    binary = Path(__file__).resolve().parents[2] / "target" / "release" / "simgap"
+    if not binary.is_file():
+        pytest.skip(f"{binary} is not built")
+    import subprocess
+
+    arm = simgap.Model.paper_arm()
+    for args, kwargs in [(["--sample-period", "1e-12"], {"sample_period": 1e-12}), (["--substeps", "1000000000"], {"substeps": 1_000_000_000})]:
+        cli = subprocess.run([str(binary), "simulate", *args], capture_output=True, text=True, timeout=60)
+        assert cli.returncode == 1
+        with pytest.raises(SimulationError) as e:
+            simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, **kwargs)
+        assert str(e.value) in cli.stderr, (str(e.value), cli.stderr)
+
+
 def test_simulation_is_interrupted_by_ctrl_c() -> None:
     arm = simgap.Model.paper_arm()
     timer = threading.Timer(0.2, _thread.interrupt_main)
@@ -149,7 +191,8 @@ def test_simulation_is_interrupted_by_ctrl_c() -> None:
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, duration=1e5)
+            # 9.6e6 samples: within the 1e7 a Run in memory may hold, seconds to simulate
+            simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, duration=24_000.0)
             time.sleep(2.0)
     finally:
         timer.cancel()

@@ -4,8 +4,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use simgap::core::Model;
+use simgap::log::McapSink;
 use simgap::sim::{
-    l2_tracking, simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink, Step,
+    simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink, Step, TrackingL2Sink,
     VelocityEstimate,
 };
 
@@ -134,43 +135,30 @@ fn is_paper_arm(model: &Model) -> bool {
     model.joint_names() == ["shoulder", "elbow"] && model.dof() == 2
 }
 
-/// Most samples a run may have (its arrays are held in memory).
-const MAX_SAMPLES: f64 = 1e7;
-/// Most integration steps a run may take.
-const MAX_STEPS: f64 = 1e9;
+/// Most samples a CSV log may have: it is written from the whole run, held in memory (an MCAP
+/// log is written as the run goes, in bounded memory, whatever its duration).
+const MAX_CSV_SAMPLES: f64 = 1e7;
 
-/// Every numeric option against its documented range, and `--out`'s extension, before anything
-/// is simulated.
+/// The options the library does not check (the encoder's 0 meaning exact positions, `--out`'s
+/// extension, the length of a CSV log), before anything is simulated; every other range is
+/// [`SimParams::validate`]'s, the same for the CLI and Python.
 fn check_args(args: &Args) -> anyhow::Result<()> {
-    use super::{check_range, number};
-    check_range("duration", args.duration, f64::MIN_POSITIVE, 86_400.0, "s")?;
-    check_range("sample-period", args.sample_period, 1e-6, 1.0, "s")?;
-    check_range("substeps", args.substeps as f64, 1.0, 10_000.0, "")?;
-    let samples = args.duration / args.sample_period;
-    if samples > MAX_SAMPLES {
-        bail!(
-            "--duration {} s at --sample-period {} s gives {} samples; expected at most {} (a longer run does not fit in memory)",
-            number(args.duration),
-            number(args.sample_period),
-            number(samples.round()),
-            number(MAX_SAMPLES)
-        );
-    }
-    if samples * args.substeps as f64 > MAX_STEPS {
-        bail!(
-            "{} samples × --substeps {} gives {} integration steps; expected at most {}",
-            number(samples.round()),
-            args.substeps,
-            number((samples * args.substeps as f64).round()),
-            number(MAX_STEPS)
-        );
-    }
+    use super::number;
     if args.counts_per_rev != 0.0 && !(args.counts_per_rev >= 1.0 && args.counts_per_rev <= 1e12) {
         bail!("--counts-per-rev {} is out of range; expected 0 (exact positions) or 1 ≤ counts-per-rev ≤ 1e12", number(args.counts_per_rev));
     }
-    check_range("noise", args.noise, 0.0, 1.0, "rad")?;
     if let Some(path) = &args.out {
-        log_format(path)?;
+        let samples = args.duration / args.sample_period;
+        if log_format(path)? == "csv" && samples > MAX_CSV_SAMPLES {
+            bail!(
+                "--out {}: --duration {} s at --sample-period {} s gives {} samples; a CSV log holds at most {} (it is written from the run in memory); write .mcap, which is written as the run goes",
+                path.display(),
+                number(args.duration),
+                number(args.sample_period),
+                number(samples.round()),
+                number(MAX_CSV_SAMPLES)
+            );
+        }
     }
     Ok(())
 }
@@ -212,10 +200,13 @@ fn write_log_atomically(run: &simgap::sim::Run, end: &RunEnd, path: &Path) -> an
     result.with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// A sink that counts samples on a progress bar and passes them on.
+/// A sink that counts samples on a progress bar and passes them on, keeping the number of
+/// samples and the time span.
 struct Counting<'a> {
     inner: &'a mut dyn Sink,
     bar: &'a indicatif::ProgressBar,
+    samples: u64,
+    span: Option<(f64, f64)>,
 }
 
 impl Sink for Counting<'_> {
@@ -224,6 +215,8 @@ impl Sink for Counting<'_> {
     }
     fn record(&mut self, sample: &Sample<'_>) -> simgap::sim::Result<()> {
         self.bar.inc(1);
+        self.samples += 1;
+        self.span = Some((self.span.map_or(sample.t, |s| s.0), sample.t));
         self.inner.record(sample)
     }
     fn finish(&mut self, end: &RunEnd) -> simgap::sim::Result<()> {
@@ -283,30 +276,59 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         qd0: args.qd0.as_deref().map(|s| parse_list("qd0", s, n)).transpose()?.unwrap_or_default(),
         ..SimParams::default()
     };
-    // simulate into memory with a progress bar; Ctrl-C stops the run cleanly
+    params.validate(n)?;
+    // simulate with a progress bar, the tracking L² computed as the run goes; an MCAP log is
+    // written as it goes (in bounded memory), a CSV log from the run in memory; Ctrl-C stops
+    // the run cleanly
     super::interrupt::cooperate();
     let samples = params.intervals() as u64 + 1;
     let bar = super::progress_bar(samples, "{spinner} simulating  [{bar:30}] {pos}/{len} samples  {elapsed}");
+    let mut l2 = TrackingL2Sink::new();
     let mut memory = MemorySink::new();
+    let mut mcap = match &args.out {
+        Some(path) if log_format(path)? == "mcap" => Some(McapSink::create(path)?),
+        _ => None,
+    };
+    let csv = args.out.is_some() && mcap.is_none();
     let start = std::time::Instant::now();
-    let end = simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut Counting { inner: &mut memory, bar: &bar }, Some(super::interrupt::STOP.as_ref()));
+    let (end, count, span) = {
+        let mut tee_log;
+        let mut tee_memory;
+        let inner: &mut dyn Sink = match (&mut mcap, csv) {
+            (Some(m), _) => {
+                tee_log = Tee(m, &mut l2);
+                &mut tee_log
+            }
+            (None, true) => {
+                tee_memory = Tee(&mut memory, &mut l2);
+                &mut tee_memory
+            }
+            (None, false) => &mut l2,
+        };
+        let mut counting = Counting { inner, bar: &bar, samples: 0, span: None };
+        let end = simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut counting, Some(super::interrupt::STOP.as_ref()));
+        (end, counting.samples, counting.span)
+    };
     bar.finish_and_clear();
     let end = end?;
     let elapsed = start.elapsed();
-    let run = memory.into_run();
     // summary
     println!("model {} ({} joints: {}), formulation {}", model.name(), n, model.joint_names().join(", "), args.model.formulation.as_str());
     if !effects.is_empty() {
         println!("effects: {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "));
     }
-    println!("{} samples over {:.4} s in {:.1} ms", run.len(), run.duration(), elapsed.as_secs_f64() * 1e3);
-    if let Ok(l2) = l2_tracking(&run, None) {
-        let per: Vec<String> = run.joints.iter().zip(&l2.per_joint).map(|(j, v)| format!("{j} {v:.6}")).collect();
+    let duration = span.map_or(0.0, |(a, b)| b - a);
+    println!("{count} samples over {duration:.4} s in {:.1} ms", elapsed.as_secs_f64() * 1e3);
+    if let Ok(l2) = l2.report() {
+        let per: Vec<String> = l2.joints.iter().zip(&l2.per_joint).map(|(j, v)| format!("{j} {v:.6}")).collect();
         println!("L2 tracking error [rad]: overall {:.6} ({})", l2.overall, per.join(", "));
     }
-    // the log, whole or up to the interruption, written atomically
+    // the log: the MCAP sink finished it with how the run ended; a CSV log is written whole (or
+    // up to the interruption), atomically
     if let Some(path) = &args.out {
-        write_log_atomically(&run, &end, path)?;
+        if csv {
+            write_log_atomically(&memory.into_run(), &end, path)?;
+        }
         println!("wrote {}", path.display());
     }
     match end {

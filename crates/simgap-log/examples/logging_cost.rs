@@ -2,7 +2,8 @@
 //! for 30 s (12,001 samples), unlogged and logged, alternated so both see the same machine load;
 //! the best of each is reported with their ratio.
 //!
-//! `cargo run --release -p simgap-log --example logging_cost [ROUNDS] [zstd|lz4|none]` (default zstd)
+//! `cargo run --release -p simgap-log --example logging_cost [ROUNDS] [zstd|lz4|none] [DURATION_S]`
+//! (default 15 rounds, zstd, 30 s)
 
 use std::time::{Duration, Instant};
 
@@ -37,7 +38,8 @@ fn main() {
     let options = SinkOptions { compression, ..SinkOptions::default() };
     let model = Model::paper_arm();
     let reference = paper::reference();
-    let params = SimParams { duration: 30.0, ..SimParams::default() };
+    let duration: f64 = std::env::args().nth(3).and_then(|s| s.parse().ok()).unwrap_or(30.0);
+    let params = SimParams { duration, ..SimParams::default() };
     let path = std::env::temp_dir().join(format!("simgap-logging-cost-{}.mcap", std::process::id()));
     let once = |logged: bool| -> Duration {
         let start = Instant::now();
@@ -62,7 +64,7 @@ fn main() {
     let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     let _ = std::fs::remove_file(&path);
     println!(
-        "paper experiment, 30 s at 400 Hz, best of {rounds}: unlogged {:.2} ms, logged to MCAP {:.2} ms ({size} bytes): ratio {:.2}",
+        "paper experiment, {duration} s at 400 Hz, best of {rounds}: unlogged {:.2} ms, logged to MCAP {:.2} ms ({size} bytes): ratio {:.2}",
         bare.as_secs_f64() * 1e3,
         logged.as_secs_f64() * 1e3,
         logged.as_secs_f64() / bare.as_secs_f64()

@@ -703,3 +703,77 @@ fn reference_at_other_times_is_interpolated_onto_the_states() {
     }
     assert_eq!(run.qd_ref, vec![2.0; 11]);
 }
+
+/// A file whose JointState channel carries a schema of `name` with `definition`, three samples.
+fn schema_named(path: &Path, name: &str, definition: &str) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut w = mcap::WriteOptions::new().profile("ros2").create(file).unwrap();
+    let s = w.add_schema(name, "ros2msg", definition.as_bytes()).unwrap();
+    let c = w.add_channel(s, JOINT_STATES_TOPIC, "cdr", &BTreeMap::new()).unwrap();
+    for k in 0..3i64 {
+        let mut m = js(&["a"], &[k as f64], &[0.0], &[0.0]);
+        m.set_stamp_ns(T0 + k * DT);
+        let h = MessageHeader { channel_id: c, sequence: 0, log_time: (T0 + k * DT) as u64, publish_time: 0 };
+        w.write_to_known_channel(&h, &m.encode_cdr()).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn schema_whose_name_does_not_match_its_fields_is_read_with_a_warning_naming_both() {
+    // another name, JointState's fields: read as JointState, with a word
+    let path = tmp("renamed_joint_state.mcap");
+    schema_named(&path, "my_robot_msgs/msg/ArmState", JOINT_STATE_DEFINITION);
+    let read = simgap_log::read_log_with_warnings(&path, &LogOptions::default()).unwrap();
+    assert_eq!(read.run.len(), 3);
+    let w = read.warnings.join("; ");
+    assert!(w.contains("'my_robot_msgs/msg/ArmState'") && w.contains("exactly those of sensor_msgs/msg/JointState") && w.contains("/joint_states"), "{w}");
+    // JointState's name, other fields (no effort): read by its fields, with a word
+    let path = tmp("joint_state_without_effort.mcap");
+    let definition = JOINT_STATE_DEFINITION.replacen("float64[] effort\n", "", 1);
+    {
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut w = mcap::WriteOptions::new().profile("ros2").create(file).unwrap();
+        let s = w.add_schema(JOINT_STATE_SCHEMA, "ros2msg", definition.as_bytes()).unwrap();
+        let c = w.add_channel(s, JOINT_STATES_TOPIC, "cdr", &BTreeMap::new()).unwrap();
+        for k in 0..3i64 {
+            // the message as the definition says: without the (empty) effort sequence's count
+            let mut m = js(&["a"], &[k as f64], &[0.0], &[]);
+            m.set_stamp_ns(T0 + k * DT);
+            let mut bytes = m.encode_cdr();
+            bytes.truncate(bytes.len() - 4);
+            let h = MessageHeader { channel_id: c, sequence: 0, log_time: (T0 + k * DT) as u64, publish_time: 0 };
+            w.write_to_known_channel(&h, &bytes).unwrap();
+        }
+        w.finish().unwrap();
+    }
+    let read = simgap_log::read_log_with_warnings(&path, &LogOptions::default()).unwrap();
+    assert_eq!(read.run.len(), 3);
+    let w = read.warnings.join("; ");
+    assert!(w.contains("named 'sensor_msgs/msg/JointState' but its fields are not that type's") && w.contains("(header, name, position, velocity)"), "{w}");
+    assert!(w.contains("sensor_msgs/msg/JointState has (header, name, position, velocity, effort)"), "{w}");
+    // the real thing: no warning
+    let path = tmp("joint_state.mcap");
+    schema_named(&path, JOINT_STATE_SCHEMA, JOINT_STATE_DEFINITION);
+    let read = simgap_log::read_log_with_warnings(&path, &LogOptions::default()).unwrap();
+    assert!(read.warnings.is_empty(), "{:?}", read.warnings);
+}
+
+#[test]
+fn a_refused_record_is_named_with_its_byte() {
+    // a message whose joint count does not match its positions, inside a chunk
+    let path = tmp("bad_message.mcap");
+    let mut bag = Bag::new(&path, mcap::WriteOptions::new());
+    bag.publish(JOINT_STATES_TOPIC, 0, T0, 0, js(&["a", "b"], &[0.0], &[], &[]));
+    bag.finish();
+    let e = read_mcap(&path).unwrap_err().to_string();
+    assert!(e.contains("message record at offset") && e.contains("of the chunk at byte"), "{e}");
+    // a file cut inside a record: that record, its byte and its declared length
+    let full = tmp("full.mcap");
+    write_log(&sample_run(5), &full).unwrap();
+    let bytes = std::fs::read(&full).unwrap();
+    let cut = tmp("cut.mcap");
+    std::fs::write(&cut, &bytes[..60]).unwrap();
+    let e = read_mcap(&cut).unwrap_err().to_string();
+    assert!(e.contains("truncated MCAP file") && e.contains("record at byte") && e.contains("declares"), "{e}");
+}

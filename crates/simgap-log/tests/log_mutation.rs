@@ -1,6 +1,7 @@
 //! No file crashes the reader: seeded byte mutations of simgap's own logs (uncompressed, lz4,
 //! zstd, with and without chunk CRCs) and of a rosbag2-style log give a valid read or a clean
-//! error every time, with no panic, no abort, and memory within a constant times the file's size.
+//! error every time, with no panic, no abort, and memory within a constant times the file's size;
+//! every error names the record and the byte of the file where the reader stopped.
 //!
 //! One test in its own binary, so the allocation counter sees only the reads.
 
@@ -182,6 +183,7 @@ fn mutated_logs_read_or_fail_cleanly_within_bounded_memory() {
     }
     let mut rng = ChaCha8Rng::seed_from_u64(20261130);
     let (mut ok, mut err) = (0usize, 0usize);
+    let mut unlocated: Vec<String> = Vec::new();
     let mut worst_ratio = 0.0f64;
     let start = Instant::now();
     for (name, base) in &bases {
@@ -196,6 +198,10 @@ fn mutated_logs_read_or_fail_cleanly_within_bounded_memory() {
                 Ok(Err(e)) => {
                     let m = e.to_string();
                     assert!(!m.contains("internal error"), "{name} mutant {i}: the reader panicked inside: {m}");
+                    // every refusal says where: the record and the byte of the file
+                    if !(m.contains("record") || m.contains("magic bytes")) || !m.contains("byte ") {
+                        unlocated.push(format!("{name} mutant {i}: {m}"));
+                    }
                     err += 1;
                 }
                 Err(_) => panic!("{name} mutant {i}: read_mcap_bytes unwound a panic into the caller"),
@@ -214,4 +220,10 @@ fn mutated_logs_read_or_fail_cleanly_within_bounded_memory() {
         elapsed.as_secs_f64()
     );
     assert!(total >= 10_000);
+    // one example of each kind of message (digits aside)
+    let mut kinds: BTreeMap<String, &String> = BTreeMap::new();
+    for m in &unlocated {
+        kinds.entry(m.split_once(": ").map_or(m.as_str(), |x| x.1).chars().filter(|c| !c.is_ascii_digit()).collect()).or_insert(m);
+    }
+    assert!(unlocated.is_empty(), "{} refusals name no record and byte, e.g.:\n{}", unlocated.len(), kinds.values().take(20).map(|m| m.as_str()).collect::<Vec<_>>().join("\n"));
 }

@@ -2,7 +2,8 @@
 //! the root mean square of a signal over time, integrated by the trapezoid rule.
 
 use crate::error::{Error, Result};
-use crate::run::Run;
+use crate::run::{Experiment, Run, Sample};
+use crate::sink::{RunEnd, Sink};
 
 /// `L²[x]` of a row-major signal `x` (`t.len() × dof`) sampled at times `t`, trapezoid rule.
 /// Zero for fewer than two samples or a zero time span.
@@ -161,4 +162,119 @@ pub fn l2_tracking(run: &Run, window: Option<(f64, f64)>) -> Result<L2Report> {
         return Err(Error::Invalid { what: "L2 window".into(), message: format!("{} samples of '{}' in the window; expected at least 2", t.len(), run.source) });
     }
     Ok(report(run.joints.clone(), &t, &x))
+}
+
+/// The L² index (eq. 127) of a signal computed as its samples arrive, in constant memory: the
+/// same trapezoid sums, in the same order, as [`l2_index`] and [`l2_per_joint`] on the whole
+/// signal, so the results agree to the last bit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct L2Accumulator {
+    joints: Vec<String>,
+    t0: Option<f64>,
+    t_last: f64,
+    prev: Vec<f64>,
+    acc: f64,
+    acc_per_joint: Vec<f64>,
+    max_abs: Vec<f64>,
+    samples: usize,
+}
+
+impl L2Accumulator {
+    /// An empty accumulator for signals over `joints`.
+    pub fn new(joints: Vec<String>) -> Self {
+        let n = joints.len();
+        L2Accumulator { joints, t0: None, t_last: 0.0, prev: vec![0.0; n], acc: 0.0, acc_per_joint: vec![0.0; n], max_abs: vec![0.0; n], samples: 0 }
+    }
+
+    /// Adds the sample `x` (one value per joint [rad or m]) at time `t` [s], after every earlier one.
+    ///
+    /// # Panics
+    /// If `x.len()` is not the number of joints.
+    pub fn push(&mut self, t: f64, x: &[f64]) {
+        assert_eq!(x.len(), self.joints.len(), "L2Accumulator::push: one value per joint");
+        let sq: f64 = x.iter().map(|v| v * v).sum();
+        if self.t0.is_some() {
+            let dt = t - self.t_last;
+            let prev_sq: f64 = self.prev.iter().map(|v| v * v).sum();
+            self.acc += 0.5 * (prev_sq + sq) * dt;
+            for j in 0..x.len() {
+                self.acc_per_joint[j] += 0.5 * (self.prev[j].powi(2) + x[j].powi(2)) * dt;
+            }
+        } else {
+            self.t0 = Some(t);
+        }
+        for j in 0..x.len() {
+            self.max_abs[j] = self.max_abs[j].max(x[j].abs());
+        }
+        self.prev.copy_from_slice(x);
+        self.t_last = t;
+        self.samples += 1;
+    }
+
+    /// The report so far.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] with fewer than two samples.
+    pub fn report(&self) -> Result<L2Report> {
+        let Some(t0) = self.t0.filter(|_| self.samples >= 2) else {
+            return Err(Error::Invalid { what: "L2 window".into(), message: format!("{} samples; expected at least 2", self.samples) });
+        };
+        let span = self.t_last - t0;
+        let root = |acc: f64| if span > 0.0 { (acc / span).sqrt() } else { 0.0 };
+        Ok(L2Report {
+            joints: self.joints.clone(),
+            overall: root(self.acc),
+            per_joint: self.acc_per_joint.iter().map(|a| root(*a)).collect(),
+            max_abs_per_joint: self.max_abs.clone(),
+            span: (t0, self.t_last),
+            samples: self.samples,
+        })
+    }
+}
+
+/// A [`Sink`] that keeps only the L² index of the tracking error `q_ref − q` (as
+/// [`l2_tracking`] of the whole run would give it), in constant memory.
+#[derive(Clone, Debug, Default)]
+pub struct TrackingL2Sink {
+    acc: Option<L2Accumulator>,
+    x: Vec<f64>,
+}
+
+impl TrackingL2Sink {
+    /// An empty sink.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The tracking L² of the samples recorded so far.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] with fewer than two samples.
+    pub fn report(&self) -> Result<L2Report> {
+        match &self.acc {
+            Some(a) => a.report(),
+            None => Err(Error::Invalid { what: "L2 window".into(), message: "no sample; expected at least 2".into() }),
+        }
+    }
+}
+
+impl Sink for TrackingL2Sink {
+    fn begin(&mut self, joints: &[String], _experiment: &Experiment) -> Result<()> {
+        self.acc = Some(L2Accumulator::new(joints.to_vec()));
+        self.x = vec![0.0; joints.len()];
+        Ok(())
+    }
+
+    fn record(&mut self, s: &Sample<'_>) -> Result<()> {
+        let Some(acc) = self.acc.as_mut() else { return Err(Error::Invalid { what: "sink".into(), message: "record before begin".into() }) };
+        for i in 0..self.x.len() {
+            self.x[i] = s.q_ref[i] - s.q[i];
+        }
+        acc.push(s.t, &self.x);
+        Ok(())
+    }
+
+    fn finish(&mut self, _end: &RunEnd) -> Result<()> {
+        Ok(())
+    }
 }

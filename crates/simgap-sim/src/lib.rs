@@ -16,6 +16,7 @@ pub mod run;
 pub mod sensor;
 pub mod simulate;
 pub mod sink;
+pub mod step;
 
 pub use error::{Error, Result};
 pub use run::{central_difference, experiment_from_map, experiment_to_map, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind, Experiment, Run, Sample};
@@ -26,8 +27,9 @@ pub use delay::DelayLine;
 pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH};
 pub use integrate::Integrator;
 pub use kind::{EffectKind, ParamSpec, Quantity};
-pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Report};
+pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Accumulator, L2Report, TrackingL2Sink};
 pub use plant::{Plant, PlantWorkspace};
 pub use reference::{reference_from_run, reference_from_run_for, Fourier, PiecewiseSetpoints, Reference, Sampled, Step};
 pub use sensor::{SensorParams, VelocityEstimate};
 pub use simulate::{effective_substeps, simulate, simulate_experiment, simulate_experiment_with_end, SimParams, DEFAULT_SUBSTEPS};
+pub use step::Stepper;

@@ -22,15 +22,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};
 
 use crate::controller::{controller_from_experiment, Controller};
-use crate::delay::DelayLine;
-use crate::effects::{applied_torque, armature, friction_slope_bound, Effect, DEFAULT_COULOMB_WIDTH};
+use crate::effects::{armature, friction_slope_bound, Effect, DEFAULT_COULOMB_WIDTH};
 use crate::error::{Error, Result};
-use crate::integrate::{Dopri5, Integrator, Rk4};
+use crate::integrate::Integrator;
 use crate::plant::Plant;
 use crate::reference::Reference;
 use crate::run::{Experiment, Run, Sample};
-use crate::sensor::{Sensor, SensorParams};
+use crate::sensor::SensorParams;
 use crate::sink::{MemorySink, RunEnd, Sink};
+use crate::step::Stepper;
 
 /// Default RK4 steps per sample period.
 ///
@@ -98,25 +98,84 @@ impl Default for SimParams {
     }
 }
 
+/// Ranges of [`SimParams`] checked by [`SimParams::validate`]: the most a run may ask for.
+pub mod limits {
+    /// Shortest sample period [s].
+    pub const MIN_SAMPLE_PERIOD: f64 = 1e-6;
+    /// Longest sample period [s].
+    pub const MAX_SAMPLE_PERIOD: f64 = 1.0;
+    /// Longest duration [s]: a day.
+    pub const MAX_DURATION: f64 = 86_400.0;
+    /// Most RK4 steps per sample asked for (`substeps`).
+    pub const MAX_SUBSTEPS: usize = 10_000;
+    /// Most integration steps a run may take: samples × `substeps`.
+    pub const MAX_STEPS: f64 = 1e9;
+    /// Most samples a run held in memory may have ([`SimParams::check_in_memory`]).
+    pub const MAX_MEMORY_SAMPLES: f64 = 1e7;
+    /// Largest position noise [rad or m].
+    pub const MAX_NOISE_STD: f64 = 1.0;
+}
+
+/// A number as people write it: plain between 0.001 and 10⁶, else in exponent form (`1e-12`,
+/// `3.2e7`).
+pub fn number(x: f64) -> String {
+    if x == 0.0 || (x.abs() >= 1e-3 && x.abs() < 1e6) || !x.is_finite() {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 impl SimParams {
-    fn validate(&self, dof: usize) -> Result<()> {
+    /// Checks every parameter against its range, before anything is simulated: `sample_period`
+    /// in [1e-6, 1] s, `duration` in (0, 86400] s, `t0` finite, `substeps` in [1, 10000],
+    /// at most 1e9 integration steps (samples × substeps), adaptive tolerances positive,
+    /// `coulomb_width` finite and ≥ 0, `divergence_bound` positive, `q0`/`qd0` empty or one
+    /// finite value per joint, encoder counts positive, noise in [0, 1] rad (see [`limits`]).
+    /// [`simulate`], the CLI and the Python bindings all refuse through it, with the same words.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] naming the parameter, the value and the range expected.
+    pub fn validate(&self, dof: usize) -> Result<()> {
+        use limits::*;
         let bad = |what: &str, message: String| Err(Error::Invalid { what: what.into(), message });
-        if !(self.sample_period.is_finite() && self.sample_period > 0.0) {
-            return bad("sample_period", format!("{} s; expected a positive number", self.sample_period));
-        }
-        if !(self.duration.is_finite() && self.duration >= 0.0) {
-            return bad("duration", format!("{} s; expected a finite number >= 0", self.duration));
-        }
+        let range = |what: &str, value: f64, lo: f64, hi: f64, unit: &str, lo_open: bool| -> Result<()> {
+            let inside = value.is_finite() && value <= hi && if lo_open { value > lo } else { value >= lo };
+            if inside {
+                return Ok(());
+            }
+            let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+            let lo_rel = if lo_open { "<" } else { "≤" };
+            bad(what, format!("{}{unit} is out of range; expected {} {lo_rel} {what} ≤ {}{unit}", number(value), number(lo), number(hi)))
+        };
+        range("sample_period", self.sample_period, MIN_SAMPLE_PERIOD, MAX_SAMPLE_PERIOD, "s", false)?;
+        range("duration", self.duration, 0.0, MAX_DURATION, "s", true)?;
         if !self.t0.is_finite() {
             return bad("t0", format!("{}; expected a finite time", self.t0));
         }
-        if self.substeps == 0 {
-            return bad("substeps", "0; expected at least 1".into());
+        range("substeps", self.substeps as f64, 1.0, MAX_SUBSTEPS as f64, "", false)?;
+        let samples = (self.duration / self.sample_period).round() + 1.0;
+        let steps = samples * self.substeps as f64;
+        if steps > MAX_STEPS {
+            return bad(
+                "duration",
+                format!(
+                    "{} s at sample_period {} s × substeps {} gives {} integration steps; expected at most {}",
+                    number(self.duration),
+                    number(self.sample_period),
+                    self.substeps,
+                    number(steps),
+                    number(MAX_STEPS)
+                ),
+            );
         }
         if let Integrator::Adaptive { rtol, atol } = self.integrator {
-            if !(rtol > 0.0 && atol > 0.0) {
+            if !(rtol > 0.0 && atol > 0.0 && rtol.is_finite() && atol.is_finite()) {
                 return bad("integrator", format!("rtol = {rtol}, atol = {atol}; expected positive tolerances"));
             }
+        }
+        if !(self.coulomb_width.is_finite() && self.coulomb_width >= 0.0) {
+            return bad("coulomb_width", format!("{} rad/s; expected a finite width >= 0 (0: the exact sign)", number(self.coulomb_width)));
         }
         if !(self.divergence_bound > 0.0) {
             return bad("divergence_bound", format!("{}; expected a positive number", self.divergence_bound));
@@ -128,6 +187,35 @@ impl SimParams {
             if v.iter().any(|x| !x.is_finite()) {
                 return bad(name, "non-finite value".into());
             }
+        }
+        if let Some(c) = self.sensor.counts_per_rev {
+            if !(c.is_finite() && c > 0.0) {
+                return bad("counts_per_rev", format!("{}; expected a positive number of counts per revolution, or none (exact positions)", number(c)));
+            }
+        }
+        range("noise_std", self.sensor.noise_std, 0.0, MAX_NOISE_STD, "rad", false)?;
+        Ok(())
+    }
+
+    /// Checks that the run fits in memory: at most 1e7 samples ([`limits::MAX_MEMORY_SAMPLES`];
+    /// a run of a day at 400 Hz has 3.5e7). A sink that writes as the run goes (an MCAP log)
+    /// needs no such bound.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] naming the number of samples and the bound.
+    pub fn check_in_memory(&self) -> Result<()> {
+        let samples = (self.duration / self.sample_period).round() + 1.0;
+        if samples > limits::MAX_MEMORY_SAMPLES {
+            return Err(Error::Invalid {
+                what: "duration".into(),
+                message: format!(
+                    "{} s at sample_period {} s gives {} samples; a run held in memory has at most {} (write longer runs to a log as they go: simgap simulate --out RUN.mcap)",
+                    number(self.duration),
+                    number(self.sample_period),
+                    number(samples),
+                    number(limits::MAX_MEMORY_SAMPLES)
+                ),
+            });
         }
         Ok(())
     }
@@ -152,11 +240,12 @@ pub fn simulate(plant: &Plant, controller: &mut dyn Controller, reference: &dyn 
     let n = plant.dof();
     params.validate(n)?;
     let names: Vec<String> = plant.model().joint_names().iter().map(|s| s.to_string()).collect();
-    let mut sensor = Sensor::new(&params.sensor, plant.model(), params.sample_period)?;
+    // parameters and sensors are checked before the sink is begun
+    let mut stepper = Stepper::new(plant, params, params.intervals() + 1)?;
     let experiment = params.experiment.clone().unwrap_or_else(|| controller.experiment(&names, params.sample_period));
     sink.begin(&names, &experiment)?;
     let mut last_t = params.t0;
-    match step_loop(plant, controller, reference, params, sink, stop, &names, &mut sensor, &mut last_t) {
+    match step_loop(&mut stepper, controller, reference, params, sink, stop, &names, &mut last_t) {
         Ok(end) => {
             sink.finish(&end)?;
             Ok(end)
@@ -170,17 +259,16 @@ pub fn simulate(plant: &Plant, controller: &mut dyn Controller, reference: &dyn 
 
 #[allow(clippy::too_many_arguments)]
 fn step_loop(
-    plant: &Plant,
+    stepper: &mut Stepper<'_>,
     controller: &mut dyn Controller,
     reference: &dyn Reference,
     params: &SimParams,
     sink: &mut dyn Sink,
     stop: Option<&AtomicBool>,
     names: &[String],
-    sensor: &mut Sensor,
     last_t: &mut f64,
 ) -> Result<RunEnd> {
-    let n = plant.dof();
+    let n = stepper.dof();
     let period = params.sample_period;
     let intervals = params.intervals();
     // buffers, allocated once
@@ -191,27 +279,8 @@ fn step_loop(
     if !params.qd0.is_empty() {
         y[n..].copy_from_slice(&params.qd0);
     }
-    let (mut q_meas, mut qd_meas) = (vec![0.0; n], vec![0.0; n]);
-    let (mut q_ref, mut qd_ref) = (vec![0.0; n], vec![0.0; n]);
-    let (mut tau_cmd, mut tau_delayed, mut tau_app) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let mut tau_ff = vec![0.0; n];
+    let (mut q_ref, mut qd_ref, mut tau_ff) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let adds_ff = controller.adds_feed_forward();
-    let mut pws = plant.workspace();
-    let mut rk4 = Rk4::new(2 * n);
-    let mut dopri = match params.integrator {
-        Integrator::Adaptive { rtol, atol } => Some(Dopri5::new(2 * n, rtol, atol)),
-        Integrator::Rk4 => None,
-    };
-    // delay line (see `crate::delay`): a ring buffer of the last m + 2 commands; a delay
-    // longer than the run holds the first command throughout, so the line never needs more
-    // slots than the run has samples (a delay of 1e9 s allocates nothing more)
-    let line = DelayLine::new(plant.delay(), period);
-    let depth = line.whole().min(intervals + 1) + 2;
-    let mut history = vec![0.0; depth * n];
-    let limits = plant.effort_limits();
-    let width = params.coulomb_width;
-    let substeps = effective_substeps(plant, params);
-    let h = period / substeps as f64;
 
     for k in 0..=intervals {
         let t = params.t0 + k as f64 * period;
@@ -220,57 +289,25 @@ fn step_loop(
             return Ok(RunEnd::Interrupted { t: *last_t });
         }
         // divergence: non-finite or too fast
-        let (q, qd) = y.split_at(n);
-        if let Some(j) = diverged_joint(q, qd, params.divergence_bound) {
+        if let Some(j) = stepper.diverged(&y) {
             return Ok(RunEnd::Diverged { t, joint: names[j].clone() });
         }
-        // sensors, reference, controller
-        sensor.measure(q, qd, &mut q_meas, &mut qd_meas);
+        // sensors, reference, controller and feed-forward
         reference.eval(t, &mut q_ref, &mut qd_ref);
-        controller.torque(t, &q_meas, &qd_meas, &q_ref, &qd_ref, &mut tau_cmd);
         if adds_ff {
             reference.feed_forward(t, &mut tau_ff);
-            for i in 0..n {
-                tau_cmd[i] += tau_ff[i];
-            }
         }
-        if let Some(j) = (0..n).find(|&j| !tau_cmd[j].is_finite() || !q_meas[j].is_finite() || !qd_meas[j].is_finite()) {
+        if let Some(j) = stepper.command(controller, t, &y, &q_ref, &qd_ref, if adds_ff { &tau_ff } else { &[] }) {
             return Ok(RunEnd::Diverged { t, joint: names[j].clone() });
         }
-        sink.record(&Sample { t, q: &q_meas, qd: &qd_meas, tau: &tau_cmd, q_ref: &q_ref, qd_ref: &qd_ref })?;
+        let (q_meas, qd_meas) = stepper.measured();
+        sink.record(&Sample { t, q: q_meas, qd: qd_meas, tau: stepper.command_torque(), q_ref: &q_ref, qd_ref: &qd_ref })?;
         *last_t = t;
         if k == intervals {
             break;
         }
-        // delay line: slot i mod depth holds τ_cmd,i (the taps of sample k are at most
-        // depth − 1 samples old, or sample 0, whose slot is not yet overwritten then)
-        let slot = k % depth;
-        history[slot * n..(slot + 1) * n].copy_from_slice(&tau_cmd);
-        line.delayed_row(k, |i| &history[(i % depth) * n..(i % depth + 1) * n], &mut tau_delayed);
-        // actuators: saturation, gain, offset, then the model's effort limits
-        applied_torque(plant.effects(), &tau_delayed, &mut tau_app);
-        if params.torque_limits_from_model {
-            for i in 0..n {
-                tau_app[i] = tau_app[i].clamp(-limits[i], limits[i]);
-            }
-        }
-        // integrate the plant over the sample with the held torque
-        let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
-            let (q, qd) = y.split_at(n);
-            let (dq, ddq) = dy.split_at_mut(n);
-            dq.copy_from_slice(qd);
-            plant.acceleration(&mut pws, q, qd, &tau_app, width, ddq);
-        };
-        match dopri.as_mut() {
-            Some(d) => {
-                d.integrate(&mut f, t, t + period, &mut y);
-            }
-            None => {
-                for s in 0..substeps {
-                    rk4.step(&mut f, t + s as f64 * h, h, &mut y);
-                }
-            }
-        }
+        // delay line, held torque, integration over the sample
+        stepper.advance(k, t, period, &mut y);
     }
     Ok(RunEnd::Completed)
 }
@@ -301,15 +338,6 @@ pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
     } else {
         params.substeps
     }
-}
-
-/// The diverged joint: the first with a non-finite state, else the fastest beyond the bound.
-fn diverged_joint(q: &[f64], qd: &[f64], bound: f64) -> Option<usize> {
-    if let Some(j) = (0..q.len()).find(|&j| !q[j].is_finite() || !qd[j].is_finite()) {
-        return Some(j);
-    }
-    let (j, v) = qd.iter().map(|v| v.abs()).enumerate().fold((0, 0.0), |acc, (j, v)| if v > acc.1 { (j, v) } else { acc });
-    (v > bound).then_some(j)
 }
 
 /// Simulates an experiment (`simgap.experiment`) into memory: the controller from

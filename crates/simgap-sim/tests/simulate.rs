@@ -245,3 +245,66 @@ fn pd_reaches_the_paper_steady_state() {
         assert!(residual.abs() < 1e-3, "joint {i}: Kp q̃ − g = {residual}");
     }
 }
+
+#[test]
+fn tracking_l2_computed_as_the_run_goes_equals_the_whole_run_l2_to_the_last_bit() {
+    let plant = Plant::new(&Model::paper_arm(), Formulation::EulerLagrange, &[]).unwrap();
+    let (run, _) = run_with(&plant, &mut paper_pd(), &paper_step(), &SimParams::default());
+    let mut acc = simgap_sim::L2Accumulator::new(run.joints.clone());
+    let n = run.dof();
+    for k in 0..run.len() {
+        let x: Vec<f64> = (0..n).map(|i| run.q_ref[k * n + i] - run.q[k * n + i]).collect();
+        acc.push(run.t[k], &x);
+    }
+    let whole = simgap_sim::l2_tracking(&run, None).unwrap();
+    assert_eq!(acc.report().unwrap(), whole);
+    // the sink form, as `simgap simulate` uses it
+    let mut sink = simgap_sim::TrackingL2Sink::new();
+    simulate(&plant, &mut paper_pd(), &paper_step(), &SimParams::default(), &mut sink, None).unwrap();
+    assert_eq!(sink.report().unwrap(), whole);
+}
+
+/// The per-sample step restarted from a state of a simulated run, driven by the run's logged
+/// commands with its delay line primed from the log (as k-step prediction drives it), retraces
+/// the simulation exactly: same step, same arithmetic.
+#[test]
+fn stepper_restarted_from_a_logged_state_with_the_logged_commands_retraces_the_run() {
+    let model = Model::paper_arm();
+    // a delay of 2.4 samples: the restart must prime the delay ring with commands before k0
+    let effects = [simgap_sim::Effect::TimeDelay { delay: 0.006 }, simgap_sim::Effect::CoulombFriction { fc: vec![7.17, 1.734] }];
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &effects).unwrap();
+    let params = SimParams { sensor: SensorParams::exact(), duration: 2.0, ..SimParams::default() };
+    let (run, end) = run_with(&plant, &mut paper_pd(), &paper_step(), &params);
+    assert_eq!(end, RunEnd::Completed);
+    let n = run.dof();
+    let mut stepper = simgap_sim::Stepper::new(&plant, &params, run.len()).unwrap();
+    for k0 in [0, 1, 150, 611] {
+        // exact sensors: the logged state is the true state
+        let mut y = [run.row(&run.q, k0), run.row(&run.qd, k0)].concat();
+        stepper.restart(k0, None, |i| run.row(&run.tau, i));
+        for k in k0..k0 + 100 {
+            stepper.set_command(run.row(&run.tau, k));
+            stepper.advance(k, run.t[k], params.sample_period, &mut y);
+            assert!(stepper.diverged(&y).is_none());
+        }
+        assert_eq!(&y[..n], run.row(&run.q, k0 + 100), "restarted at sample {k0}");
+        assert_eq!(&y[n..], run.row(&run.qd, k0 + 100), "restarted at sample {k0}");
+    }
+}
+
+#[test]
+fn impossible_parameters_are_refused_naming_the_range() {
+    let plant = Plant::new(&Model::paper_arm(), Formulation::EulerLagrange, &[]).unwrap();
+    for (params, words) in [
+        (SimParams { sample_period: 1e-12, ..SimParams::default() }, "sample_period: 1e-12 s is out of range; expected 1e-6 ≤ sample_period ≤ 1 s"),
+        (SimParams { substeps: 1_000_000_000, ..SimParams::default() }, "substeps: 1e9 is out of range; expected 1 ≤ substeps ≤ 10000"),
+        (SimParams { duration: 86_401.0, ..SimParams::default() }, "duration: 86401 s is out of range; expected 0 < duration ≤ 86400 s"),
+        (SimParams { duration: 1000.0, substeps: 5000, ..SimParams::default() }, "integration steps; expected at most 1e9"),
+    ] {
+        let mut sink = MemorySink::new();
+        let e = simulate(&plant, &mut paper_pd(), &paper_step(), &params, &mut sink, None).unwrap_err().to_string();
+        assert!(e.contains(words), "{e}");
+    }
+    assert!(SimParams { duration: 86_400.0, ..SimParams::default() }.check_in_memory().unwrap_err().to_string().contains("at most 1e7"));
+    assert!(SimParams { duration: 86_400.0, ..SimParams::default() }.validate(2).is_ok());
+}

@@ -20,8 +20,7 @@
 
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
-use simgap_sim::sensor::Sensor;
-use simgap_sim::{applied_torque, controller_from_experiment, effective_substeps, ControllerKind, DelayLine, Effect, Plant, Run, SensorParams, SimParams};
+use simgap_sim::{controller_from_experiment, ControllerKind, Effect, Plant, Run, SensorParams, SimParams, Stepper};
 
 use crate::error::Result;
 use crate::prepare::differentiate::Smoother;
@@ -248,74 +247,48 @@ pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect
         (true, Some(e)) => Some(controller_from_experiment(e, model, None)?),
         _ => None,
     };
-    let params = SimParams { sample_period: pr.period, q0: pr.q_hat[pr.starts.first().map_or(0, |k| k * n)..].iter().take(n).copied().collect(), ..SimParams::default() };
+    // the simulator's step (sensors, delay line, held torque, substeps), restarted every window
+    let params = SimParams {
+        sample_period: pr.period,
+        sensor: pr.sensor.clone(),
+        q0: pr.q_hat[pr.starts.first().map_or(0, |k| k * n)..].iter().take(n).copied().collect(),
+        ..SimParams::default()
+    };
     let params = if params.q0.len() == n { params } else { SimParams { q0: Vec::new(), ..params } };
-    let substeps = effective_substeps(&plant, &params);
-    let h_max = pr.period / substeps as f64;
-    let line = DelayLine::new(plant.delay(), pr.period);
-    let mut pws = plant.workspace();
-    let mut rk4 = simgap_sim::integrate::Rk4::new(2 * n);
-    let mut sensor = Sensor::new(&pr.sensor, model, pr.period)?;
-    let (mut y, mut q_meas, mut qd_meas) = (vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
-    let (mut cmd, mut delayed, mut applied) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut stepper = Stepper::new(&plant, &params, run.len())?;
+    let mut y = vec![0.0; 2 * n];
     let zeros = vec![0.0; n];
-    // commands of this window (index k − k0), before it the log's
-    let mut history: Vec<f64> = Vec::new();
     for w in 0..pr.windows() {
         if !keep(w) {
             continue;
         }
         let k0 = pr.starts[w];
         let k_end = pr.ends[w].iter().copied().filter(|&k| k != usize::MAX).max().unwrap_or(k0);
-        // restart from the measured (smoothed) state
+        // restart from the measured (smoothed) state, the sensors and the delay line from the log
         y[..n].copy_from_slice(&pr.q_hat[k0 * n..(k0 + 1) * n]);
         y[n..].copy_from_slice(&pr.qd_hat[k0 * n..(k0 + 1) * n]);
-        if k0 > 0 {
-            sensor.restart(&run.q[(k0 - 1) * n..k0 * n]);
-        }
-        history.clear();
+        delayed_command(&mut stepper, run, k0, &zeros);
         let mut diverged = false;
         for k in k0..k_end {
             // the command of sample k: the log's, or the controller's from the simulated state
-            match controller.as_mut() {
-                None => cmd.copy_from_slice(&run.tau[k * n..(k + 1) * n]),
+            let bad_command = match controller.as_mut() {
+                None => {
+                    stepper.set_command(&run.tau[k * n..(k + 1) * n]);
+                    false
+                }
                 Some(c) => {
-                    let (q, qd) = y.split_at(n);
-                    sensor.measure(q, qd, &mut q_meas, &mut qd_meas);
                     let q_ref = if run.q_ref.is_empty() { &run.q[k * n..(k + 1) * n] } else { &run.q_ref[k * n..(k + 1) * n] };
                     let qd_ref = if run.qd_ref.is_empty() { &zeros[..] } else { &run.qd_ref[k * n..(k + 1) * n] };
-                    c.torque(run.t[k], &q_meas, &qd_meas, q_ref, qd_ref, &mut cmd);
-                    if !run.tau_ff.is_empty() {
-                        for i in 0..n {
-                            cmd[i] += run.tau_ff[k * n + i];
-                        }
-                    }
+                    let tau_ff = if run.tau_ff.is_empty() { &[][..] } else { &run.tau_ff[k * n..(k + 1) * n] };
+                    stepper.command(c.as_mut(), run.t[k], &y, q_ref, qd_ref, tau_ff).is_some()
                 }
-            }
-            history.extend_from_slice(&cmd);
-            // the delayed command held over the sample, as the simulator forms it
-            if !line.is_zero() {
-                delayed_command(run, &history, k0, k, &line, &mut delayed);
-            } else {
-                delayed.copy_from_slice(&cmd);
-            }
-            applied_torque(plant.effects(), &delayed, &mut applied);
-            // integrate over this sample interval with the held torque
-            // (an interval that exceeds the period by rounding of the stamps takes the
-            // simulator's substeps, not one more)
-            let dt = run.t[k + 1] - run.t[k];
-            let steps = ((dt / h_max * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000);
-            let h = dt / steps as f64;
-            let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
-                let (q, qd) = y.split_at(n);
-                let (dq, ddq) = dy.split_at_mut(n);
-                dq.copy_from_slice(qd);
-                plant.acceleration(&mut pws, q, qd, &applied, simgap_sim::DEFAULT_COULOMB_WIDTH, ddq);
             };
-            for s in 0..steps {
-                rk4.step(&mut f, run.t[k] + s as f64 * h, h, &mut y);
+            // delay line, held torque and integration over this sample interval (an interval
+            // that exceeds the period by rounding of the stamps takes the simulator's step size)
+            if !bad_command {
+                stepper.advance(k, run.t[k], run.t[k + 1] - run.t[k], &mut y);
             }
-            if y.iter().any(|v| !v.is_finite() || v.abs() > 1e6) {
+            if bad_command || stepper.diverged(&y).is_some() {
                 diverged = true;
             }
             // errors at the horizons that end at sample k + 1
@@ -342,12 +315,13 @@ pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect
     Ok(out)
 }
 
-/// The command held over sample `k` through the delay line `line` (see [`DelayLine`]):
-/// commands from `k0` on are this window's (`history`, row `k − k0`), before it the log's,
-/// before the log's start the first logged one (as the simulator does).
-fn delayed_command(run: &Run, history: &[f64], k0: usize, k: usize, line: &DelayLine, out: &mut [f64]) {
-    let n = out.len();
-    line.delayed_row(k, |i| if i >= k0 { &history[(i - k0) * n..(i - k0 + 1) * n] } else { &run.tau[i * n..(i + 1) * n] }, out);
+/// Restarts `stepper` at sample `k0` of `run`: the sensors continue from the position logged at
+/// `k0 − 1`, and the delay line holds the log's commands before `k0` (zeros for a log without
+/// effort), as the simulator would have applied them.
+fn delayed_command(stepper: &mut Stepper<'_>, run: &Run, k0: usize, zeros: &[f64]) {
+    let n = zeros.len();
+    let previous = (k0 > 0).then(|| &run.q[(k0 - 1) * n..k0 * n]);
+    stepper.restart(k0, previous, |i| if run.tau.is_empty() { zeros } else { &run.tau[i * n..(i + 1) * n] });
 }
 
 /// Predicts every window of every run with one set of effects; returns the pooled errors.

@@ -114,6 +114,67 @@ pub(crate) fn encode_joint_state_into(buf: &mut Vec<u8>, ns: i64, names: &[Strin
     encode_parts(buf, sec, nanosec, "", names, position, velocity, effort);
 }
 
+/// The CDR bytes of a `sensor_msgs/msg/JointState` for fixed joint names and array lengths
+/// (empty frame id), with where the stamp and the values go: encoding a message is then one copy
+/// and the stamp and values written in place, the same bytes as [`encode_joint_state_into`].
+#[derive(Clone, Debug)]
+pub(crate) struct JointStateTemplate {
+    bytes: Vec<u8>,
+    /// Offset of each array's first value in `bytes` (position, velocity, effort).
+    data: [usize; 3],
+    lens: [usize; 3],
+}
+
+impl JointStateTemplate {
+    /// The template of messages naming `names` with arrays of `lens` values.
+    pub(crate) fn new(names: &[String], lens: [usize; 3]) -> Self {
+        let zeros: Vec<Vec<f64>> = lens.iter().map(|&l| vec![0.0; l]).collect();
+        let mut bytes = Vec::new();
+        encode_parts(&mut bytes, 0, 0, "", names, &zeros[0], &zeros[1], &zeros[2]);
+        // where the arrays start: after the names, each a u32 count (aligned to 4) and, when not
+        // empty, its values aligned to 8, alignment relative to the end of the 4-byte
+        // encapsulation header; with empty arrays the message ends with the three counts
+        let mut empty = Vec::new();
+        encode_parts(&mut empty, 0, 0, "", names, &[], &[], &[]);
+        let base = 4;
+        let align = |x: usize, n: usize| x.div_ceil(n) * n;
+        let mut off = empty.len() - 12 - base;
+        let mut data = [0; 3];
+        for (i, &l) in lens.iter().enumerate() {
+            off = align(off, 4) + 4;
+            if l > 0 {
+                off = align(off, 8);
+                data[i] = base + off;
+                off += 8 * l;
+            }
+        }
+        debug_assert_eq!(base + off, bytes.len());
+        JointStateTemplate { bytes, data, lens }
+    }
+
+    /// Whether messages with arrays of `lens` values use this template.
+    pub(crate) fn fits(&self, lens: [usize; 3]) -> bool {
+        self.lens == lens
+    }
+
+    /// Appends the message stamped `ns` [ns since the epoch] with `values` (position, velocity,
+    /// effort; lengths as the template's) to `buf`.
+    pub(crate) fn encode_into(&self, buf: &mut Vec<u8>, ns: i64, values: [&[f64]; 3]) {
+        let at = buf.len();
+        buf.extend_from_slice(&self.bytes);
+        let sec = ns.div_euclid(1_000_000_000) as i32;
+        let nanosec = ns.rem_euclid(1_000_000_000) as u32;
+        buf[at + 4..at + 8].copy_from_slice(&sec.to_le_bytes());
+        buf[at + 8..at + 12].copy_from_slice(&nanosec.to_le_bytes());
+        for (i, v) in values.iter().enumerate() {
+            let start = at + self.data[i];
+            for (x, out) in v.iter().zip(buf[start..start + 8 * v.len()].chunks_exact_mut(8)) {
+                out.copy_from_slice(&x.to_le_bytes());
+            }
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn encode_parts(buf: &mut Vec<u8>, sec: i32, nanosec: u32, frame_id: &str, names: &[String], position: &[f64], velocity: &[f64], effort: &[f64]) {
     buf.extend_from_slice(&[0x00, 0x01, 0x00, 0x00]);
@@ -225,5 +286,30 @@ impl<'a> CdrReader<'a> {
     pub(crate) fn f64_seq(&mut self, field: &str) -> std::result::Result<Vec<f64>, CdrError> {
         let n = self.count(field, 8)?;
         (0..n).map(|_| self.f64(field)).collect()
+    }
+}
+
+#[cfg(test)]
+mod template_tests {
+    use super::{encode_joint_state_into, JointStateTemplate};
+
+    #[test]
+    fn template_encoding_gives_the_bytes_of_the_direct_encoding() {
+        let name_sets: [&[&str]; 4] = [&["a"], &["shoulder", "elbow"], &["j1", "joint_two", "x", "a_long_joint_name"], &["abc", "de", "f", "ghij", "k", "lm", "nop"]];
+        for names in name_sets {
+            let names: Vec<String> = names.iter().map(|s| s.to_string()).collect();
+            let n = names.len();
+            for lens in [[n, n, n], [n, 0, n], [0, 0, n], [n, n, 0], [n, 0, 0]] {
+                let t = JointStateTemplate::new(&names, lens);
+                for (k, ns) in [0i64, 1_712_345_678_123_456_789, -1_500_000_000, 2_500_000].into_iter().enumerate() {
+                    let v: Vec<Vec<f64>> = lens.iter().enumerate().map(|(i, &l)| (0..l).map(|j| (k * 31 + i * 7 + j) as f64 * 0.37 - 1.1).collect()).collect();
+                    let mut direct = vec![9u8; 3];
+                    encode_joint_state_into(&mut direct, ns, &names, &v[0], &v[1], &v[2]);
+                    let mut templated = vec![9u8; 3];
+                    t.encode_into(&mut templated, ns, [&v[0], &v[1], &v[2]]);
+                    assert_eq!(templated, direct, "names {names:?}, lengths {lens:?}, stamp {ns}");
+                }
+            }
+        }
     }
 }

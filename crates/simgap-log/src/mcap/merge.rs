@@ -10,6 +10,8 @@
 
 use std::collections::HashMap;
 
+use super::scan::Location;
+
 /// One message as the reader extracted it: joint names and up to three columns (`values[0]`
 /// required: positions, or efforts for the effort roles; then velocities and efforts).
 pub(crate) struct Extracted {
@@ -47,6 +49,8 @@ struct MsgRef {
     len: usize,
     has_velocity: bool,
     has_effort: bool,
+    /// Where its record is in the file.
+    at: Location,
 }
 
 /// A topic merged into samples.
@@ -86,7 +90,7 @@ impl TopicData {
     }
 
     /// Checks and stores a message: array lengths and finite values.
-    pub(crate) fn push(&mut self, topic: &str, m: Extracted, log_ns: i64, channel: u32) -> std::result::Result<(), String> {
+    pub(crate) fn push(&mut self, topic: &str, m: Extracted, log_ns: i64, channel: u32, at: Location) -> std::result::Result<(), String> {
         let stamp = m.stamp.unwrap_or(0);
         let t = ns_to_seconds(if stamp != 0 { stamp } else { log_ns });
         let [c0, c1, c2] = self.columns;
@@ -142,7 +146,7 @@ impl TopicData {
             self.effort.extend(std::iter::repeat_n(0.0, n));
         }
         self.any_stamp |= stamp != 0;
-        self.msgs.push(MsgRef { stamp, log: log_ns, channel, start, len: n, has_velocity, has_effort });
+        self.msgs.push(MsgRef { stamp, log: log_ns, channel, start, len: n, has_velocity, has_effort, at });
         Ok(())
     }
 
@@ -155,8 +159,12 @@ impl TopicData {
         let (names, column): (Vec<String>, Vec<usize>) = match joints {
             Some(js) => {
                 let mut column = Vec::with_capacity(self.names.len());
-                for j in &self.names {
-                    let c = js.iter().position(|x| x == j).ok_or_else(|| format!("joint '{j}' is in {topic} but not in {} (joints: {})", self.states_topic, js.join(", ")))?;
+                for (id, j) in self.names.iter().enumerate() {
+                    let Some(c) = js.iter().position(|x| x == j) else {
+                        let first = self.msgs.iter().find(|m| self.ids[m.start..m.start + m.len].contains(&(id as u32)));
+                        let at = first.map(|m| format!("; it is first in the {}", m.at)).unwrap_or_default();
+                        return Err(format!("joint '{j}' is in {topic} but not in {} (joints: {}){at}", self.states_topic, js.join(", ")));
+                    };
                     column.push(c);
                 }
                 (js.to_vec(), column)
@@ -171,10 +179,10 @@ impl TopicData {
                 if let Some(prev) = last_time.insert((m.channel, id), t) {
                     let j = &self.names[id as usize];
                     if t == prev {
-                        return Err(format!("{topic}: joint '{j}' is given twice at the same time t = {} s", time_s(t)));
+                        return Err(format!("{}: {topic}: joint '{j}' is given twice at the same time t = {} s", m.at, time_s(t)));
                     }
                     if t < prev {
-                        return Err(format!("{topic}: time is not monotonic for joint '{j}': t = {} s comes after t = {} s", time_s(t), time_s(prev)));
+                        return Err(format!("{}: {topic}: time is not monotonic for joint '{j}': t = {} s comes after t = {} s", m.at, time_s(t), time_s(prev)));
                     }
                 }
             }
@@ -202,14 +210,14 @@ impl TopicData {
                 let m = &self.msgs[order[g]];
                 for (what, any, this) in [(self.columns[1].1, has_velocity, m.has_velocity), (self.columns[2].1, has_effort, m.has_effort)] {
                     if any && !this {
-                        return Err(format!("{topic}: the message at t = {} s has no {what} while other messages have one", time_s(t)));
+                        return Err(format!("{}: {topic}: the message at t = {} s has no {what} while other messages have one", m.at, time_s(t)));
                     }
                 }
                 for i in m.start..m.start + m.len {
                     let id = self.ids[i] as usize;
                     let k = column[id];
                     if filled[k] {
-                        return Err(format!("{topic}: joint '{}' is given twice at the same time t = {} s", self.names[id], time_s(t)));
+                        return Err(format!("{}: {topic}: joint '{}' is given twice at the same time t = {} s", m.at, self.names[id], time_s(t)));
                     }
                     filled[k] = true;
                     out.position[row + k] = self.position[i];
@@ -219,7 +227,8 @@ impl TopicData {
                 g += 1;
             }
             if let Some(k) = filled.iter().position(|f| !f) {
-                return Err(format!("{topic}: joint '{}' is missing at t = {} s (no message with that joint has this time stamp)", names[k], time_s(t)));
+                let at = self.msgs[order[g - 1]].at;
+                return Err(format!("{at}: {topic}: joint '{}' is missing at t = {} s (no message with that joint has this time stamp)", names[k], time_s(t)));
             }
             out.t.push(t);
         }

@@ -11,9 +11,11 @@
 //!
 //! One job per file: [`cdr`] (the wire format), [`schema`] (definitions and a decoder driven by
 //! them), [`scan`] (the bounded record scan), [`merge`] (messages into samples), [`read`] (a
-//! file or bag into a run), [`write`] (the sink and whole-run writer).
+//! file or bag into a run), [`write`] (the sink and whole-run writer), [`chunked`] (the file
+//! the sink's thread writes from whole chunks).
 
 pub mod cdr;
+pub(crate) mod chunked;
 pub(crate) mod merge;
 pub(crate) mod read;
 pub mod scan;

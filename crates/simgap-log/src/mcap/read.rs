@@ -27,7 +27,7 @@ use std::sync::Arc;
 use simgap_sim::{central_difference, experiment_from_map, hold_rows, interpolate_rows, Experiment, Run};
 
 use super::merge::{Extracted, Merged, TopicData};
-use super::scan::{scan, Record, ScanEnd};
+use super::scan::{scan, Location, Record, ScanEnd};
 use super::schema::{Arity, ElemType, Primitive, Schema, Value};
 use super::{CDR_ENCODING, EXPERIMENT_METADATA, FLOAT64_MULTI_ARRAY_DEFINITION, JOINT_STATE_DEFINITION, ROS2MSG_ENCODING, RUN_END_METADATA};
 use crate::error::{check_run, read_error, Result};
@@ -164,14 +164,15 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
     let mut data: BTreeMap<Role, TopicData> = BTreeMap::new();
     let mut experiment: Option<BTreeMap<String, String>> = None;
     let mut run_end: Option<BTreeMap<String, String>> = None;
-    let mut other_topics: Vec<String> = Vec::new();
+    let mut other_topics: Vec<(String, Location)> = Vec::new();
+    let mut experiment_at: Option<Location> = None;
     let mut schema_cache: HashMap<(String, Arc<[u8]>), Arc<Schema>> = HashMap::new();
     let mut warnings = Vec::new();
     let mut n_messages = 0usize;
     for (file_index, source) in sources.into_iter().enumerate() {
         let mut state = FileState::default();
         let where_ = |m: String| if multi { format!("{}: {m}", source.name) } else { m };
-        let end: ScanEnd = scan(source.input, source.len, |record| {
+        let end: ScanEnd = scan(source.input, source.len, |record, at| {
             match record {
                 Record::Schema { id, name, encoding, data } => {
                     state.schemas.insert(id, (name, encoding, Arc::from(data)));
@@ -179,8 +180,8 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
                 Record::Channel { id, schema_id, topic, message_encoding } => {
                     let roles = topics.roles_of(&topic);
                     if roles.is_empty() {
-                        if !other_topics.contains(&topic) {
-                            other_topics.push(topic);
+                        if !other_topics.iter().any(|(t, _)| *t == topic) {
+                            other_topics.push((topic, at));
                         }
                         state.channels.insert(id, None);
                         return Ok(());
@@ -210,6 +211,11 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
                             s
                         }
                     };
+                    if let Some(w) = schema_name_mismatch(&schema, &sname, &topic) {
+                        if !warnings.contains(&w) {
+                            warnings.push(w);
+                        }
+                    }
                     let mut planned = Vec::new();
                     for role in roles {
                         let spec = topics.get(role).expect("role of this topic");
@@ -227,7 +233,7 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
                         let m = extractor.extract(&value)?;
                         data.entry(*role)
                             .or_insert_with(|| TopicData::new(columns_of(*role), &topics.states.topic))
-                            .push(&plan.topic, m, log_ns, channel_key)?;
+                            .push(&plan.topic, m, log_ns, channel_key, at)?;
                     }
                 }
                 Record::Metadata { name, map } => {
@@ -236,6 +242,7 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
                             return Err(format!("two '{EXPERIMENT_METADATA}' metadata records"));
                         }
                         experiment = Some(map);
+                        experiment_at = Some(at);
                     } else if name == RUN_END_METADATA {
                         run_end = Some(map);
                     }
@@ -248,8 +255,11 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
             let states = data.get(&Role::States).map_or(0, TopicData::len);
             if states == 0 {
                 return Err(err(where_(format!(
-                    "truncated MCAP file: it ends at byte {} of {} before any complete {} message (the writer did not finish it)",
-                    end.valid_bytes, end.total_bytes, topics.states.topic
+                    "truncated MCAP file: it ends at byte {} of {} before any complete {} message (the writer did not finish it): {}",
+                    end.valid_bytes,
+                    end.total_bytes,
+                    topics.states.topic,
+                    end.describe()
                 ))));
             }
             warnings.push(where_(format!(
@@ -261,9 +271,14 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
 
     // the states
     let states_topic = topics.states.topic.as_str();
-    let states = data
-        .remove(&Role::States)
-        .ok_or_else(|| err(format!("no {states_topic} messages (topics in the file: {})", if other_topics.is_empty() { "none".to_string() } else { other_topics.join(", ") })))?;
+    let states = data.remove(&Role::States).ok_or_else(|| {
+        let found = if other_topics.is_empty() {
+            "no channel record".to_string()
+        } else {
+            format!("topics in the file: {}", other_topics.iter().map(|(t, at)| format!("{t} ({at})")).collect::<Vec<_>>().join(", "))
+        };
+        err(format!("no {states_topic} messages ({found})"))
+    })?;
     let n_state_messages = states.len();
     let states = states.merge(states_topic, None).map_err(err)?;
     let joints = states.joints.clone();
@@ -311,7 +326,12 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
 
     // experiment: the file's, else the caller's (a sidecar is looked for by the caller)
     if let Some(map) = experiment {
-        run.experiment = Some(experiment_from_map(&map).map_err(|m| err(format!("malformed '{EXPERIMENT_METADATA}' metadata: {m}")))?);
+        let at = experiment_at.map(|a| format!("{a}: ")).unwrap_or_default();
+        let e = experiment_from_map(&map).map_err(|m| err(format!("{at}malformed '{EXPERIMENT_METADATA}' metadata: {m}")))?;
+        if let Some(j) = e.joints.iter().find(|j| !run.joints.contains(j)) {
+            return Err(err(format!("{at}the experiment names joint '{j}', which is not in the run (joints: {})", run.joints.join(", "))));
+        }
+        run.experiment = Some(e);
     } else if let Some(e) = fallback {
         run.experiment = Some(e.clone());
     }
@@ -327,4 +347,73 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
     }
     check_run(&run, label)?;
     Ok(LogRead { run, warnings })
+}
+
+/// A warning when a schema's name (`stored_name`, as the file has it) and fields disagree about
+/// its type: a schema named after a
+/// known type (`sensor_msgs/msg/JointState`, `std_msgs/msg/Float64MultiArray`) whose fields are
+/// not that type's, or a schema of another name whose fields are exactly a known type's. Field
+/// names, types and arities are compared, down through nested messages; nested type names are
+/// not.
+fn schema_name_mismatch(schema: &Schema, stored_name: &str, topic: &str) -> Option<String> {
+    use std::sync::OnceLock;
+    static KNOWN: OnceLock<Vec<(&'static str, String)>> = OnceLock::new();
+    let known = KNOWN.get_or_init(|| {
+        [("sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION), ("std_msgs/msg/Float64MultiArray", FLOAT64_MULTI_ARRAY_DEFINITION)]
+            .into_iter()
+            .filter_map(|(name, text)| Schema::parse(name, text).ok().map(|s| (name, fields_signature(&s, 0))))
+            .collect()
+    });
+    let name = super::normalised_type(schema.name());
+    let fields = fields_signature(schema, 0);
+    for (known_name, signature) in known {
+        let same_name = super::normalised_type(known_name) == name;
+        if same_name && fields != *signature {
+            return Some(format!(
+                "{topic}: the schema is named '{stored_name}' but its fields are not that type's: it has ({}), {known_name} has ({}); read by its fields",
+                field_names(schema),
+                signature_names(known_name)
+            ));
+        }
+        if !same_name && fields == *signature {
+            return Some(format!("{topic}: the schema is named '{stored_name}' but its fields are exactly those of {known_name} ({}); read as {known_name}", field_names(schema)));
+        }
+    }
+    None
+}
+
+/// The fields of message `def` of `schema` with their types and arities, nested messages
+/// expanded (their type names left out).
+fn fields_signature(schema: &Schema, def: usize) -> String {
+    fn go(schema: &Schema, def: usize, depth: usize, out: &mut String) {
+        for f in &schema.defs[def].fields {
+            out.push_str(&f.name);
+            out.push(':');
+            match f.elem {
+                ElemType::Primitive(p) => out.push_str(&format!("{p:?}")),
+                // definitions are acyclic (the parser refuses recursion); the depth bound is a guard
+                ElemType::Message(m) if depth < 32 => {
+                    out.push('(');
+                    go(schema, m, depth + 1, out);
+                    out.push(')');
+                }
+                ElemType::Message(_) => out.push_str("(...)"),
+            }
+            out.push_str(&format!("{:?};", f.arity));
+        }
+    }
+    let mut out = String::new();
+    go(schema, def, 0, &mut out);
+    out
+}
+
+/// The top-level field names of a schema, comma-separated.
+fn field_names(schema: &Schema) -> String {
+    schema.defs[0].fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>().join(", ")
+}
+
+/// The top-level field names of a known type.
+fn signature_names(known: &str) -> String {
+    let text = if known.ends_with("JointState") { JOINT_STATE_DEFINITION } else { FLOAT64_MULTI_ARRAY_DEFINITION };
+    Schema::parse(known, text).map(|s| field_names(&s)).unwrap_or_default()
 }

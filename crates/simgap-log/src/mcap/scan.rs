@@ -35,6 +35,50 @@ pub(crate) enum Record<'a> {
     Metadata { name: String, map: BTreeMap<String, String> },
 }
 
+/// Where a record is in the file: at a byte of the file, or at an offset within the
+/// decompressed records of the chunk that starts at a byte of the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Location {
+    /// The record's opcode.
+    pub opcode: u8,
+    /// Byte of the file where the record (or the chunk holding it) starts.
+    pub byte: u64,
+    /// Offset of the record within its chunk's decompressed records, for a record in a chunk.
+    pub in_chunk: Option<u64>,
+}
+
+impl std::fmt::Display for Location {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = record_name(self.opcode);
+        match self.in_chunk {
+            Some(offset) => write!(f, "{kind} record at offset {offset} of the chunk at byte {}", self.byte),
+            None => write!(f, "{kind} record at byte {}", self.byte),
+        }
+    }
+}
+
+/// The name of a record type (MCAP specification).
+pub(crate) fn record_name(opcode: u8) -> String {
+    match opcode {
+        0x01 => "header".into(),
+        0x02 => "footer".into(),
+        0x03 => "schema".into(),
+        0x04 => "channel".into(),
+        0x05 => "message".into(),
+        0x06 => "chunk".into(),
+        0x07 => "message index".into(),
+        0x08 => "chunk index".into(),
+        0x09 => "attachment".into(),
+        0x0A => "attachment index".into(),
+        0x0B => "statistics".into(),
+        0x0C => "metadata".into(),
+        0x0D => "metadata index".into(),
+        0x0E => "summary offset".into(),
+        0x0F => "data end".into(),
+        op => format!("opcode 0x{op:02X}"),
+    }
+}
+
 /// How a scan ended.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) struct ScanEnd {
@@ -44,6 +88,26 @@ pub(crate) struct ScanEnd {
     pub valid_bytes: u64,
     /// Size of the file.
     pub total_bytes: u64,
+    /// The record the file ends inside, when it does: opcode and declared length (`None`: the
+    /// file ends at a record boundary or inside a record's 9-byte header).
+    pub cut: Option<(u8, u64)>,
+}
+
+impl ScanEnd {
+    /// Where the data section stops, in words: the record the file ends in (or the record
+    /// boundary) and the byte.
+    pub(crate) fn describe(&self) -> String {
+        match self.cut {
+            Some((op, len)) => format!(
+                "the {} record at byte {} declares {len} bytes but the file ends {} bytes after its header (at byte {})",
+                record_name(op),
+                self.valid_bytes,
+                self.total_bytes - self.valid_bytes - 9,
+                self.total_bytes
+            ),
+            None => format!("the records end at byte {} of {} without a data end record", self.valid_bytes, self.total_bytes),
+        }
+    }
 }
 
 /// Reads exactly `n` bytes into `buf` (resized; `n` was checked against the file's size).
@@ -54,57 +118,63 @@ fn read_into(r: &mut impl Read, buf: &mut Vec<u8>, n: usize) -> Result<(), Strin
 }
 
 /// Scans the data section of an MCAP stream of `total` bytes, calling `on_record` for every
-/// schema, channel, message and metadata record, in file order.
+/// schema, channel, message and metadata record, in file order, with where the record is.
 ///
 /// # Errors
-/// A message saying what is wrong and at which byte: not an MCAP file, a record whose fields
-/// overrun it, a chunk that does not decompress to its declared size or fails its CRC, a read
-/// error; or the error `on_record` returned.
-pub(crate) fn scan(mut input: impl Read, total: u64, mut on_record: impl FnMut(Record<'_>) -> Result<(), String>) -> Result<ScanEnd, String> {
+/// A message saying what is wrong, in which record and at which byte: not an MCAP file, a
+/// record whose fields overrun it, a chunk that does not decompress to its declared size or
+/// fails its CRC, a read error; or the error `on_record` returned, after the record's
+/// [`Location`].
+pub(crate) fn scan(mut input: impl Read, total: u64, mut on_record: impl FnMut(Record<'_>, Location) -> Result<(), String>) -> Result<ScanEnd, String> {
     let mut magic = [0u8; 8];
     if total < 8 || input.read_exact(&mut magic).is_err() || &magic != MAGIC {
-        return Err("not an MCAP file (no MCAP magic bytes at the start)".into());
+        return Err("not an MCAP file (the magic bytes that open an MCAP file are not at byte 0)".into());
     }
     let mut pos = 8u64;
     let mut body = Vec::new();
     let mut chunk = Vec::new();
-    let incomplete = |pos: u64| Ok(ScanEnd { complete: false, valid_bytes: pos, total_bytes: total });
+    let incomplete = |pos: u64, cut: Option<(u8, u64)>| Ok(ScanEnd { complete: false, valid_bytes: pos, total_bytes: total, cut });
     loop {
         // record header: opcode and length, both within the file
         if total - pos < 9 {
-            return incomplete(pos);
+            return incomplete(pos, None);
         }
         let mut head = [0u8; 9];
-        input.read_exact(&mut head).map_err(|e| format!("read error at byte {pos}: {e}"))?;
+        input.read_exact(&mut head).map_err(|e| format!("record at byte {pos}: read error: {e}"))?;
         let opcode = head[0];
         let len = u64::from_le_bytes([head[1], head[2], head[3], head[4], head[5], head[6], head[7], head[8]]);
         if len > total - pos - 9 {
-            return incomplete(pos);
+            return incomplete(pos, Some((opcode, len)));
         }
-        read_into(&mut input, &mut body, len as usize).map_err(|e| format!("{e} at byte {pos}"))?;
+        read_into(&mut input, &mut body, len as usize).map_err(|e| format!("{} record at byte {pos}: {e}", record_name(opcode)))?;
         let at = pos;
         pos += 9 + len;
         match opcode {
             // footer or data end: the data section is over
-            0x02 | 0x0F => return Ok(ScanEnd { complete: true, valid_bytes: pos, total_bytes: total }),
+            0x02 | 0x0F => return Ok(ScanEnd { complete: true, valid_bytes: pos, total_bytes: total, cut: None }),
             0x06 => {
-                decompress_chunk(&body, &mut chunk).map_err(|e| format!("chunk at byte {at}: {e}"))?;
+                decompress_chunk(&body, &mut chunk).map_err(|e| format!("chunk record at byte {at}: {e}"))?;
                 let mut c = Cursor::new(&chunk);
                 while !c.is_empty() {
                     let inner_at = c.pos;
-                    let op = c.u8().map_err(|e| format!("chunk at byte {at}: record at offset {inner_at}: {e}"))?;
-                    let n = c.u64().map_err(|e| format!("chunk at byte {at}: record at offset {inner_at}: {e}"))?;
-                    let rec = c.bytes(n).map_err(|e| format!("chunk at byte {at}: record at offset {inner_at}: {e}"))?;
-                    dispatch(op, rec, &mut on_record).map_err(|e| format!("chunk at byte {at}: {e}"))?;
+                    let head = |e: String| format!("record at offset {inner_at} of the chunk at byte {at}: {e}");
+                    let op = c.u8().map_err(head)?;
+                    let n = c.u64().map_err(head)?;
+                    let rec = c.bytes(n).map_err(head)?;
+                    let location = Location { opcode: op, byte: at, in_chunk: Some(inner_at as u64) };
+                    dispatch(op, rec, location, &mut on_record).map_err(|e| format!("{location}: {e}"))?;
                 }
             }
-            op => dispatch(op, &body, &mut on_record).map_err(|e| format!("record at byte {at}: {e}"))?,
+            op => {
+                let location = Location { opcode: op, byte: at, in_chunk: None };
+                dispatch(op, &body, location, &mut on_record).map_err(|e| format!("{location}: {e}"))?
+            }
         }
     }
 }
 
 /// Parses one record and hands it over (records the reader does not need are skipped).
-fn dispatch(opcode: u8, body: &[u8], on_record: &mut impl FnMut(Record<'_>) -> Result<(), String>) -> Result<(), String> {
+fn dispatch(opcode: u8, body: &[u8], location: Location, on_record: &mut impl FnMut(Record<'_>, Location) -> Result<(), String>) -> Result<(), String> {
     let mut c = Cursor::new(body);
     let record = match opcode {
         0x03 => {
@@ -136,7 +206,7 @@ fn dispatch(opcode: u8, body: &[u8], on_record: &mut impl FnMut(Record<'_>) -> R
         }
         _ => return Ok(()),
     };
-    on_record(record)
+    on_record(record, location)
 }
 
 /// Decompresses a chunk record's records into `out`, checking size and CRC.

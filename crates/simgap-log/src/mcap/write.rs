@@ -1,14 +1,16 @@
 //! Writing runs as ROS 2 MCAP: the [`McapSink`] a simulation writes into as it goes, and
 //! [`write_mcap`] for a whole run.
 //!
-//! The sink encodes each sample's messages (CDR, a few hundred nanoseconds) into a batch and
-//! hands full batches to a writer thread over a bounded channel; the thread owns the MCAP
-//! writer (chunking, compression, indexes, the summary). The simulation loop never waits for
-//! compression or the disk unless the thread falls more than [`QUEUED_BATCHES`] batches behind.
-//! The file is always finished (summary and footer) by [`Sink::finish`], and by `Drop` when
-//! `finish` was never called (a panic or an early return), so it stays readable after a
-//! failed or interrupted run; a process killed outright leaves complete chunks that the reader
-//! recovers by a linear scan.
+//! The sink encodes each sample's messages (CDR) as MCAP message records straight into the
+//! chunk being filled and hands every full chunk (256 KiB of records by default) to a writer
+//! thread over a bounded channel; the thread compresses the whole chunk in one call, appends it
+//! with its message indexes, and writes the summary at the end ([`super::chunked`]). The
+//! simulation loop never waits for compression or the disk unless the thread falls more than
+//! [`QUEUED_BATCHES`] chunks behind, so memory stays bounded whatever the run's length. The file
+//! is always finished (summary and footer) by [`Sink::finish`], and by `Drop` when `finish` was
+//! never called (a panic or an early return), so it stays readable after a failed or
+//! interrupted run; a process killed outright leaves every chunk the thread completed (each is
+//! handed to the operating system whole), which the reader recovers by a linear scan.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -20,15 +22,17 @@ use std::thread::JoinHandle;
 use mcap::records::{MessageHeader, Metadata};
 use simgap_sim::{experiment_to_map, Experiment, Run, RunEnd, Sample, Sink};
 
-use super::cdr::encode_joint_state_into;
+use super::cdr::{encode_joint_state_into, JointStateTemplate};
+use super::chunked::{push_message, ChunkBuf, ChunkCompression, ChunkedWriter};
 use super::{CDR_ENCODING, EXPERIMENT_METADATA, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, OFFERED_QOS_PROFILES, ROS2MSG_ENCODING, RUN_END_METADATA};
 use crate::error::{write_error, Result};
 use crate::topics::{JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC};
 
-/// Batches the writer thread may hold before [`Sink::record`] waits for it.
+/// Chunks the writer thread may hold before [`Sink::record`] waits for it.
 pub const QUEUED_BATCHES: usize = 8;
-/// Samples per batch handed to the writer thread.
-const BATCH_SAMPLES: usize = 64;
+/// Zstandard level of the sink's chunks: -3 (a fast level), measured 2.0x an unlogged 300 s run
+/// against 2.4x at level 1, for files 10 % larger (6.8 MB instead of 6.2 MB for 300 s).
+const ZSTD_LEVEL: i32 = -3;
 
 /// Chunk compression of written files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -65,19 +69,14 @@ const REFERENCE: u8 = 1;
 const MEASURED: u8 = 2;
 const TOPICS: [&str; 3] = [JOINT_STATES_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_EFFORT_MEASURED_TOPIC];
 
-/// Encoded messages on their way to the writer thread.
-#[derive(Default)]
-struct Batch {
-    bytes: Vec<u8>,
-    /// (channel, sequence, stamp [ns], end of the message in `bytes`).
-    messages: Vec<(u8, u32, u64, usize)>,
-    samples: usize,
-}
-
 /// What the writer thread is told.
 enum Command {
-    Messages(Batch),
-    Metadata(Metadata),
+    /// Add the channel of this slot (before the chunk that first uses it).
+    Channel(u8),
+    /// A full chunk of message records.
+    Chunk(ChunkBuf),
+    /// A metadata record.
+    Metadata(String, BTreeMap<String, String>),
 }
 
 /// Writes a run as a ROS 2 MCAP file as it goes (see the [module docs](self)).
@@ -86,10 +85,15 @@ enum Command {
 pub struct McapSink {
     path: PathBuf,
     tx: Option<SyncSender<Command>>,
-    recycled: Option<Receiver<Batch>>,
     thread: Option<JoinHandle<std::result::Result<(), String>>>,
+    recycled: Option<Receiver<ChunkBuf>>,
     joints: Vec<String>,
-    batch: Batch,
+    chunk: ChunkBuf,
+    chunk_size: usize,
+    /// Channel ids of the slots once announced to the writer thread.
+    channels: [Option<u16>; 3],
+    /// The message layout of each slot (joint names and array lengths fixed).
+    templates: [Option<JointStateTemplate>; 3],
     sequence: u32,
     start_ns: i64,
     last_t: Option<f64>,
@@ -102,29 +106,18 @@ impl std::fmt::Debug for McapSink {
     }
 }
 
-/// The writer thread: owns the MCAP writer, writes what it is sent, finishes the file when the
-/// sink hangs up.
-fn writer_thread(path: PathBuf, options: SinkOptions, rx: Receiver<Command>, recycle: SyncSender<Batch>) -> std::result::Result<(), String> {
-    let file = File::create(&path).map_err(|e| e.to_string())?;
+/// The writer thread: owns the file, writes what it is sent, finishes the file when the sink
+/// hangs up.
+fn writer_thread(file: File, options: SinkOptions, rx: Receiver<Command>, recycle: SyncSender<ChunkBuf>) -> std::result::Result<(), String> {
+    let s = |e: std::io::Error| e.to_string();
     let compression = match options.compression {
-        Compression::None => None,
-        Compression::Lz4 => Some(mcap::Compression::Lz4),
-        Compression::Zstd => Some(mcap::Compression::Zstd),
+        Compression::None => ChunkCompression::None,
+        Compression::Lz4 => ChunkCompression::Lz4,
+        Compression::Zstd => ChunkCompression::Zstd(ZSTD_LEVEL),
     };
-    let mut w = mcap::WriteOptions::new()
-        .profile("ros2")
-        .library(concat!("simgap-log ", env!("CARGO_PKG_VERSION")))
-        .compression(compression)
-        .compression_threads(0)
-        .chunk_size(Some(options.chunk_size.max(1024)))
-        .create(BufWriter::with_capacity(1 << 16, file))
-        .map_err(|e| e.to_string())?;
-    let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(|e| e.to_string())?;
+    let mut w = ChunkedWriter::new(BufWriter::with_capacity(1 << 16, file), "ros2", concat!("simgap-log ", env!("CARGO_PKG_VERSION")), compression).map_err(s)?;
+    let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(s)?;
     let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), OFFERED_QOS_PROFILES.to_string())].into();
-    let mut channels: [Option<u16>; 3] = [None; 3];
-    for slot in [STATES, REFERENCE] {
-        channels[slot as usize] = Some(w.add_channel(schema, TOPICS[slot as usize], CDR_ENCODING, &qos).map_err(|e| e.to_string())?);
-    }
     // keep draining on errors, so the sink never blocks; report the first
     let mut failed: Option<String> = None;
     for command in rx {
@@ -132,42 +125,23 @@ fn writer_thread(path: PathBuf, options: SinkOptions, rx: Receiver<Command>, rec
             continue;
         }
         let result = match command {
-            Command::Metadata(m) => w.write_metadata(&m).map_err(|e| e.to_string()),
-            Command::Messages(batch) => {
-                let mut start = 0;
-                let mut result = Ok(());
-                for &(slot, sequence, ns, end) in &batch.messages {
-                    let channel = match channels[slot as usize] {
-                        Some(c) => c,
-                        None => match w.add_channel(schema, TOPICS[slot as usize], CDR_ENCODING, &qos) {
-                            Ok(c) => *channels[slot as usize].insert(c),
-                            Err(e) => {
-                                result = Err(e.to_string());
-                                break;
-                            }
-                        },
-                    };
-                    let header = MessageHeader { channel_id: channel, sequence, log_time: ns, publish_time: ns };
-                    if let Err(e) = w.write_to_known_channel(&header, &batch.bytes[start..end]) {
-                        result = Err(e.to_string());
-                        break;
-                    }
-                    start = end;
-                }
-                let _ = recycle.try_send(batch);
+            Command::Channel(slot) => w.add_channel(schema, TOPICS[slot as usize], CDR_ENCODING, &qos).map(|_| ()),
+            Command::Metadata(name, map) => w.write_metadata(&name, &map),
+            Command::Chunk(chunk) => {
+                let result = w.write_chunk(&chunk);
+                let _ = recycle.try_send(chunk);
                 result
             }
         };
         if let Err(e) = result {
-            failed = Some(e);
+            failed = Some(e.to_string());
         }
     }
     if let Some(e) = failed {
         return Err(e);
     }
     // the sink hung up: summary, footer, flush
-    w.finish().map_err(|e| e.to_string())?;
-    w.into_inner().flush().map_err(|e| e.to_string())
+    w.finish().map(|_| ()).map_err(s)
 }
 
 impl McapSink {
@@ -185,26 +159,44 @@ impl McapSink {
     /// [`Error::Write`](crate::Error::Write) when the file cannot be created.
     pub fn create_with_options(path: &Path, options: SinkOptions) -> Result<McapSink> {
         // fail here, not in the thread, when the file cannot be created
-        File::create(path).map_err(|e| write_error(path, e))?;
+        let file = File::create(path).map_err(|e| write_error(path, e))?;
+        let options_chunk_size = options.chunk_size.max(1024) as usize;
         let (tx, rx) = sync_channel(QUEUED_BATCHES);
         let (recycle_tx, recycle_rx) = sync_channel(QUEUED_BATCHES + 2);
-        let thread_path = path.to_path_buf();
         let thread = std::thread::Builder::new()
             .name("simgap-mcap-writer".into())
-            .spawn(move || writer_thread(thread_path, options, rx, recycle_tx))
+            .spawn(move || writer_thread(file, options, rx, recycle_tx))
             .map_err(|e| write_error(path, format!("cannot start the writer thread: {e}")))?;
-        Ok(McapSink {
+        let mut sink = McapSink {
             path: path.to_path_buf(),
             tx: Some(tx),
             recycled: Some(recycle_rx),
             thread: Some(thread),
             joints: Vec::new(),
-            batch: Batch::default(),
+            chunk: ChunkBuf::default(),
+            chunk_size: options_chunk_size,
+            channels: [None; 3],
+            templates: [None, None, None],
             sequence: 0,
             start_ns: 0,
             last_t: None,
             began: false,
-        })
+        };
+        // the states and reference channels come first, as every reader expects them
+        sink.channel(STATES)?;
+        sink.channel(REFERENCE)?;
+        Ok(sink)
+    }
+
+    /// The channel id of `slot`, announcing the channel to the writer thread on first use.
+    fn channel(&mut self, slot: u8) -> Result<u16> {
+        if let Some(id) = self.channels[slot as usize] {
+            return Ok(id);
+        }
+        let id = self.channels.iter().flatten().count() as u16;
+        self.send(Command::Channel(slot))?;
+        self.channels[slot as usize] = Some(id);
+        Ok(id)
     }
 
     /// The file being written.
@@ -228,7 +220,7 @@ impl McapSink {
             return Err(write_error(&self.path, "begin called twice"));
         }
         if let Some(e) = experiment {
-            self.send(Command::Metadata(Metadata { name: EXPERIMENT_METADATA.into(), metadata: experiment_to_map(e) }))?;
+            self.send(Command::Metadata(EXPERIMENT_METADATA.into(), experiment_to_map(e)))?;
         }
         self.joints = joints.to_vec();
         self.began = true;
@@ -254,24 +246,31 @@ impl McapSink {
         }
     }
 
-    /// Sends the current batch (if any) and starts a new one, reusing a returned buffer.
-    fn flush_batch(&mut self) -> Result<()> {
-        if self.batch.messages.is_empty() {
+    /// Sends the current chunk (if any) and starts a new one, reusing a returned buffer.
+    fn flush_chunk(&mut self) -> Result<()> {
+        if self.chunk.index.is_empty() {
             return Ok(());
         }
-        let mut next = self.recycled.as_ref().and_then(|r| r.try_recv().ok()).unwrap_or_default();
-        next.bytes.clear();
-        next.messages.clear();
-        next.samples = 0;
-        let full = std::mem::replace(&mut self.batch, next);
-        self.send(Command::Messages(full))
+        let mut next =
+            self.recycled.as_ref().and_then(|r| r.try_recv().ok()).unwrap_or_else(|| ChunkBuf { records: Vec::with_capacity(self.chunk_size + 4096), index: Vec::new() });
+        next.clear();
+        let full = std::mem::replace(&mut self.chunk, next);
+        self.send(Command::Chunk(full))
     }
 
-    /// Encodes one JointState message into the batch.
-    fn push(&mut self, slot: u8, ns: i64, position: &[f64], velocity: &[f64], effort: &[f64]) {
-        encode_joint_state_into(&mut self.batch.bytes, ns, &self.joints, position, velocity, effort);
-        let end = self.batch.bytes.len();
-        self.batch.messages.push((slot, self.sequence, ns.max(0) as u64, end));
+    /// Encodes one JointState message record into the chunk.
+    fn push(&mut self, slot: u8, ns: i64, position: &[f64], velocity: &[f64], effort: &[f64]) -> Result<()> {
+        let channel = self.channel(slot)?;
+        let time = ns.max(0) as u64;
+        let lens = [position.len(), velocity.len(), effort.len()];
+        let template = &mut self.templates[slot as usize];
+        if !template.as_ref().is_some_and(|t| t.fits(lens)) {
+            *template = Some(JointStateTemplate::new(&self.joints, lens));
+        }
+        let (chunk, template) = (&mut self.chunk, template.as_ref().expect("set above"));
+        let at = push_message(&mut chunk.records, channel, self.sequence, time, |buf| template.encode_into(buf, ns, [position, velocity, effort]));
+        chunk.index.push((channel, time, at));
+        Ok(())
     }
 
     /// Records one sample with every channel: measured state and commanded effort
@@ -301,18 +300,17 @@ impl McapSink {
             }
         }
         let ns = self.start_ns.saturating_add((t * 1e9).round() as i64);
-        self.push(STATES, ns, q, qd, tau);
+        self.push(STATES, ns, q, qd, tau)?;
         if !q_ref.is_empty() {
-            self.push(REFERENCE, ns, q_ref, qd_ref, tau_ff);
+            self.push(REFERENCE, ns, q_ref, qd_ref, tau_ff)?;
         }
         if !tau_measured.is_empty() {
-            self.push(MEASURED, ns, &[], &[], tau_measured);
+            self.push(MEASURED, ns, &[], &[], tau_measured)?;
         }
         self.sequence = self.sequence.wrapping_add(1);
         self.last_t = Some(t);
-        self.batch.samples += 1;
-        if self.batch.samples >= BATCH_SAMPLES {
-            self.flush_batch()?;
+        if self.chunk.records.len() >= self.chunk_size {
+            self.flush_chunk()?;
         }
         Ok(())
     }
@@ -329,7 +327,7 @@ impl McapSink {
         if self.tx.is_none() {
             return self.join().map_err(|e| write_error(&self.path, e));
         }
-        let mut result = self.flush_batch();
+        let mut result = self.flush_chunk();
         // end status: a metadata record
         if let (Some(end), true, true) = (end, self.began, result.is_ok()) {
             let (status, t, joint) = match end {
@@ -344,7 +342,7 @@ impl McapSink {
             if let Some(j) = joint {
                 map.insert("joint".into(), j);
             }
-            result = self.send(Command::Metadata(Metadata { name: RUN_END_METADATA.into(), metadata: map }));
+            result = self.send(Command::Metadata(RUN_END_METADATA.into(), map));
         }
         // hang up: the thread writes the summary and footer
         self.tx = None;

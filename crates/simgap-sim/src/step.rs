@@ -1,0 +1,250 @@
+//! One sample interval of the sampled closed loop: the step the simulator repeats, and that
+//! k-step prediction restarts from measured states.
+//!
+//! At sample `k` (time `t_k`) a [`Stepper`]
+//! 1. forms the command `τ_cmd,k`: either the controller's, from the sensors' measurement of the
+//!    true state plus the reference's feed-forward torque ([`Stepper::command`]), or one given
+//!    by the caller, e.g. a logged torque ([`Stepper::set_command`]);
+//! 2. puts it into the delay line (a ring of the last `m + 2` commands, see
+//!    [`crate::delay`]) and forms the delayed command held over the sample;
+//! 3. turns it into the applied torque ([`applied_torque`]: saturation, gain, offset; then the
+//!    model's effort limits when [`SimParams::torque_limits_from_model`]), held constant
+//!    (zero-order hold) over `[t_k, t_k + Δt]`;
+//! 4. integrates the plant over that interval: `substeps` RK4 steps of `Δt / substeps` (for an
+//!    interval of the sample period), or the adaptive integrator ([`Stepper::advance`]).
+//!
+//! A state diverged when it is not finite or `|q̇|` exceeds [`SimParams::divergence_bound`]
+//! ([`Stepper::diverged`]). The step never allocates.
+
+use crate::controller::Controller;
+use crate::delay::DelayLine;
+use crate::effects::applied_torque;
+use crate::error::Result;
+use crate::integrate::{Dopri5, Integrator, Rk4};
+use crate::plant::{Plant, PlantWorkspace};
+use crate::sensor::Sensor;
+use crate::simulate::{effective_substeps, SimParams};
+
+/// The per-sample step of the closed loop (see the [module docs](self)): sensors, delay ring,
+/// held torque and integrator workspace of one run of `plant`.
+///
+/// Sample indices `k` passed to [`Stepper::advance`] are absolute (sample 0 is the first of the
+/// run or log); the delay line takes commands `k − m` and `k − m − 1` from the ring, and
+/// sample 0's command before the first sample.
+#[derive(Debug)]
+pub struct Stepper<'p> {
+    plant: &'p Plant,
+    pws: PlantWorkspace,
+    rk4: Rk4,
+    dopri: Option<Dopri5>,
+    sensor: Sensor,
+    line: DelayLine,
+    /// Ring of commands: slot `i mod depth` holds `τ_cmd,i`.
+    depth: usize,
+    history: Vec<f64>,
+    q_meas: Vec<f64>,
+    qd_meas: Vec<f64>,
+    cmd: Vec<f64>,
+    delayed: Vec<f64>,
+    applied: Vec<f64>,
+    limits: Option<Vec<f64>>,
+    adds_ff: bool,
+    period: f64,
+    substeps: usize,
+    h_max: f64,
+    coulomb_width: f64,
+    divergence_bound: f64,
+}
+
+impl<'p> Stepper<'p> {
+    /// A stepper of `plant` under `params` (sample period, substeps raised by
+    /// [`effective_substeps`], integrator, sensors, Coulomb width, effort limits, divergence
+    /// bound) for runs of at most `samples` samples (which bounds the delay ring: a delay longer
+    /// than the run holds the first command throughout and allocates nothing more).
+    ///
+    /// # Errors
+    /// [`Error::Invalid`](crate::Error::Invalid) for parameters outside their ranges
+    /// ([`SimParams::validate`]).
+    pub fn new(plant: &'p Plant, params: &SimParams, samples: usize) -> Result<Stepper<'p>> {
+        let n = plant.dof();
+        params.validate(n)?;
+        let sensor = Sensor::new(&params.sensor, plant.model(), params.sample_period)?;
+        let line = DelayLine::new(plant.delay(), params.sample_period);
+        let depth = line.whole().min(samples) + 2;
+        let substeps = effective_substeps(plant, params);
+        Ok(Stepper {
+            plant,
+            pws: plant.workspace(),
+            rk4: Rk4::new(2 * n),
+            dopri: match params.integrator {
+                Integrator::Adaptive { rtol, atol } => Some(Dopri5::new(2 * n, rtol, atol)),
+                Integrator::Rk4 => None,
+            },
+            sensor,
+            line,
+            depth,
+            history: vec![0.0; depth * n],
+            q_meas: vec![0.0; n],
+            qd_meas: vec![0.0; n],
+            cmd: vec![0.0; n],
+            delayed: vec![0.0; n],
+            applied: vec![0.0; n],
+            limits: params.torque_limits_from_model.then(|| plant.effort_limits().to_vec()),
+            adds_ff: true,
+            period: params.sample_period,
+            substeps,
+            h_max: params.sample_period / substeps as f64,
+            coulomb_width: params.coulomb_width,
+            divergence_bound: params.divergence_bound,
+        })
+    }
+
+    /// Number of degrees of freedom.
+    pub fn dof(&self) -> usize {
+        self.plant.dof()
+    }
+
+    /// RK4 steps per sample period (after [`effective_substeps`]).
+    pub fn substeps(&self) -> usize {
+        self.substeps
+    }
+
+    /// Restarts at sample `k0` of a log: the sensors continue from `q_meas_prev`, the position
+    /// measured at sample `k0 − 1` (none: they keep their state), and the delay line holds the
+    /// commands `past(i)` of the samples `i < k0` it can still apply (rows of length
+    /// [`Stepper::dof`]).
+    ///
+    /// # Panics
+    /// If a row is shorter than the number of joints.
+    pub fn restart<'a>(&mut self, k0: usize, q_meas_prev: Option<&[f64]>, past: impl Fn(usize) -> &'a [f64]) {
+        let n = self.dof();
+        if let Some(q) = q_meas_prev {
+            self.sensor.restart(q);
+        }
+        // the taps from k0 on reach back at most depth − 1 samples (or to sample 0); without
+        // a delay they reach nothing before k0
+        if self.line.is_zero() {
+            return;
+        }
+        for i in k0.saturating_sub(self.depth - 1)..k0 {
+            let slot = i % self.depth;
+            self.history[slot * n..(slot + 1) * n].copy_from_slice(&past(i)[..n]);
+        }
+    }
+
+    /// The command of sample `k` at time `t` from the true state `y = [q; q̇]`: the sensors
+    /// measure `y`, `controller` computes its torque from the measurement and the reference
+    /// `(q_ref, q̇_ref)`, plus `tau_ff` (the reference's feed-forward torque; empty = none) for a
+    /// controller that adds it ([`Controller::adds_feed_forward`]). Read them back with
+    /// [`Stepper::measured`] and [`Stepper::command_torque`].
+    ///
+    /// Returns the first joint whose measurement or command is not finite (the run diverged).
+    ///
+    /// # Panics
+    /// If a length does not match the model.
+    pub fn command(&mut self, controller: &mut dyn Controller, t: f64, y: &[f64], q_ref: &[f64], qd_ref: &[f64], tau_ff: &[f64]) -> Option<usize> {
+        let n = self.dof();
+        let (q, qd) = y.split_at(n);
+        self.sensor.measure(q, qd, &mut self.q_meas, &mut self.qd_meas);
+        controller.torque(t, &self.q_meas, &self.qd_meas, q_ref, qd_ref, &mut self.cmd);
+        self.adds_ff = controller.adds_feed_forward();
+        if self.adds_ff && !tau_ff.is_empty() {
+            for i in 0..n {
+                self.cmd[i] += tau_ff[i];
+            }
+        }
+        (0..n).find(|&j| !self.cmd[j].is_finite() || !self.q_meas[j].is_finite() || !self.qd_meas[j].is_finite())
+    }
+
+    /// Sets the command of the next [`Stepper::advance`] to `tau` [N·m or N], model order (e.g.
+    /// a logged torque replayed open loop).
+    ///
+    /// # Panics
+    /// If `tau.len()` is not the number of joints.
+    pub fn set_command(&mut self, tau: &[f64]) {
+        self.cmd.copy_from_slice(tau);
+    }
+
+    /// The positions and velocities the sensors measured at the last [`Stepper::command`].
+    pub fn measured(&self) -> (&[f64], &[f64]) {
+        (&self.q_meas, &self.qd_meas)
+    }
+
+    /// The command of the current sample [N·m or N].
+    pub fn command_torque(&self) -> &[f64] {
+        &self.cmd
+    }
+
+    /// The torque applied (held) over the last interval [N·m or N]: the delayed command after
+    /// the actuator effects and limits.
+    pub fn applied(&self) -> &[f64] {
+        &self.applied
+    }
+
+    /// Advances the state `y = [q; q̇]` (length `2 · dof`) from `t` over one sample interval of
+    /// `dt` seconds with the current command as the command of sample `k`: delay line, held
+    /// applied torque, then the integrator. An interval of the sample period takes `substeps`
+    /// RK4 steps; another (rounded log stamps) `⌈dt / h⌉` steps of at most the same size
+    /// `h = T / substeps` (1 to 10,000).
+    ///
+    /// # Panics
+    /// If `y.len() != 2 · dof`.
+    pub fn advance(&mut self, k: usize, t: f64, dt: f64, y: &mut [f64]) {
+        let n = self.dof();
+        assert_eq!(y.len(), 2 * n, "Stepper::advance: y must hold q and q̇");
+        // delay line: slot k mod depth holds τ_cmd,k (the taps of sample k are at most
+        // depth − 1 samples old, or sample 0, whose slot is not yet overwritten then)
+        if self.line.is_zero() {
+            self.delayed.copy_from_slice(&self.cmd);
+        } else {
+            let (depth, history) = (self.depth, &mut self.history);
+            let slot = k % depth;
+            history[slot * n..(slot + 1) * n].copy_from_slice(&self.cmd);
+            let history = &*history;
+            self.line.delayed_row(k, |i| &history[(i % depth) * n..(i % depth + 1) * n], &mut self.delayed);
+        }
+        // actuators: saturation, gain, offset, then the model's effort limits
+        applied_torque(self.plant.effects(), &self.delayed, &mut self.applied);
+        if let Some(limits) = &self.limits {
+            for i in 0..n {
+                self.applied[i] = self.applied[i].clamp(-limits[i], limits[i]);
+            }
+        }
+        // integrate the plant over the interval with the held torque
+        let (plant, pws, applied, width) = (self.plant, &mut self.pws, &self.applied, self.coulomb_width);
+        let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
+            let (q, qd) = y.split_at(n);
+            let (dq, ddq) = dy.split_at_mut(n);
+            dq.copy_from_slice(qd);
+            plant.acceleration(pws, q, qd, applied, width, ddq);
+        };
+        match self.dopri.as_mut() {
+            Some(d) => {
+                d.integrate(&mut f, t, t + dt, y);
+            }
+            None => {
+                let steps = if dt == self.period { self.substeps } else { ((dt / self.h_max * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000) };
+                let h = dt / steps as f64;
+                for s in 0..steps {
+                    self.rk4.step(&mut f, t + s as f64 * h, h, y);
+                }
+            }
+        }
+    }
+
+    /// The diverged joint of state `y = [q; q̇]`: the first with a non-finite state, else the
+    /// fastest with `|q̇|` above the divergence bound; `None` while the state is sound.
+    pub fn diverged(&self, y: &[f64]) -> Option<usize> {
+        let (q, qd) = y.split_at(self.dof());
+        diverged_joint(q, qd, self.divergence_bound)
+    }
+}
+
+/// The diverged joint: the first with a non-finite state, else the fastest beyond the bound.
+fn diverged_joint(q: &[f64], qd: &[f64], bound: f64) -> Option<usize> {
+    if let Some(j) = (0..q.len()).find(|&j| !q[j].is_finite() || !qd[j].is_finite()) {
+        return Some(j);
+    }
+    let (j, v) = qd.iter().map(|v| v.abs()).enumerate().fold((0, 0.0), |acc, (j, v)| if v > acc.1 { (j, v) } else { acc });
+    (v > bound).then_some(j)
+}
