@@ -107,14 +107,14 @@ fn paper_experiment(c: &mut Criterion) {
     group.bench_function("paper_300s", |b| {
         b.iter(|| {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
-            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut pd = paper::controller();
             simulate(&plant, &mut pd, &reference, &day_part, &mut NullSink, None).unwrap()
         })
     });
     group.bench_function("paper_300s_mcap", |b| {
         b.iter(|| {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
-            let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+            let mut pd = paper::controller();
             let mut sink = McapSink::create(&path).unwrap();
             simulate(&plant, &mut pd, &reference, &day_part, &mut sink, None).unwrap()
         })

@@ -14,7 +14,6 @@ use std::time::{Duration, Instant};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use simgap::core::robots::paper_arm;
 use simgap::core::{Formulation, Model};
 use simgap::log::{read_log_with_warnings, LogOptions};
 use simgap::sim::{simulate, MemorySink, Pd, Plant, SimParams, Step};
@@ -50,10 +49,10 @@ fn complete_chunks(bytes: &[u8]) -> (usize, Option<u64>) {
 fn reference_run(duration: f64) -> simgap::sim::Run {
     let model = Model::paper_arm();
     let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
-    let mut pd = Pd { kp: paper_arm::KP.to_vec(), kv: paper_arm::KV.to_vec() };
+    let mut pd = Pd { kp: simgap::sim::paper::KP.to_vec(), kv: simgap::sim::paper::KV.to_vec() };
     let mut sink = MemorySink::new();
     let params = SimParams { duration, ..SimParams::default() };
-    simulate(&plant, &mut pd, &Step { target: paper_arm::Q_DESIRED.to_vec() }, &params, &mut sink, None).unwrap();
+    simulate(&plant, &mut pd, &Step { target: simgap::sim::paper::Q_DESIRED.to_vec() }, &params, &mut sink, None).unwrap();
     sink.into_run()
 }
 
