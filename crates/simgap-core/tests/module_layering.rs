@@ -109,6 +109,14 @@ fn no_module_imports_a_module_that_imports_it() {
     assert_eq!(circle, None, "import circle");
 }
 
+/// The diagnosis crate is checked by the same scan: its stages import downwards only.
+#[test]
+fn no_module_of_the_diagnosis_imports_a_module_that_imports_it() {
+    let (circle, imports) = first_circle(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../simgap-diag/src"));
+    assert!(imports > 100, "the scan found only {imports} imports between modules");
+    assert_eq!(circle, None, "import circle");
+}
+
 #[test]
 fn the_check_finds_a_circle_through_a_root_reexport() {
     // a.rs imports b's item through the root's re-export, b.rs imports a: a circle

@@ -15,10 +15,10 @@
 //!    selection proposes a set.
 //! 4. **prune and complete by prediction** (`select/prediction.rs`): the set pruned, completed
 //!    with whole effects and exchanged, by cross-validated k-step prediction of the fit runs
-//!    (`predict/`); the whole-run closed-loop gap never drives selection.
+//!    (`prediction/`); the whole-run closed-loop gap never drives selection.
 //! 5. **refine by multiple shooting** (`select/refine.rs`, open-loop fit runs only).
 //! 6. **fit the selected set** with its 95 % intervals (`select/uncertainty.rs`).
-//! 7. **how far** (`predict/`): held-out runs, never used to fit or to select, predicted k steps
+//! 7. **how far** (`prediction/`): held-out runs, never used to fit or to select, predicted k steps
 //!    ahead and re-simulated in closed loop, nominal and corrected.
 //! 8. **screen**: every candidate alone, scored on the fit runs and, for the report, on the
 //!    held-out runs.
@@ -33,8 +33,9 @@ mod error;
 pub mod export;
 mod locate;
 mod lsq;
+mod options;
 mod pipeline;
-mod predict;
+mod prediction;
 mod prepare;
 mod report;
 mod select;
@@ -44,13 +45,14 @@ mod vocabulary;
 pub use check::{bench, selfcheck};
 pub use error::{Error, Result};
 pub use locate::{JointGap, Segment, Where};
-pub use pipeline::{diagnose, predict, DiagnoseOptions, Diagnosis, Progress};
-pub use predict::resim::{InferredSensors, RunGap};
+pub use options::{DiagnoseOptions, Progress};
+pub use pipeline::{diagnose, predict};
+pub use prediction::resim::{InferredSensors, RunGap};
 pub use prepare::{FitData, PrepareOptions};
 #[cfg(feature = "html")]
 pub use report::html;
 pub use report::residual::ResidualTest;
-pub use report::{Alternative, Candidate, Decision, Gap, KStep, Report, RunKStep};
+pub use report::{Alternative, Candidate, Decision, Diagnosis, Gap, KStep, Report, RunKStep};
 pub use select::SelectOptions;
 pub use vocabulary::{EffectReport, Param};
 

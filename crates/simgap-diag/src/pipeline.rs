@@ -1,81 +1,27 @@
 //! The pipeline: [`diagnose`] runs the stages in order, one call per stage.
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
 use simgap_sim::{Effect, Run};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::locate;
 use crate::lsq::{self, bootstrap_std};
-use crate::predict::{kstep, resim};
-use crate::prepare::{prepare, sample_period, FitData, PrepareOptions, Prepared};
+use crate::options::{check_stop, DiagnoseOptions, Progress};
+use crate::prediction::{kstep, resim};
+use crate::prepare::{prepare, sample_period, Prepared};
 use crate::report::verdict::{headline, residual_notes, verdict};
-use crate::report::{pitfalls, residual, Candidate, Decision, Gap, KStep, Report, RunKStep};
+use crate::report::{pitfalls, residual, Candidate, Decision, Diagnosis, Gap, KStep, Report, RunKStep};
 use crate::select::alternatives::alternatives;
 use crate::select::prediction::{fits_in, prune_and_complete, rank_selected, ADD_GAIN};
 use crate::select::refine::refine_by_shooting;
 use crate::select::scorer::Scorer;
 use crate::select::screen::{candidate_groups, drop_passive_actuator_terms, select_nothing};
-use crate::select::{self, select, uncertainty, Context, SelectOptions};
+use crate::select::{self, select, uncertainty, Context};
 use crate::vocabulary::{effects, EffectReport, Term};
 use crate::vocabulary::{fit_terms, fitted_terms};
-
-/// Options of [`diagnose`].
-#[derive(Clone, Debug, Default)]
-pub struct DiagnoseOptions {
-    /// Data preparation.
-    pub prepare: PrepareOptions,
-    /// Selection thresholds.
-    pub select: SelectOptions,
-    /// Prediction horizons [s] of the k-step figures; empty = [`kstep::DEFAULT_HORIZONS`].
-    pub horizons: Vec<f64>,
-    /// When set (e.g. by Ctrl-C), the diagnosis stops at its next step with
-    /// [`Error::Interrupted`].
-    pub stop: Option<Arc<AtomicBool>>,
-}
-
-/// Progress of a diagnosis, for a progress bar.
-#[derive(Clone, Debug)]
-pub struct Progress {
-    /// What is being done (the stage, and the candidate when there is one).
-    pub stage: &'static str,
-    /// Steps done.
-    pub done: usize,
-    /// Steps in all.
-    pub total: usize,
-}
-
-/// Everything [`diagnose`] produced: the report and the runs behind its figures.
-#[derive(Clone, Debug)]
-pub struct Diagnosis {
-    /// The report (see [`Report`]).
-    pub report: Report,
-    /// The selected effects, as simulator effects.
-    pub effects: Vec<Effect>,
-    /// Held-out runs as measured (model-aligned, glitches repaired).
-    pub holdout: Vec<Run>,
-    /// Their nominal closed-loop simulations.
-    pub holdout_nominal: Vec<Option<Run>>,
-    /// Their simulations with the selected effects.
-    pub holdout_corrected: Vec<Option<Run>>,
-    /// Fit data (smoothed states and residuals), for plots.
-    pub fit_data: Vec<FitData>,
-    /// The selected effects with the 95 % half-widths of each interval method on its own
-    /// (`block_bootstrap`, `fold_jackknife`, `resampling` = the larger of the two; the report
-    /// adds the pipeline's shared error, [`uncertainty`]), for the self-check's coverage
-    /// comparison.
-    pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
-}
-
-pub(crate) fn check_stop(options: &DiagnoseOptions) -> Result<()> {
-    match &options.stop {
-        Some(s) if s.load(Ordering::Relaxed) => Err(Error::Interrupted),
-        _ => Ok(()),
-    }
-}
 
 /// Diagnoses the gap between `model` (in `formulation`) and logged runs.
 ///
@@ -91,7 +37,7 @@ pub(crate) fn check_stop(options: &DiagnoseOptions) -> Result<()> {
 pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions, progress: &mut dyn FnMut(Progress)) -> Result<Diagnosis> {
     // prepare
     progress(Progress { stage: "preparing logs", done: 0, total: fit.len() + holdout.len() });
-    let prep = prepare(model, formulation, fit, holdout, options)?;
+    let prep = prepare(model, formulation, fit, holdout, &options.prepare, &options.horizons)?;
     check_stop(options)?;
     let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     let data = &prep.data;

@@ -11,7 +11,9 @@ use simgap_core::{mass_matrix, Formulation, Model, UrdfOptions, Workspace};
 use simgap_sim::{ControllerKind, Effect, LinkDelta, Run};
 
 use crate::check::bench::{gains_for, generate, generate_with_width, random_fourier, random_setpoints, RefSpec, RunSpec};
-use crate::pipeline::{diagnose, DiagnoseOptions, Diagnosis};
+use crate::options::DiagnoseOptions;
+use crate::pipeline::diagnose;
+use crate::report::Diagnosis;
 use crate::vocabulary::effects::{EffectReport, Param};
 
 /// The robots the self-check draws from.

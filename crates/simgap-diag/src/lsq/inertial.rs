@@ -318,7 +318,7 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         let gl = DMatrix::from_fn(lin.len(), lin.len(), |a, b| g[(lin[a], lin[b])]);
         let rhs = DVector::from_fn(lin.len(), |a, _| c[lin[a]] - (first..first + w).map(|j| g[(lin[a], j)] * th0[j]).sum::<f64>());
         let (llo, lhi): (Vec<f64>, Vec<f64>) = lin.iter().map(|&i| (lo[i], hi[i])).unzip();
-        crate::lsq::solve_bounded(&gl, &rhs, &llo, &lhi).0.iter().copied().collect()
+        crate::lsq::bounded::solve_bounded(&gl, &rhs, &llo, &lhi).0.iter().copied().collect()
     };
     let nx = lin.len() + 10 * nl;
     // bounds of x = (z, φ): the linear parameters' boxes; per link the mass within a factor

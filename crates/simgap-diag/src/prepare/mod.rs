@@ -10,9 +10,8 @@ use simgap_core::{Formulation, Model};
 use simgap_sim::Run;
 
 use crate::error::{Error, Result};
-use crate::pipeline::DiagnoseOptions;
-use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
-use crate::predict::resim;
+use crate::prediction::kstep::{self, PredictionRun, FOLDS_PER_RUN};
+use crate::prediction::resim;
 pub(crate) use dataset::align_run;
 pub use dataset::{FitData, PrepareOptions};
 
@@ -38,7 +37,7 @@ pub(crate) fn sample_period(runs: &[Run]) -> f64 {
 }
 
 /// The prepare stage: align, check, repair glitches, infer sensors, smooth.
-pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions) -> Result<Prepared> {
+pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &PrepareOptions, horizons: &[f64]) -> Result<Prepared> {
     if fit.is_empty() {
         return Err(Error::Input("no fit log given; expected at least one".into()));
     }
@@ -125,16 +124,12 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
             notes.push(format!("joint {} is passive (commanded effort always 0): actuator effects (gain, offset, saturation) are not tried on it", model.joint_names()[j]));
         }
     }
-    let data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), &options.prepare)).collect::<Result<_>>()?;
-    let horizons = horizons(&options.horizons)?;
+    let data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
+    let horizons = self::horizons(horizons)?;
     let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
-    let fit_pred: Vec<PredictionRun> = fit_runs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN))
-        .collect();
-    let hold_pred: Vec<PredictionRun> =
-        hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.prepare.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
+    let fit_pred: Vec<PredictionRun> =
+        fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN)).collect();
+    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
     if let Some(pr) = hold_pred.iter().find(|p| p.windows() == 0) {
         return Err(Error::Log {
             log: pr.run.source.clone(),

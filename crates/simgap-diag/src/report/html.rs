@@ -10,9 +10,9 @@ use plotters::prelude::*;
 use simgap_sim::Run;
 
 use crate::error::{Error, Result};
-use crate::pipeline::Diagnosis;
 use crate::report::verdict::ranked_selection;
 pub use crate::report::verdict::{assess, Assessment};
+use crate::report::Diagnosis;
 use crate::report::Report;
 use crate::vocabulary::effects::Param;
 use simgap_core::Model;

@@ -7,8 +7,10 @@ pub(crate) mod residual;
 pub(crate) mod verdict;
 
 use crate::locate::Where;
-use crate::predict::resim::RunGap;
+use crate::prediction::resim::RunGap;
+use crate::prepare::FitData;
 use crate::vocabulary::effects::{EffectReport, Param};
+use simgap_sim::{Effect, Run};
 use std::collections::BTreeMap;
 
 /// One candidate effect, fitted alone on the nominal model.
@@ -168,7 +170,7 @@ pub struct Report {
     pub alternatives: Vec<Alternative>,
     /// The sensors the re-simulation and prediction give each run's controller, as inferred
     /// from its samples.
-    pub sensors: Vec<crate::predict::resim::InferredSensors>,
+    pub sensors: Vec<crate::prediction::resim::InferredSensors>,
     /// Warnings about the logs and the answer (glitches removed, sensors inferred, URDF
     /// pitfalls the data reveal, what the residual still holds).
     pub notes: Vec<String>,
@@ -288,4 +290,26 @@ fn fmt_param(p: &Param) -> String {
         Param::PerJoint(v) | Param::Vector(v) => format!("[{}]", v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")),
         Param::PerLink(v) => format!("{} links", v.len()),
     }
+}
+
+/// Everything [`crate::diagnose`] produced: the report and the runs behind its figures.
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    /// The report (see [`Report`]).
+    pub report: Report,
+    /// The selected effects, as simulator effects.
+    pub effects: Vec<Effect>,
+    /// Held-out runs as measured (model-aligned, glitches repaired).
+    pub holdout: Vec<Run>,
+    /// Their nominal closed-loop simulations.
+    pub holdout_nominal: Vec<Option<Run>>,
+    /// Their simulations with the selected effects.
+    pub holdout_corrected: Vec<Option<Run>>,
+    /// Fit data (smoothed states and residuals), for plots.
+    pub fit_data: Vec<FitData>,
+    /// The selected effects with the 95 % half-widths of each interval method on its own
+    /// (`block_bootstrap`, `fold_jackknife`, `resampling` = the larger of the two; the report
+    /// adds the pipeline's shared error, [`uncertainty`]), for the self-check's coverage
+    /// comparison.
+    pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
 }

@@ -3,7 +3,7 @@
 
 use simgap_sim::{ControllerKind, Run};
 
-use crate::predict::resim;
+use crate::prediction::resim;
 use crate::report::{KStep, Report};
 use crate::vocabulary::{EffectReport, Param};
 
@@ -176,7 +176,7 @@ pub struct Assessment {
 }
 
 /// The runs whose simulation did not complete, as `log (status)`.
-fn not_completed(runs: &[crate::predict::resim::RunGap]) -> Vec<String> {
+fn not_completed(runs: &[crate::prediction::resim::RunGap]) -> Vec<String> {
     runs.iter().filter(|g| g.status != "completed").map(|g| format!("{} ({})", g.log, g.status)).collect()
 }
 

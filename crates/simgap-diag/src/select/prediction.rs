@@ -5,8 +5,8 @@
 use rayon::prelude::*;
 
 use crate::error::Result;
-use crate::pipeline::{check_stop, DiagnoseOptions, Progress};
-use crate::predict::kstep;
+use crate::options::{check_stop, DiagnoseOptions, Progress};
+use crate::prediction::kstep;
 use crate::prepare::{prepare, sample_period};
 use crate::select::scorer::Scorer;
 use crate::select::uncertainty;
@@ -26,8 +26,7 @@ pub(crate) const TIE_TOLERANCE: f64 = 0.02;
 
 /// Whether `t` fits in `terms`: one term per slot.
 pub(crate) fn fits_in(terms: &[Term], t: &Term) -> bool {
-    let gain_vs_inertia = |a: &Term, b: &Term| matches!(a, Term::Gain(_)) && matches!(b, Term::InertialError { .. });
-    !terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
+    !select::slot_taken(terms, t)
 }
 
 /// The prune stage: two paths, the better kept. (a) The torque-residual selection pruned by
@@ -56,7 +55,7 @@ pub(crate) fn prune_and_complete(
     // completed again (at most twice)
     for _ in 0..2 {
         check_stop(options)?;
-        let Some((set, s, out, into)) = exchange(scorer, groups, alone_score, &terms, score) else { break };
+        let Some((set, s, out, into)) = exchange_by_prediction(scorer, groups, alone_score, &terms, score) else { break };
         for t in terms.iter().filter(|t| t.effect_name() == out.as_str()) {
             log.push(select::Step {
                 term: t.clone(),
@@ -243,7 +242,7 @@ pub(crate) fn null_ratio(scorer: &Scorer<'_>, base: &[Term], with: &[Term], opti
     if synthetic.len() != scorer.prep.fit_runs.len() {
         return None;
     }
-    let prep = prepare(scorer.model, scorer.formulation, &synthetic, &scorer.prep.hold_runs, options).ok()?;
+    let prep = prepare(scorer.model, scorer.formulation, &synthetic, &scorer.prep.hold_runs, &options.prepare, &options.horizons).ok()?;
     let scales = select::parameter_scales(scorer.model);
     let ctx = Context::new(&prep.data, sample_period(&prep.fit_runs), &scales);
     let null = Scorer::new(scorer.model, scorer.formulation, &ctx, &prep);
@@ -300,7 +299,7 @@ pub(crate) fn swapped(terms: &[Term], name: &str, with: &[Term]) -> Vec<Term> {
 /// holds fold by fold. A stepwise selection that took an effect first (e.g. an inertial
 /// correction, which absorbs most of what per-joint torque gains do to the torque residual)
 /// cannot otherwise undo it. Returns the new set, its score and what was swapped for what.
-pub(crate) fn exchange(
+pub(crate) fn exchange_by_prediction(
     scorer: &Scorer<'_>,
     groups: &[(&'static str, Vec<Term>)],
     alone_score: &[f64],

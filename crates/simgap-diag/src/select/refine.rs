@@ -6,8 +6,8 @@ use simgap_sim::ControllerKind;
 
 use crate::error::Result;
 use crate::lsq;
-use crate::pipeline::{check_stop, DiagnoseOptions, Progress};
-use crate::predict::kstep::{self, FOLDS_PER_RUN};
+use crate::options::{check_stop, DiagnoseOptions, Progress};
+use crate::prediction::kstep::{self, FOLDS_PER_RUN};
 use crate::select::prediction::{ADD_GAIN, PRUNE_TOLERANCE};
 use crate::select::scorer::Scorer;
 use crate::select::shooting;

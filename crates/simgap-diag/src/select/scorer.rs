@@ -5,7 +5,7 @@ use simgap_core::{Formulation, Model};
 use simgap_sim::Effect;
 
 use crate::lsq::{self, Grams};
-use crate::predict::kstep::{self, FOLDS_PER_RUN};
+use crate::prediction::kstep::{self, FOLDS_PER_RUN};
 use crate::prepare::Prepared;
 use crate::select::{self, Context};
 use crate::vocabulary::{effects, Term, TermKey};

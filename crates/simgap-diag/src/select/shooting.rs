@@ -39,7 +39,7 @@ use simgap_core::{Formulation, Model, PARAMS_PER_LINK};
 
 use crate::error::{Error, Result};
 use crate::lsq::inertial::{self, InertialPrior};
-use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
+use crate::prediction::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use crate::vocabulary::effects;
 use crate::vocabulary::fitted_terms;
 use crate::vocabulary::{Term, TermDesign};

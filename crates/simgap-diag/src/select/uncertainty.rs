@@ -11,7 +11,7 @@
 //!
 //! The shared error of the pipeline is measured the way a parametric bootstrap measures bias:
 //! the fit runs are re-simulated with the fitted effects (same experiment, reference, initial
-//! state, sample times and inferred sensors; [`crate::predict::resim::resimulate`]), so that the fitted
+//! state, sample times and inferred sensors; [`crate::prediction::resim::resimulate`]), so that the fitted
 //! parameters are the truth of these synthetic runs; the same terms are fitted to them through
 //! the same preparation; the difference `b = θ* − θ̂` is the pipeline's error on data like these.
 //! The reported half-width is `1.96 · sqrt(σ² + b²)`, with `σ` the larger of the bootstrap and
@@ -35,7 +35,7 @@ pub(crate) fn synthetic_runs(model: &Model, formulation: Formulation, effects: &
     use rayon::prelude::*;
     fit_runs
         .par_iter()
-        .filter_map(|r| match crate::predict::resim::resimulate(model, formulation, effects, r) {
+        .filter_map(|r| match crate::prediction::resim::resimulate(model, formulation, effects, r) {
             Ok((mut sim, RunEnd::Completed)) => {
                 sim.source = format!("{} (re-simulated with the fitted effects)", r.source);
                 Some(sim)

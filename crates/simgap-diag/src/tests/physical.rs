@@ -8,8 +8,9 @@
 
 use super::common::{have_data, replay, shared_data};
 use crate::check::bench::{demo_specs, generate};
+use crate::lsq::bounded::{solve, solve_bounded};
 use crate::lsq::inertial::{link_is_physical, link_reach};
-use crate::lsq::{solve, solve_bounded, Problem};
+use crate::lsq::Problem;
 use crate::prepare::align_run;
 use crate::select::{parameter_scales, Context};
 use crate::vocabulary::effects;

@@ -8,7 +8,7 @@ use super::common::{have_data, replay, shared_data};
 
 use crate::check::bench::{demo_specs, generate};
 use crate::lsq::Problem;
-use crate::predict::kstep::{self, PredictionRun, FOLDS_PER_RUN};
+use crate::prediction::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use crate::prepare::align_run;
 use crate::select::shooting;
 use crate::vocabulary::effects;

@@ -1,0 +1,263 @@
+//! The stepwise selection on the torque residual: forward steps by block cross-validation,
+//! an exchange of one selected term for another that fits the residual better, and the polish
+//! of searched parameters (Stribeck velocity, saturation limit, delay, payload centre of mass).
+
+use super::*;
+
+/// Extra relative gain demanded of a term found by a large grid search (selection bias: the
+/// best of many columns explains some noise).
+fn grid_penalty(t: &Term) -> f64 {
+    match t {
+        Term::Cogging { .. } => 2.0,
+        _ => 1.0,
+    }
+}
+
+/// One pass of exchange moves; true when a swap was made.
+#[allow(clippy::too_many_arguments)]
+fn exchange_by_residual(
+    ctx: &Context<'_>,
+    fams: &[Family],
+    terms: &mut Vec<Term>,
+    designs: &mut Vec<TermDesign>,
+    current: &mut Fit,
+    nominal: &Fit,
+    opts: &SelectOptions,
+    log: &mut Vec<Step>,
+) -> bool {
+    let p = &ctx.problem;
+    let mut best: Option<(usize, Term, Fit, Vec<TermDesign>)> = None;
+    for i in 0..terms.len() {
+        let mut rest_terms = terms.clone();
+        rest_terms.remove(i);
+        let mut rest = designs.clone();
+        rest.remove(i);
+        let refs: Vec<&TermDesign> = rest.iter().collect();
+        let f0 = fit(p, &grams(p, &refs));
+        let resid = residual_after(p, &rest, &f0.theta);
+        // (a family whose slot is taken is not searched: its best member could not join)
+        let mut cands: Vec<Term> = fams
+            .iter()
+            .filter(|f| !slot_taken(&rest_terms, &f.member()))
+            .map(|f| ctx.best_of_with(f, &resid, &rest))
+            .filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i])
+            .collect();
+        if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == Slot::Inertia) && !matches!(terms[i], Term::InertialError { .. }) {
+            let t = ctx.inertial_term();
+            if !slot_taken(&rest_terms, &t) {
+                cands.push(t);
+            }
+        }
+        for c in cands {
+            let mut ds = rest.clone();
+            ds.push(ctx.design(&c));
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut all = rest_terms.clone();
+            all.push(c.clone());
+            if !admissible(&ds, &all, &f.theta) {
+                continue;
+            }
+            // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
+            let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms[i], &designs[i]);
+            let ok = if simpler && c.joint() == terms[i].joint() {
+                // a simpler term on the same joint that keeps that joint's residual within 1 %
+                cv_of(&f, &c) <= cv_of(current, &c) * 1.01 && f.cv_mse <= current.cv_mse * 1.01
+            } else {
+                // a swap to a term as complex or more must gain visibly, also against the nominal
+                f.cv_mse < current.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
+            };
+            if ok && best.as_ref().is_none_or(|b| f.cv_mse < b.2.cv_mse) {
+                best = Some((i, c, f, ds));
+            }
+        }
+    }
+    match best {
+        Some((i, c, f, ds)) => {
+            log.push(Step {
+                term: c.clone(),
+                cv_mse: f.cv_mse,
+                accepted: true,
+                reason: format!("exchanged for {} (cross-validated residual {:.3e} → {:.3e})", describe(&terms[i]), current.cv_mse, f.cv_mse),
+            });
+            terms.remove(i);
+            terms.push(c);
+            *designs = ds;
+            *current = f;
+            true
+        }
+        None => false,
+    }
+}
+
+fn describe(t: &Term) -> String {
+    match t.joint() {
+        Some(j) => format!("{} on joint {j}", t.effect_name()),
+        None => t.effect_name().to_string(),
+    }
+}
+
+/// Forward stepwise selection with cross-validation, then backward pruning.
+pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
+    let p = &ctx.problem;
+    let (_, _, nominal) = fit_terms(p, ctx.data, &[]);
+    let mut terms: Vec<Term> = Vec::new();
+    let mut current = nominal.clone();
+    let mut designs: Vec<TermDesign> = Vec::new();
+    let mut log = Vec::new();
+    let fams = families(p.dof);
+    while terms.len() < opts.max_terms {
+        let resid = residual_after(p, &designs, &current.theta);
+        // best member of every family, then the inertial error, evaluated jointly with the set
+        let mut cands: Vec<Term> =
+            fams.iter().filter(|f| !slot_taken(&terms, &f.member())).map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
+        if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == Slot::Inertia) {
+            cands.push(ctx.inertial_term());
+        }
+        let mut evaluated: Vec<(Term, Fit, Vec<TermDesign>)> = Vec::new();
+        for c in cands {
+            let mut ds = designs.clone();
+            ds.push(ctx.design(&c));
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut all = terms.clone();
+            all.push(c.clone());
+            if !admissible(&ds, &all, &f.theta) {
+                continue;
+            }
+            evaluated.push((c, f, ds));
+        }
+        // the best candidate by the whole-robot gain, then parsimony: the fewest parameters
+        // among candidates whose gain is within a tolerance of the best
+        let rel = |e: &(Term, Fit, Vec<TermDesign>)| current.cv_mse - e.1.cv_mse;
+        let Some(best_rel) = evaluated.iter().map(rel).max_by(f64::total_cmp) else { break };
+        let tol = best_rel * (1.0 - 0.5 * opts.min_relative_gain);
+        let Some((term, f, ds)) = evaluated.into_iter().filter(|e| rel(e) >= tol).min_by(|a, b| {
+            let (pa, pb) = (n_params(&a.0, a.2.last().unwrap()), n_params(&b.0, b.2.last().unwrap()));
+            pa.cmp(&pb).then(a.1.cv_mse.total_cmp(&b.1.cv_mse))
+        }) else {
+            break;
+        };
+        let (now_t, new_t, nominal_t) = (cv_of(&current, &term), cv_of(&f, &term), cv_of(&nominal, &term));
+        let gain = now_t - new_t;
+        let k0: usize = designs.iter().map(|d| d.cols.len()).sum();
+        let th: Vec<f64> = f.theta.iter().skip(k0).copied().collect();
+        let torque = term_torque_rms(p, ds.last().unwrap(), &th);
+        let share = match term.joint() {
+            Some(j) => torque[j] / p.tau_rms[j].max(1e-12),
+            None => (0..p.dof).map(|j| torque[j] / p.tau_rms[j].max(1e-12)).fold(0.0, f64::max),
+        };
+        let reason;
+        let accept = if f.cv_mse >= current.cv_mse || gain < grid_penalty(&term) * opts.min_relative_gain * now_t {
+            reason = format!("cross-validated residual falls by {:.1} % (< {:.0} %)", 100.0 * gain / now_t, 100.0 * grid_penalty(&term) * opts.min_relative_gain);
+            false
+        } else if gain < opts.min_nominal_gain * nominal_t {
+            reason = format!("explains {:.2} % of the nominal residual (< {:.1} %)", 100.0 * gain / nominal_t, 100.0 * opts.min_nominal_gain);
+            false
+        } else if share < opts.min_torque_share {
+            reason = format!("torque {:.2} % of the commanded torque (< {:.0} %): too small to matter", 100.0 * share, 100.0 * opts.min_torque_share);
+            false
+        } else {
+            reason = format!("cross-validated residual falls by {:.1} %", 100.0 * gain / now_t);
+            true
+        };
+        log.push(Step { term: term.clone(), cv_mse: f.cv_mse, accepted: accept, reason });
+        if !accept {
+            break;
+        }
+        terms.push(term);
+        designs = ds;
+        current = f;
+        polish(ctx, &mut terms, &mut designs, &mut current);
+        // exchange moves: swap a selected term for a candidate while that lowers the CV residual
+        for _ in 0..4 {
+            if !exchange_by_residual(ctx, &fams, &mut terms, &mut designs, &mut current, &nominal, opts, &mut log) {
+                break;
+            }
+        }
+    }
+    // backward pruning: drop a term whose removal costs less than the entry threshold
+    let mut changed = true;
+    while changed && terms.len() > 1 {
+        changed = false;
+        for i in 0..terms.len() {
+            let mut ds = designs.clone();
+            ds.remove(i);
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut rest = terms.clone();
+            rest.remove(i);
+            if !admissible(&ds, &rest, &f.theta) {
+                continue;
+            }
+            if f.cv_mse - current.cv_mse < opts.min_relative_gain * f.cv_mse {
+                log.push(Step { term: terms[i].clone(), cv_mse: f.cv_mse, accepted: false, reason: "pruned: the others explain it".into() });
+                terms.remove(i);
+                designs = ds;
+                current = f;
+                changed = true;
+                break;
+            }
+        }
+    }
+    polish(ctx, &mut terms, &mut designs, &mut current);
+    Selection { terms, fit: current, designs, nominal_cv_mse: nominal.cv_mse, log }
+}
+
+/// Re-searches the nonlinear parameter of every term of `terms` (payload centre of mass,
+/// Stribeck velocity, saturation limit, cogging periods, delay) jointly with the others, on the
+/// torque residual: a set assembled one whole effect at a time (the prediction stage's
+/// completion) otherwise keeps the value each term took when it was fitted without the rest,
+/// e.g. a payload's centre of mass pulled toward the friction it was standing in for.
+pub(crate) fn repolish(ctx: &Context<'_>, terms: &[Term]) -> Vec<Term> {
+    if !terms.iter().any(|t| family_of(t).is_some()) {
+        return terms.to_vec();
+    }
+    let p = &ctx.problem;
+    let mut terms = terms.to_vec();
+    let mut designs: Vec<TermDesign> = terms.iter().map(|t| ctx.design(t)).collect();
+    let refs: Vec<&TermDesign> = designs.iter().collect();
+    let mut current = fit(p, &grams(p, &refs));
+    polish(ctx, &mut terms, &mut designs, &mut current);
+    terms
+}
+
+/// The family a term belongs to.
+fn family_of(t: &Term) -> Option<Family> {
+    match *t {
+        Term::Stribeck { joint, .. } => Some(Family::Stribeck(joint)),
+        Term::Saturation { joint, .. } => Some(Family::Saturation(joint)),
+        Term::Cogging { joint, .. } => Some(Family::Cogging(joint)),
+        Term::Delay { .. } => Some(Family::Delay),
+        Term::Payload { .. } => Some(Family::Payload),
+        _ => None,
+    }
+}
+
+/// Re-searches the nonlinear parameter of each selected term against the residual of all the
+/// others (two rounds of coordinate descent), keeping a change only when the CV residual falls.
+fn polish(ctx: &Context<'_>, terms: &mut [Term], designs: &mut [TermDesign], current: &mut Fit) {
+    let p = &ctx.problem;
+    for _ in 0..2 {
+        for i in 0..terms.len() {
+            let Some(family) = family_of(&terms[i]) else { continue };
+            let mut rest = designs.to_vec();
+            rest.remove(i);
+            let refs: Vec<&TermDesign> = rest.iter().collect();
+            let f0 = fit(p, &grams(p, &refs));
+            let resid = residual_after(p, &rest, &f0.theta);
+            let cand = ctx.best_of_with(&family, &resid, &rest);
+            let mut ds = designs.to_vec();
+            ds[i] = ctx.design(&cand);
+            let refs: Vec<&TermDesign> = ds.iter().collect();
+            let f = fit(p, &grams(p, &refs));
+            let mut all = terms.to_vec();
+            all[i] = cand.clone();
+            if f.cv_mse < current.cv_mse && admissible(&ds, &all, &f.theta) {
+                terms[i] = cand;
+                designs[i] = ds.swap_remove(i);
+                *current = f;
+            }
+        }
+    }
+}
