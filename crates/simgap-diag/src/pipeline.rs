@@ -19,7 +19,7 @@ use crate::select::prediction::{fits_in, prune_and_complete, rank_selected, ADD_
 use crate::select::refine::refine_by_shooting;
 use crate::select::scorer::Scorer;
 use crate::select::screen::{candidate_groups, drop_passive_actuator_terms, select_nothing};
-use crate::select::{self, select, uncertainty, Context};
+use crate::select::{self, plausible, select, uncertainty, Context};
 use crate::vocabulary::{effects, EffectReport, Term};
 use crate::vocabulary::{fit_terms, fitted_terms};
 
@@ -94,14 +94,20 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         prune_and_complete(&scorer, &groups, &alone_score, &mut selection, progress, options)?;
     }
     check_stop(options)?;
+    // parsimony: a richer effect that the simpler one nested in it matches is the simpler
+    let mut replacements = Vec::new();
+    if moving {
+        let current = scorer.score(&selection.terms);
+        replacements = plausible::parsimony(&scorer, &mut selection.terms, current, &mut selection.log, &joints).1;
+    }
     let final_score = scorer.score(&selection.terms);
     let final_cv = scorer.cv(&selection.terms);
 
     // refine by multiple shooting: parameters fitted to k-step prediction, kept when the
     // cross-validated prediction of the fit runs says so
-    let (refined, shooting_notes) = if moving { refine_by_shooting(&scorer, &selection.terms, final_score, progress, options)? } else { (None, Vec::new()) };
+    let (mut refined, shooting_notes) = if moving { refine_by_shooting(&scorer, &selection.terms, final_score, progress, options)? } else { (None, Vec::new()) };
     check_stop(options)?;
-    let (final_score, final_cv) = match &refined {
+    let (mut final_score, mut final_cv) = match &refined {
         Some(r) => {
             let before: Vec<Term> = selection.terms.clone();
             for t in before.iter().filter(|t| !r.terms.contains(t)) {
@@ -130,35 +136,81 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         None => (final_score, final_cv),
     };
 
-    // the selected set, fitted on all fit data, with uncertainties
-    let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
-    selection.designs = designs;
-    selection.fit = sel_fit;
-    let (fitted, interval_variants) = match &refined {
-        // shooting's own spread (see [`shooting::Shot::std`])
-        Some(r) => {
-            let fitted = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std));
-            let own = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.own_std));
-            let variants = vec![("multiple_shooting", effects::to_reports(model, &own))];
-            (fitted, variants)
+    // the selected set, fitted on all fit data, with uncertainties; a term the plausibility
+    // check finds no finding (at the edge of its physical range, or its interval holding its
+    // neutral value) leaves the set, a richer one its extra parameters do not support becomes
+    // the simpler nested in it, and the rest is fitted again (at most three rounds)
+    let mut rounds = 0;
+    let (fitted, interval_variants) = loop {
+        let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
+        selection.designs = designs;
+        selection.fit = sel_fit;
+        let (fitted, variants, raw_std) = match &refined {
+            // shooting's own spread (see [`shooting::Shot::std`])
+            Some(r) => {
+                let fitted = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std));
+                let own = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.own_std));
+                let variants = vec![("multiple_shooting", effects::to_reports(model, &own))];
+                (fitted, variants, r.shot.std.clone())
+            }
+            None => {
+                let boot_std = bootstrap_std(&sel_grams, 100, 7);
+                let jack_std = lsq::jackknife_std(&sel_grams);
+                let sel_effects = effects::to_effects(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, None));
+                // the pipeline's shared error, from the fit runs re-simulated with the fitted effects
+                let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs) };
+                let bias = uncertainty::pipeline_bias(model, formulation, &synthetic, &selection.terms, &selection.fit.theta, &options.prepare);
+                let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
+                let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
+                // the same effects with the half-widths of each interval method alone, for the self-check
+                let resampling = lsq::larger_spread(&boot_std, &jack_std);
+                let variants: Vec<(&'static str, Vec<EffectReport>)> = [("block_bootstrap", &boot_std), ("fold_jackknife", &jack_std), ("resampling", &resampling)]
+                    .into_iter()
+                    .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
+                    .collect();
+                (fitted, variants, sel_std)
+            }
+        };
+        check_stop(options)?;
+        let (terms, designs, theta) = match &refined {
+            Some(r) => (r.terms.clone(), r.designs.clone(), r.shot.theta.clone()),
+            None => (selection.terms.clone(), selection.designs.clone(), selection.fit.theta.clone()),
+        };
+        let mut changed = false;
+        let mut next: Vec<Term> = Vec::new();
+        let mut c = 0;
+        for (t, d) in terms.iter().zip(&designs) {
+            let k = d.cols.len();
+            let (th, sd) = (&theta.as_slice()[c..c + k], &raw_std.as_slice()[c.min(raw_std.len())..(c + k).min(raw_std.len())]);
+            c += k;
+            let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, sd, data, &joints) } else { plausible::Judgment::Finding };
+            match judgment {
+                plausible::Judgment::Finding => next.push(t.clone()),
+                plausible::Judgment::NoFinding(why) => {
+                    changed = true;
+                    selection.log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: why });
+                }
+                plausible::Judgment::Simpler { terms: simpler, why } => {
+                    changed = true;
+                    replacements.push((t.clone(), simpler.clone(), why.clone()));
+                    selection.log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by the simpler effect nested in it: {why}") });
+                    for s in simpler {
+                        if !next.contains(&s) {
+                            selection.log.push(select::Step { term: s.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of {}: {why}", t.describe(&joints)) });
+                            next.push(s);
+                        }
+                    }
+                }
+            }
         }
-        None => {
-            let boot_std = bootstrap_std(&sel_grams, 100, 7);
-            let jack_std = lsq::jackknife_std(&sel_grams);
-            let sel_effects = effects::to_effects(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, None));
-            // the pipeline's shared error, from the fit runs re-simulated with the fitted effects
-            let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs) };
-            let bias = uncertainty::pipeline_bias(model, formulation, &synthetic, &selection.terms, &selection.fit.theta, &options.prepare);
-            let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
-            let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
-            // the same effects with the half-widths of each interval method alone, for the self-check
-            let resampling = lsq::larger_spread(&boot_std, &jack_std);
-            let variants: Vec<(&'static str, Vec<EffectReport>)> = [("block_bootstrap", &boot_std), ("fold_jackknife", &jack_std), ("resampling", &resampling)]
-                .into_iter()
-                .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
-                .collect();
-            (fitted, variants)
+        if !changed || rounds >= 2 {
+            break (fitted, variants);
         }
+        rounds += 1;
+        selection.terms = next;
+        refined = None;
+        final_score = scorer.score(&selection.terms);
+        final_cv = scorer.cv(&selection.terms);
     };
     let sel_effects = effects::to_effects(model, &fitted);
     let mut selected_effects = effects::to_reports(model, &fitted);
@@ -247,7 +299,12 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // report: headline, alternatives, notes, verdict
     let kstep_report = kstep_figures(&horizons, &prep.hold_pred, (&floor_all, &floor_runs), (&before_k, &before_runs_k), (&after_k, &after_runs_k));
     let (headline, headline_reason) = headline(&prep.hold_runs, &before_runs, &after_runs, before);
-    let alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
+    let mut alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
+    for a in plausible::richer_alternatives(&selection.terms, &replacements) {
+        if !alternatives.iter().any(|b| b.effects == a.effects) {
+            alternatives.push(a);
+        }
+    }
     let mut notes = prep.notes.clone();
     notes.extend(shooting_notes);
     if moving {

@@ -105,6 +105,9 @@ pub struct FitData {
     pub coriolis_delta: Vec<f64>,
     /// Inertial regressor per kept sample, `dof × 10 dof` row-major, when requested.
     pub regressor: Vec<f64>,
+    /// Per joint, the largest diagonal entry `H_jj(q)` of the mass matrix over the kept
+    /// samples: the link inertia the joint moves [kg·m² or kg].
+    pub h_max: Vec<f64>,
     /// The aligned raw run.
     pub raw: Run,
     smoother: Smoother,
@@ -152,10 +155,14 @@ impl FitData {
         let mut residual = vec![0.0; m * n];
         let mut coriolis_delta = vec![0.0; m * n];
         let mut regressor = if options.regressor { Vec::with_capacity(m * n * PARAMS_PER_LINK * n) } else { Vec::new() };
+        let mut h_max = vec![0.0f64; n];
         // per sample: model torque, the other formulation's bias, the regressor
         for k in 0..m {
             let (qk, qdk, qddk) = (&q[k * n..(k + 1) * n], &qd[k * n..(k + 1) * n], &qdd[k * n..(k + 1) * n]);
             mass_matrix_into(model, &mut ws, qk, &mut h);
+            for (i, hm) in h_max.iter_mut().enumerate() {
+                *hm = hm.max(h[(i, i)]);
+            }
             bias_torques_into(model, &mut ws, qk, qdk, formulation, &mut b);
             bias_torques_into(model, &mut ws, qk, qdk, formulation.other(), &mut b_other);
             for i in 0..n {
@@ -172,7 +179,7 @@ impl FitData {
                 }
             }
         }
-        Ok(FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, tau_measured, residual, coriolis_delta, regressor, raw: run, smoother, kept })
+        Ok(FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, tau_measured, residual, coriolis_delta, regressor, h_max, raw: run, smoother, kept })
     }
 
     /// Number of kept samples.

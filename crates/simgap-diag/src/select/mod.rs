@@ -8,6 +8,7 @@
 //! effects too small to matter are reported, not selected.
 
 pub(crate) mod alternatives;
+pub(crate) mod plausible;
 pub(crate) mod prediction;
 pub(crate) mod refine;
 pub(crate) mod scorer;

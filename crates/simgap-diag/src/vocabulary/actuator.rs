@@ -2,6 +2,11 @@
 //! `(1 − k_j) τ_j`, k within [`GAIN_RANGE`]), `torque_offset` (τ_applied = τ_cmd + offset;
 //! column `−1`) and `torque_saturation` (τ_applied = clamp(τ_cmd, ±L); the fixed column
 //! `τ_j − clamp(τ_j, ±L_j)`, L searched on a grid).
+//!
+//! Physical ranges: a gain within [`GAIN_RANGE`]; an offset no larger than the largest torque
+//! commanded on its joint (a sensor bias or a drive's zero error is a fraction of the torques
+//! it carries). A term fitted at the edge of its range is no finding
+//! (see [`crate::select::plausible`]).
 
 use simgap_sim::Effect;
 
@@ -17,7 +22,11 @@ pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     let dof = data[0].dof;
     match *term {
         Term::Gain(j) => TermDesign { cols: vec![per_joint(data, j, |d, i| d.tau[i])], lo: vec![1.0 - GAIN_RANGE.1], hi: vec![1.0 - GAIN_RANGE.0], ..Default::default() },
-        Term::Offset(j) => TermDesign::free(vec![per_joint(data, j, |_, _| -1.0)]),
+        Term::Offset(j) => {
+            let tau_max = data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(dof)).fold(0.0f64, |m, t| m.max(t.abs()));
+            let bound = if tau_max > 0.0 { tau_max } else { f64::INFINITY };
+            TermDesign { cols: vec![per_joint(data, j, |_, _| -1.0)], lo: vec![-bound], hi: vec![bound], ..Default::default() }
+        }
         Term::Saturation { joint, limit } => {
             let mut v = Vec::new();
             for d in data {

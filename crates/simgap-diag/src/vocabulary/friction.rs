@@ -30,6 +30,28 @@ pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     }
 }
 
+/// Below this share of the fit samples moving slower than a Stribeck velocity, the runs do not
+/// resolve the Stribeck hump: it is Coulomb friction seen through a handful of samples.
+pub(crate) const RESOLVED_SHARE: f64 = 0.02;
+
+/// The Coulomb friction nested in a Stribeck friction (fs = fc), its extra column (fs − fc),
+/// and why the runs cannot resolve the hump where they cannot: a Stribeck velocity within
+/// twice the smoothing width of the sign, or slower than all but [`RESOLVED_SHARE`] of the fit
+/// samples.
+pub(super) fn simpler(term: &Term, data: &[FitData]) -> Option<super::Nested> {
+    let Term::Stribeck { joint, vs } = *term else { return None };
+    let (slower, total) = data.iter().fold((0usize, 0usize), |(s, n), d| (s + (0..d.len()).filter(|&i| d.qd[i * d.dof + joint].abs() < vs).count(), n + d.len()));
+    let share = if total > 0 { slower as f64 / total as f64 } else { 0.0 };
+    let unresolved = if vs <= 2.0 * COULOMB_WIDTH {
+        Some(format!("its Stribeck velocity vs is {} times the width w over which the sign of the velocity is smoothed (the runs cannot resolve a hump within twice that width)", sig3(vs / COULOMB_WIDTH)))
+    } else if share < RESOLVED_SHARE {
+        Some(format!("only {:.1} % of the fit samples move slower than its Stribeck velocity vs: the runs do not resolve its hump", 100.0 * share))
+    } else {
+        None
+    };
+    Some(super::Nested { terms: vec![Term::Coulomb(joint)], extra: vec![1], unresolved })
+}
+
 /// fc and fs of a Stribeck term from its columns' coefficients (fc, fs − fc).
 pub(super) fn contract_stribeck(raw: &[f64]) -> Vec<f64> {
     vec![raw[0], raw[0] + raw[1]]

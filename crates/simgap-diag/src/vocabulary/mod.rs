@@ -282,6 +282,27 @@ fn describe(model: &Model, e: &EffectReport) -> String {
     }
 }
 
+/// A simpler effect nested in a richer one: the richer with its extra parameters at their
+/// neutral values is the simpler (a Stribeck friction with fs = fc is Coulomb friction).
+#[derive(Clone, Debug)]
+pub(crate) struct Nested {
+    /// The simpler terms that replace the richer one.
+    pub terms: Vec<Term>,
+    /// The richer term's columns the simpler lacks (their coefficients are 0 in the simpler).
+    pub extra: Vec<usize>,
+    /// Why these runs cannot resolve the richer shape at all, whatever its fit (a Stribeck
+    /// velocity below what they resolve), if so.
+    pub unresolved: Option<String>,
+}
+
+/// The simpler effect nested in `term`, if its family has one (see [`Nested`]).
+pub(crate) fn simpler(term: &Term, data: &[FitData]) -> Option<Nested> {
+    match term {
+        Term::Stribeck { .. } => friction::simpler(term, data),
+        _ => None,
+    }
+}
+
 /// A term's parameters as the effect states them, from its fitted column coefficients: the
 /// same numbers except for Stribeck friction, fitted as `(fc, fs − fc)` (both ≥ 0, so that
 /// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)`.

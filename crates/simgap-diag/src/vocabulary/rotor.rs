@@ -1,5 +1,11 @@
 //! `armature`: rotor inertia reflected through the gearbox, `ia_j` on the diagonal of H
-//! (column `ia_j q̈_j`, ia ≥ 0).
+//! (column `ia_j q̈_j`).
+//!
+//! Physical range: `0 ≤ ia_j ≤ ARMATURE_MAX_RATIO · max H_jj`, the largest link inertia the
+//! joint moves over the fit runs. Reflected rotor inertias of geared arms reach tens of times
+//! the wrist's link inertia (a rotor of 1e-5 kg·m² through a 100:1 gearbox is 0.1 kg·m²); an
+//! armature a hundred times the link inertia freezes the joint rather than explaining it, and
+//! one fitted at that edge is no finding (see [`crate::select::plausible`]).
 
 use simgap_sim::Effect;
 
@@ -7,9 +13,14 @@ use super::effects::list_per_joint;
 use super::{per_joint, EffectReport, TermDesign};
 use crate::prepare::dataset::FitData;
 
-/// The column of a rotor inertia on joint `j`.
+/// Largest plausible rotor inertia as a multiple of the link inertia its joint moves.
+pub(crate) const ARMATURE_MAX_RATIO: f64 = 100.0;
+
+/// The column of a rotor inertia on joint `j`, bounded by its physical range.
 pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
-    TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qdd[i])], 0.0)
+    let h_max = data.iter().map(|d| d.h_max[j]).fold(0.0f64, f64::max);
+    let hi = if h_max > 0.0 { ARMATURE_MAX_RATIO * h_max } else { f64::INFINITY };
+    TermDesign { cols: vec![per_joint(data, j, |d, i| d.qdd[i])], lo: vec![0.0], hi: vec![hi], ..Default::default() }
 }
 
 /// A rotor inertia is not negative.
