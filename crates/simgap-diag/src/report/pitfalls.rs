@@ -95,8 +95,9 @@ pub(crate) fn urdf_pitfalls(model: &Model, data: &[FitData]) -> Vec<String> {
         let f = fit_with(&[design(&Term::Armature(j), data)]);
         let ia = f.theta[k0];
         if ia > 0.1 * h_mean[j] && gain(&f) >= MIN_GAIN {
+            let unit = simgap_sim::Quantity::JointInertia.unit(model.joints()[j].kind);
             notes.push(format!(
-                "joint {}: the data show a rotor inertia (armature) of {} kg·m², {:.0} % of the link inertia the joint moves (mean H_jj = {} kg·m²), which the URDF lacks; add the motor's rotor inertia × gear ratio² (removes {:.0} % of the cross-validated residual)",
+                "joint {}: the data show a rotor inertia (armature) of {} {unit}, {:.0} % of the link inertia the joint moves (mean H_jj = {} {unit}), which the URDF lacks; add the motor's rotor inertia × gear ratio² (removes {:.0} % of the cross-validated residual)",
                 names[j],
                 sig3(ia),
                 100.0 * ia / h_mean[j],
@@ -125,25 +126,44 @@ pub(crate) fn urdf_pitfalls(model: &Model, data: &[FitData]) -> Vec<String> {
     // joint sign: commanded torque against the torque the model needs (a flipped gravity
     // explains that already)
     for (j, name) in names.iter().enumerate().filter(|_| !gravity_flipped) {
+        // centred: an offset (a torque sensor's bias) is no sign
+        let (mut count, mut mean_tau, mut mean_model) = (0.0f64, 0.0, 0.0);
+        for d in data {
+            for s in 0..d.len() {
+                mean_tau += d.tau[s * n + j];
+                mean_model += d.tau[s * n + j] - d.residual[s * n + j];
+                count += 1.0;
+            }
+        }
+        mean_tau /= count.max(1.0);
+        mean_model /= count.max(1.0);
         let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
         for d in data {
             for s in 0..d.len() {
-                let tau = d.tau[s * n + j];
-                let model_tau = tau - d.residual[s * n + j];
+                let tau = d.tau[s * n + j] - mean_tau;
+                let model_tau = d.tau[s * n + j] - d.residual[s * n + j] - mean_model;
                 sxy += tau * model_tau;
                 sxx += tau * tau;
                 syy += model_tau * model_tau;
             }
         }
         let corr = sxy / (sxx * syy).sqrt().max(1e-300);
-        if corr < -0.5 {
+        // only where the model's own torque is most of what was measured: a small model torque
+        // against friction, an offset or a spring says nothing of the axis
+        let dominates = syy >= SIGN_MODEL_SHARE * SIGN_MODEL_SHARE * sxx;
+        if corr < -0.5 && dominates {
             notes.push(format!(
-                "joint {name}: the commanded torque is opposed to the torque the model needs for the logged motion (correlation {corr:.2}): the joint's axis in the URDF, or its sign in the log, seems flipped"
+                "joint {name}: the commanded torque is opposed to the torque the model needs for the logged motion (correlation {corr:.2}, the model's torque {:.0} % of the commanded one, RMS): the joint's axis in the URDF, or its sign in the log, seems flipped",
+                100.0 * (syy / sxx.max(1e-300)).sqrt()
             ));
         }
     }
     notes
 }
+
+/// The joint-sign note needs the model's torque (RMS, centred) to be at least this share of the
+/// commanded torque's.
+const SIGN_MODEL_SHARE: f64 = 0.5;
 
 /// The residual column of a change `v` of link `link`'s ten inertial parameters.
 fn regressor_column(data: &[FitData], link: usize, v: &[f64; PARAMS_PER_LINK]) -> Column {

@@ -104,3 +104,30 @@ fn dfki_double_pendulum_inertia_pitfall() {
     println!("{notes:#?}");
     assert!(notes.iter().any(|n| n.contains("about the joint axis")), "the documented DFKI pitfall is not named: {notes:#?}");
 }
+
+/// The fit data with the elbow's commanded torque replaced by `factor` × the torque the model
+/// needs for the logged motion (the residual kept consistent).
+fn with_elbow_torque(mut data: Vec<FitData>, factor: f64) -> Vec<FitData> {
+    for d in &mut data {
+        for s in 0..d.len() {
+            let i = s * d.dof + 1;
+            let model_tau = d.tau[i] - d.residual[i];
+            d.tau[i] = factor * model_tau;
+            d.residual[i] = d.tau[i] - model_tau;
+        }
+    }
+    data
+}
+
+#[test]
+fn a_flipped_joint_sign_is_named_only_where_the_model_torque_dominates() {
+    let model = Model::paper_arm();
+    let data = data_for(&model, &[]);
+    // the commanded torque is the model's with the opposite sign: a flipped axis
+    let notes = urdf_pitfalls(&model, &with_elbow_torque(data.clone(), -1.0));
+    assert!(notes.iter().any(|n| n.contains("elbow") && n.contains("flipped")), "{notes:#?}");
+    // opposed, but the model's torque only a third of what was measured (e.g. a spring and
+    // friction against a light link's inertial torque): it says nothing of the axis
+    let notes = urdf_pitfalls(&model, &with_elbow_torque(data, -3.0));
+    assert!(!notes.iter().any(|n| n.contains("flipped")), "{notes:#?}");
+}
