@@ -12,6 +12,7 @@ use crate::lsq::{self, bootstrap_std};
 use crate::options::{check_stop, DiagnoseOptions, Progress};
 use crate::prediction::{kstep, resim};
 use crate::prepare::{prepare, sample_period, Prepared};
+use crate::report::units::Units;
 use crate::report::verdict::{headline, residual_notes, verdict};
 use crate::report::{pitfalls, residual, Candidate, Decision, Diagnosis, Gap, KStep, Report, RunKStep};
 use crate::select::alternatives::alternatives;
@@ -20,7 +21,7 @@ use crate::select::refine::refine_by_shooting;
 use crate::select::scorer::Scorer;
 use crate::select::screen::{candidate_groups, drop_passive_actuator_terms, select_nothing};
 use crate::select::{self, plausible, select, uncertainty, Context};
-use crate::vocabulary::{effects, EffectReport, Term};
+use crate::vocabulary::{effects, EffectReport, Term, TermDesign};
 use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Diagnoses the gap between `model` (in `formulation`) and logged runs.
@@ -178,14 +179,30 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         };
         let mut changed = false;
         let mut next: Vec<Term> = Vec::new();
+        // the shooting answer kept for the terms that stay (its own fit is not redone: as the
+        // shooting stage leaves out a term at its bound 0, a term that is no finding leaves
+        // with the others' values kept; a simpler nested term keeps the richer one's columns
+        // it shares)
+        let mut kept: (Vec<TermDesign>, Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
         let mut c = 0;
         for (t, d) in terms.iter().zip(&designs) {
             let k = d.cols.len();
             let (th, sd) = (&theta.as_slice()[c..c + k], &raw_std.as_slice()[c.min(raw_std.len())..(c + k).min(raw_std.len())]);
+            let own = refined.as_ref().map(|r| r.own_std.as_slice()[c.min(r.own_std.len())..(c + k).min(r.own_std.len())].to_vec()).unwrap_or_default();
             c += k;
+            let mut keep = |t: Term, d: TermDesign, cols: &[usize], next: &mut Vec<Term>| {
+                if next.contains(&t) {
+                    return;
+                }
+                next.push(t);
+                kept.0.push(d);
+                kept.1.extend(cols.iter().map(|&i| th[i]));
+                kept.2.extend(cols.iter().map(|&i| sd.get(i).copied().unwrap_or(f64::NAN)));
+                kept.3.extend(cols.iter().map(|&i| own.get(i).copied().unwrap_or(f64::NAN)));
+            };
             let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, sd, data, &joints) } else { plausible::Judgment::Finding };
             match judgment {
-                plausible::Judgment::Finding => next.push(t.clone()),
+                plausible::Judgment::Finding => keep(t.clone(), d.clone(), &(0..k).collect::<Vec<_>>(), &mut next),
                 plausible::Judgment::NoFinding(why) => {
                     changed = true;
                     selection.log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: why });
@@ -194,10 +211,13 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                     changed = true;
                     replacements.push((t.clone(), simpler.clone(), why.clone()));
                     selection.log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by the simpler effect nested in it: {why}") });
+                    let extra = crate::vocabulary::simpler(t, data).map(|n| n.extra).unwrap_or_default();
+                    let shared: Vec<usize> = (0..k).filter(|i| !extra.contains(i)).collect();
                     for s in simpler {
                         if !next.contains(&s) {
                             selection.log.push(select::Step { term: s.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of {}: {why}", t.describe(&joints)) });
-                            next.push(s);
+                            let ds = crate::vocabulary::design(&s, data);
+                            keep(s, ds, &shared, &mut next);
                         }
                     }
                 }
@@ -207,10 +227,21 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             break (fitted, variants);
         }
         rounds += 1;
-        selection.terms = next;
-        refined = None;
-        final_score = scorer.score(&selection.terms);
-        final_cv = scorer.cv(&selection.terms);
+        selection.terms = next.clone();
+        match refined.as_mut() {
+            Some(r) if kept.0.iter().map(|d| d.cols.len()).sum::<usize>() == kept.1.len() => {
+                r.terms = next;
+                r.designs = kept.0;
+                r.shot.theta = nalgebra::DVector::from_vec(kept.1);
+                r.shot.std = nalgebra::DVector::from_vec(kept.2);
+                r.own_std = nalgebra::DVector::from_vec(kept.3);
+            }
+            _ => {
+                refined = None;
+                final_score = scorer.score(&selection.terms);
+                final_cv = scorer.cv(&selection.terms);
+            }
+        }
     };
     let sel_effects = effects::to_effects(model, &fitted);
     let mut selected_effects = effects::to_reports(model, &fitted);
@@ -298,7 +329,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
 
     // report: headline, alternatives, notes, verdict
     let kstep_report = kstep_figures(&horizons, &prep.hold_pred, (&floor_all, &floor_runs), (&before_k, &before_runs_k), (&after_k, &after_runs_k));
-    let (headline, headline_reason) = headline(&prep.hold_runs, &before_runs, &after_runs, before);
+    let kinds: Vec<simgap_core::JointKind> = model.joints().iter().map(|j| j.kind).collect();
+    let units = Units::of(&kinds);
+    let (headline, headline_reason) = headline(&prep.hold_runs, &before_runs, &after_runs, before, &units.position);
     let mut alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
     for a in plausible::richer_alternatives(&selection.terms, &replacements) {
         if !alternatives.iter().any(|b| b.effects == a.effects) {
@@ -345,16 +378,17 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             let (part, other) =
                 if a > m { ("the actuator (commanded → delivered torque)", "the mechanics") } else { ("the mechanics (delivered torque → motion)", "the actuator") };
             notes.push(format!(
-                "{}: with the measured torque the gap splits into actuator {a:.3e} N·m and mechanics {m:.3e} N·m (RMS): most of it lies in {part}, less in {other}",
-                j.joint
+                "{}: with the measured torque the gap splits into actuator {a:.3e} {e} and mechanics {m:.3e} {e} (RMS): most of it lies in {part}, less in {other}",
+                j.joint,
+                e = joints.iter().position(|n| *n == j.joint).map_or("N·m", |i| simgap_sim::Quantity::Effort.unit(kinds[i]))
             ));
         }
     }
-    notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons));
+    notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons, &units.position));
     // what is left: the torque residual after the selected effects, joint by joint
-    let residual_tests = if moving { residual::test(p, data, &select::residual_after(p, &selection.designs, &selection.fit.theta), &joints) } else { Vec::new() };
+    let residual_tests = if moving { residual::test(p, data, &select::residual_after(p, &selection.designs, &selection.fit.theta), &joints, &kinds) } else { Vec::new() };
     notes.extend(residual_tests.iter().filter(|t| t.kind != "negligible").map(|t| t.sentence()));
-    let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, before, after, &before_runs);
+    let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, before, after, &before_runs, &units);
     let selection_log = selection
         .log
         .iter()
@@ -371,6 +405,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         model: model.name().into(),
         formulation: formulation.as_str().into(),
         joints: joints.clone(),
+        joint_types: kinds.iter().map(|k| k.as_str().to_string()).collect(),
         fit_logs: prep.fit_runs.iter().map(|r| r.source.clone()).collect(),
         holdout_logs: prep.hold_runs.iter().map(|r| r.source.clone()).collect(),
         verdict,

@@ -10,6 +10,7 @@ use plotters::prelude::*;
 use simgap_sim::Run;
 
 use crate::error::{Error, Result};
+use crate::report::units::{kinds_of, Units};
 use crate::report::verdict::ranked_selection;
 pub use crate::report::verdict::{assess, Assessment};
 use crate::report::Diagnosis;
@@ -68,6 +69,11 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
     );
     let a = assess(r);
     let _ = writeln!(h, "<p class=\"verdict {}\" id=\"verdict\">{}</p>", a.class, esc(&a.text));
+    // units by joint type: pooled figures, and each joint's own
+    let kinds = kinds_of(&r.joint_types);
+    let all = Units::of(&kinds);
+    let joint_units = |j: usize| kinds.get(j).map_or_else(|| Units::of(&kinds), |k| Units::joint(*k));
+    let units_of_name = |name: &str| r.joints.iter().position(|n| n == name).map_or_else(|| Units::of(&kinds), joint_units);
     if !r.notes.is_empty() {
         let _ = writeln!(h, "<ul class=\"notes\" id=\"notes\">");
         for n in &r.notes {
@@ -88,7 +94,8 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
         );
         let _ = writeln!(
             h,
-            "<table class=\"kstep\"><tr><th>horizon h [s]</th><th>constant velocity [rad]</th><th>nominal [rad]</th><th>selected effects [rad]</th><th>after / before</th></tr>"
+            "<table class=\"kstep\"><tr><th>horizon h [s]</th><th>constant velocity [{u}]</th><th>nominal [{u}]</th><th>selected effects [{u}]</th><th>after / before</th></tr>",
+            u = all.position
         );
         for (i, hz) in kstep.horizons_s.iter().enumerate() {
             let get = |v: &Vec<f64>| v.get(i).copied().unwrap_or(f64::NAN);
@@ -96,7 +103,7 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
             let _ = writeln!(h, "<tr><td>{hz}</td>{}{}{}{}</tr>", num(f), num(b), num(a), fixed(a / b, 3));
         }
         let _ = writeln!(h, "</table>");
-        let _ = writeln!(h, "<figure class=\"kstep\">{}</figure>", kstep_svg(kstep)?);
+        let _ = writeln!(h, "<figure class=\"kstep\">{}</figure>", kstep_svg(kstep, &all.position)?);
         Ok(())
     };
     if headline_kstep {
@@ -106,7 +113,7 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
     if !r.gap.headline_reason.is_empty() {
         let _ = writeln!(h, "<p class=\"meta\">{}</p>", esc(&r.gap.headline_reason));
     }
-    let _ = writeln!(h, "<table><tr><th></th><th>before [rad]</th><th>after [rad]</th><th>after / before</th></tr>");
+    let _ = writeln!(h, "<table><tr><th></th><th>before [{u}]</th><th>after [{u}]</th><th>after / before</th></tr>", u = all.position);
     let _ = writeln!(h, "<tr><td>all held-out runs</td>{}{}{}</tr>", num(r.gap.holdout_l2_before), num(r.gap.holdout_l2_after), fixed(r.gap.ratio, 3));
     for (j, name) in r.joints.iter().enumerate() {
         let (b, a) = (r.gap.per_joint_before.get(j).copied().unwrap_or(f64::NAN), r.gap.per_joint_after.get(j).copied().unwrap_or(f64::NAN));
@@ -155,20 +162,21 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
         let corrected = d.holdout_corrected.get(i).and_then(Option::as_ref);
         let _ = writeln!(h, "<h3>{}</h3>", esc(&measured.source));
         for j in 0..measured.dof() {
-            let svg = trajectory_svg(measured, nominal, corrected, j, !r.selected_effects.is_empty())?;
+            let svg = trajectory_svg(measured, nominal, corrected, j, !r.selected_effects.is_empty(), &joint_units(j).position)?;
             let _ = writeln!(h, "<figure class=\"trajectory\">{svg}</figure>");
         }
     }
 
     // where
     let _ = writeln!(h, "<h2 id=\"where\">Where: per joint (fit runs, nominal model)</h2>");
-    let _ = writeln!(h, "<table><tr><th>joint</th><th>sim L² [rad]</th><th>share</th><th>torque residual L² [N·m]</th></tr>");
+    let _ = writeln!(h, "<table><tr><th>joint</th><th>sim L²</th><th>share</th><th>torque residual L²</th></tr>");
     for j in &r.location.per_joint {
-        let _ = writeln!(h, "<tr><td>{}</td>{}{}{}</tr>", esc(&j.joint), num(j.sim_l2), pct(j.share), num(j.torque_residual_l2));
+        let u = units_of_name(&j.joint);
+        let _ = writeln!(h, "<tr><td>{}</td>{}{}{}</tr>", esc(&j.joint), num_in(j.sim_l2, &u.position), pct(j.share), num_in(j.torque_residual_l2, &u.effort));
     }
     let _ = writeln!(h, "</table>");
     if !r.location.worst_segments.is_empty() {
-        let _ = writeln!(h, "<h3>Worst time segments</h3><table><tr><th>log</th><th>t since the log's start [s]</th><th>joint</th><th>phase</th><th>RMS error [rad]</th></tr>");
+        let _ = writeln!(h, "<h3>Worst time segments</h3><table><tr><th>log</th><th>t since the log's start [s]</th><th>joint</th><th>phase</th><th>RMS error [{}]</th></tr>", all.position);
         for s in &r.location.worst_segments {
             let t0 = log_start(d, &s.log);
             let _ = writeln!(
@@ -215,8 +223,9 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
     let last_h = kstep.horizons_s.last().copied().unwrap_or(f64::NAN);
     let _ = writeln!(
         h,
-        "<table class=\"candidates\"><tr><th>rank</th><th>effect</th><th>joints</th><th>parameters</th><th>CV residual removed</th><th>held-out L² after [rad]</th><th>after / before</th>{}<th>selected</th><th>reason</th></tr>",
-        if kstep_col { format!("<th>{last_h} s prediction after / before</th>") } else { String::new() }
+        "<table class=\"candidates\"><tr><th>rank</th><th>effect</th><th>joints</th><th>parameters</th><th>CV residual removed</th><th>held-out L² after [{u}]</th><th>after / before</th>{}<th>selected</th><th>reason</th></tr>",
+        if kstep_col { format!("<th>{last_h} s prediction after / before</th>") } else { String::new() },
+        u = all.position
     );
     for c in &r.candidates {
         let kcell = if kstep_col {
@@ -405,6 +414,15 @@ fn num(x: f64) -> String {
     }
 }
 
+/// A number cell with its unit.
+fn num_in(x: f64, unit: &str) -> String {
+    if x.is_finite() {
+        format!("<td class=\"n\">{x:.4e} {}</td>", esc(unit))
+    } else {
+        num(x)
+    }
+}
+
 fn fixed(x: f64, digits: usize) -> String {
     if x.is_finite() {
         format!("<td class=\"n\">{x:.digits$}</td>")
@@ -483,7 +501,7 @@ fn log_label(v: f64) -> String {
 
 /// Position of joint `j` (top) and the absolute error of each simulation (bottom, log axis),
 /// against the time since the measured run's start; the legend sits outside the plot area.
-fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>, j: usize, has_correction: bool) -> std::result::Result<String, String> {
+fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>, j: usize, has_correction: bool, unit: &str) -> std::result::Result<String, String> {
     let t0 = measured.t.first().copied().unwrap_or(0.0);
     let series = |r: &Run| decimate(r.t.iter().zip(r.column(&r.q, j)).map(|(t, q)| (*t - t0, q)).collect());
     let m = series(measured);
@@ -516,7 +534,7 @@ fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>
         chart
             .configure_mesh()
             .x_desc("time since the log's start [s]")
-            .y_desc("q [rad]")
+            .y_desc(format!("q [{unit}]"))
             .x_label_formatter(&|v| format!("{v:.xd$}"))
             .y_label_formatter(&|v| format!("{v:.yd$}"))
             .draw()
@@ -532,7 +550,7 @@ fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>
         err.configure_mesh()
             .light_line_style(WHITE)
             .x_desc("time since the log's start [s]")
-            .y_desc("|q_meas − q_sim| [rad]")
+            .y_desc(format!("|q_meas − q_sim| [{unit}]"))
             .x_label_formatter(&|v| format!("{v:.xd$}"))
             .y_label_formatter(&|v| log_label(*v))
             .y_labels(5)
@@ -567,6 +585,8 @@ fn trajectory_svg(measured: &Run, nominal: Option<&Run>, corrected: Option<&Run>
 }
 
 fn residual_svg(d: &Diagnosis, j: usize) -> std::result::Result<String, String> {
+    let kinds = kinds_of(&d.report.joint_types);
+    let u = kinds.get(j).map_or_else(|| Units::of(&kinds), |k| Units::joint(*k));
     let mut pts = Vec::new();
     for f in &d.fit_data {
         let n = f.dof;
@@ -589,8 +609,8 @@ fn residual_svg(d: &Diagnosis, j: usize) -> std::result::Result<String, String> 
             .map_err(draw_err)?;
         chart
             .configure_mesh()
-            .x_desc("q̇ [rad/s]")
-            .y_desc("residual [N·m]")
+            .x_desc(format!("q̇ [{}]", u.velocity))
+            .y_desc(format!("residual [{}]", u.effort))
             .x_label_formatter(&|v| format!("{v:.xd$}"))
             .y_label_formatter(&|v| format!("{v:.yd$}"))
             .draw()
@@ -602,7 +622,7 @@ fn residual_svg(d: &Diagnosis, j: usize) -> std::result::Result<String, String> 
 
 /// The k-step prediction error against the horizon (log axis): constant-velocity floor,
 /// nominal, with the selected effects.
-fn kstep_svg(k: &crate::report::KStep) -> std::result::Result<String, String> {
+fn kstep_svg(k: &crate::report::KStep, unit: &str) -> std::result::Result<String, String> {
     let lines: Vec<(&str, &Vec<f64>, RGBColor)> =
         vec![("constant velocity (floor)", &k.floor, RGBColor(120, 120, 120)), ("nominal model", &k.before, RED), ("with selected effects", &k.after, BLUE)];
     let pts = |v: &Vec<f64>| -> Vec<(f64, f64)> { k.horizons_s.iter().zip(v).filter(|(h, e)| h.is_finite() && e.is_finite() && **e > 0.0).map(|(h, e)| (*h, *e)).collect() };
@@ -623,7 +643,7 @@ fn kstep_svg(k: &crate::report::KStep) -> std::result::Result<String, String> {
             .configure_mesh()
             .light_line_style(WHITE)
             .x_desc("horizon h [s]")
-            .y_desc("RMS position error [rad]")
+            .y_desc(format!("RMS position error [{unit}]"))
             .x_label_formatter(&|v| format!("{v:.2}"))
             .y_label_formatter(&|v| log_label(*v))
             .draw()

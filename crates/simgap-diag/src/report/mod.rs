@@ -4,6 +4,7 @@
 pub mod html;
 pub(crate) mod pitfalls;
 pub(crate) mod residual;
+pub(crate) mod units;
 pub(crate) mod verdict;
 
 use crate::locate::Where;
@@ -156,6 +157,9 @@ pub struct Report {
     pub formulation: String,
     /// Joint names, model order.
     pub joints: Vec<String>,
+    /// Joint types, model order (`revolute`, `continuous`, `prismatic`): the units of each
+    /// joint's figures follow them (rad, rad/s, N·m on a turning joint; m, m/s, N on a linear one).
+    pub joint_types: Vec<String>,
     /// Fit logs.
     pub fit_logs: Vec<String>,
     /// Held-out logs.
@@ -201,11 +205,16 @@ impl Report {
         let _ = writeln!(s, "simgap diagnosis of '{}' ({} C), joints {:?}", self.model, self.formulation, self.joints);
         let _ = writeln!(s, "fit logs: {}   held-out logs: {}", self.fit_logs.len(), self.holdout_logs.len());
         let _ = writeln!(s, "\nWHERE");
+        let kinds = units::kinds_of(&self.joint_types);
+        let joint_units = |name: &str| self.joints.iter().position(|j| j == name).and_then(|i| kinds.get(i)).map_or_else(|| units::Units::of(&kinds), |k| units::Units::joint(*k));
+        let all = units::Units::of(&kinds);
         for j in &self.location.per_joint {
-            let _ = writeln!(s, "  {:<14} sim L2 {:>10.3e} rad  share {:>5.1} %  torque residual L2 {:>9.3e} N·m", j.joint, j.sim_l2, 100.0 * j.share, j.torque_residual_l2);
+            let u = joint_units(&j.joint);
+            let _ = writeln!(s, "  {:<14} sim L2 {:>10.3e} {}  share {:>5.1} %  torque residual L2 {:>9.3e} {}", j.joint, j.sim_l2, u.position, 100.0 * j.share, j.torque_residual_l2, u.effort);
         }
         for seg in self.location.worst_segments.iter().take(3) {
-            let _ = writeln!(s, "  worst: {} t = {:.3}–{:.3} s, {} ({}), RMS {:.3e} rad", seg.log, seg.start, seg.end, seg.joint, seg.phase, seg.rms_error);
+            let u = joint_units(&seg.joint);
+            let _ = writeln!(s, "  worst: {} t = {:.3}–{:.3} s, {} ({}), RMS {:.3e} {}", seg.log, seg.start, seg.end, seg.joint, seg.phase, seg.rms_error, u.position);
         }
         let _ = writeln!(s, "\nWHICH (candidates fitted alone, ranked by cross-validated prediction of the fit runs)");
         let last = self.gap.fit_kstep_cv_before.len().saturating_sub(1);
@@ -254,7 +263,7 @@ impl Report {
         let k = &self.gap.kstep;
         let headline = |name: &str| if self.gap.headline == name { "  [headline]" } else { "" };
         if !k.horizons_s.is_empty() {
-            let _ = writeln!(s, "\nHOW FAR (held-out runs, k-step prediction: RMS position error after h seconds){}", headline("k_step"));
+            let _ = writeln!(s, "\nHOW FAR (held-out runs, k-step prediction: RMS position error [{}] after h seconds){}", all.position, headline("k_step"));
             let _ = writeln!(s, "  {:>8} {:>14} {:>14} {:>14} {:>8}", "h [s]", "const. vel.", "nominal", "selected", "ratio");
             for (i, h) in k.horizons_s.iter().enumerate() {
                 let get = |v: &Vec<f64>| v.get(i).copied().unwrap_or(f64::NAN);
@@ -262,7 +271,7 @@ impl Report {
             }
         }
         let _ = writeln!(s, "\nHOW FAR (held-out runs, closed loop, eq. 127){}", headline("closed_loop"));
-        let _ = writeln!(s, "  L2 before {:.4e} rad   after {:.4e} rad   after/before {:.3}", self.gap.holdout_l2_before, self.gap.holdout_l2_after, self.gap.ratio);
+        let _ = writeln!(s, "  L2 before {:.4e} {u}   after {:.4e} {u}   after/before {:.3}", self.gap.holdout_l2_before, self.gap.holdout_l2_after, self.gap.ratio, u = all.position);
         for (b, a) in self.gap.runs_before.iter().zip(&self.gap.runs_after) {
             if b.status != "completed" || a.status != "completed" {
                 let _ = writeln!(s, "  run {}: nominal {}, selected {}", b.log, b.status, a.status);

@@ -38,11 +38,13 @@ pub(crate) const NEGLIGIBLE_SHARE: f64 = 0.02;
 pub struct ResidualTest {
     /// Joint name.
     pub joint: String,
-    /// RMS residual torque on the fit samples [N·m].
+    /// RMS residual torque on the fit samples [`unit`].
     pub rms: f64,
+    /// The unit of `rms` and `phase_rms`: N·m on a turning joint, N on a linear one.
+    pub unit: String,
     /// `rms` over the RMS commanded torque of the joint (-).
     pub share_of_torque: f64,
-    /// RMS residual per phase of motion [N·m]: `forward`, `backward`, `near_rest` (`null` for a
+    /// RMS residual per phase of motion [`unit`]: `forward`, `backward`, `near_rest` (`null` for a
     /// phase with no samples).
     pub phase_rms: std::collections::BTreeMap<String, f64>,
     /// Explained share of the residual per signal (`position`, `velocity`, `acceleration`,
@@ -60,7 +62,7 @@ impl ResidualTest {
 
     /// One sentence for the report's notes.
     pub fn sentence(&self) -> String {
-        let head = format!("{}: {:.3e} N·m RMS of torque residual left ({:.1} % of its commanded torque)", self.joint, self.rms, 100.0 * self.share_of_torque);
+        let head = format!("{}: {:.3e} {} RMS of torque residual left ({:.1} % of its commanded torque)", self.joint, self.rms, self.unit, 100.0 * self.share_of_torque);
         match self.kind.as_str() {
             "negligible" => format!("{head}: negligible"),
             "structured" => {
@@ -89,7 +91,7 @@ impl ResidualTest {
         let Some((name, top)) = ph.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1)) else { return String::new() };
         let others = ph.iter().filter(|(k, _)| *k != name).map(|(_, v)| *v).fold(0.0f64, f64::max);
         if ph.len() > 1 && top > 1.5 * others {
-            format!("; it is largest {} ({top:.3e} N·m RMS)", name.replace('_', " ").replace("forward", "moving forward").replace("backward", "moving backward"))
+            format!("; it is largest {} ({top:.3e} {} RMS)", name.replace('_', " ").replace("forward", "moving forward").replace("backward", "moving backward"), self.unit)
         } else {
             String::new()
         }
@@ -149,7 +151,7 @@ fn explained_share(r: &[f64], signal: &[f64], half: &[bool]) -> f64 {
 }
 
 /// Tests the residual `r` (as [`crate::select::residual_after`] gives it) joint by joint.
-pub(crate) fn test(p: &Problem, data: &[FitData], r: &Column, joints: &[String]) -> Vec<ResidualTest> {
+pub(crate) fn test(p: &Problem, data: &[FitData], r: &Column, joints: &[String], kinds: &[simgap_core::JointKind]) -> Vec<ResidualTest> {
     let dof = p.dof;
     // signals in the order of the stacked samples
     let stack = |f: &dyn Fn(&FitData) -> &[f64], j: usize| -> Vec<f64> { data.iter().flat_map(|d| f(d).iter().skip(j).step_by(dof).copied()).collect() };
@@ -183,7 +185,10 @@ pub(crate) fn test(p: &Problem, data: &[FitData], r: &Column, joints: &[String])
             } else {
                 "noise-like"
             };
-            ResidualTest { joint: joints.get(j).cloned().unwrap_or_else(|| format!("joint {j}")), rms: total, share_of_torque, phase_rms, explained_by, kind: kind.into() }
+            ResidualTest {
+                joint: joints.get(j).cloned().unwrap_or_else(|| format!("joint {j}")),
+                rms: total,
+                unit: simgap_sim::Quantity::Effort.unit(kinds.get(j).copied().unwrap_or(simgap_core::JointKind::Revolute)).to_string(), share_of_torque, phase_rms, explained_by, kind: kind.into() }
         })
         .collect()
 }

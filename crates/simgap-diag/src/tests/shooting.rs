@@ -114,6 +114,9 @@ fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let started = std::time::Instant::now();
     let d = diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &options, &mut |_| {}).unwrap();
     println!("{}\n(C.0 diagnosis {:.1} s)", d.report.summary(), started.elapsed().as_secs_f64());
+    for s in d.report.selection_log.iter().filter(|s| s.reason.starts_with("not a finding") || s.reason.contains("simpler")) {
+        println!("plausibility: {} on {:?}: {}", s.effect, s.joint, s.reason);
+    }
     let k = &d.report.gap.kstep;
     for (i, h) in k.horizons_s.iter().enumerate() {
         assert!(k.after[i] < k.before[i], "held-out run 02 at {h} s: corrected {} against the published URDF {}", k.after[i], k.before[i]);

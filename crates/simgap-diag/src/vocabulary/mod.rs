@@ -288,7 +288,8 @@ fn describe(model: &Model, e: &EffectReport) -> String {
 pub(crate) struct Nested {
     /// The simpler terms that replace the richer one.
     pub terms: Vec<Term>,
-    /// The richer term's columns the simpler lacks (their coefficients are 0 in the simpler).
+    /// The richer term's columns the simpler lacks (their coefficients are 0 in the simpler);
+    /// the others are the simpler terms' columns, in order.
     pub extra: Vec<usize>,
     /// Why these runs cannot resolve the richer shape at all, whatever its fit (a Stribeck
     /// velocity below what they resolve), if so.
