@@ -217,3 +217,57 @@ fn a_recording_without_holdout_is_split_in_time_and_says_so() {
     // the demo's dominant effect is found on the first 60 % alone
     assert!(r["selected_effects"].as_array().unwrap().iter().any(|e| e["effect"] == "coulomb_friction"), "{}", r["selected_effects"]);
 }
+
+/// A linear axis: one prismatic joint along x, a 5 kg carriage.
+const SLIDER: &str = r#"<robot name="slider">
+  <link name="base"/>
+  <link name="carriage">
+    <inertial><origin xyz="0 0 0"/><mass value="5"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+  </link>
+  <joint name="axis" type="prismatic">
+    <parent link="base"/><child link="carriage"/><axis xyz="1 0 0"/>
+    <limit lower="-0.5" upper="0.5" effort="500" velocity="2"/>
+  </joint>
+</robot>
+"#;
+
+#[test]
+fn a_prismatic_axis_is_diagnosed_and_reported_in_newtons_and_metres() {
+    let dir = scratch("prismatic");
+    let urdf = dir.join("slider.urdf");
+    std::fs::write(&urdf, SLIDER).unwrap();
+    // a ball-screw-like axis with viscous and dry friction, tracked by a PD loop at 1 kHz
+    let runs = [("fit1", "amplitude=0.1;frequency=0.7", "0"), ("fit2", "amplitude=0.15;frequency=0.3", "0.05"), ("hold", "amplitude=0.12;frequency=1.1", "0")];
+    for (name, fourier, target) in runs {
+        let out = dir.join(format!("{name}.mcap"));
+        let o = simgap(&[
+            "simulate", "--urdf", s(&urdf), "--kp", "2000", "--kv", "100", "--fourier", fourier, "--target", target, "--duration", "6", "--sample-period", "0.001",
+            "--effect", "viscous_friction:b=30", "--effect", "coulomb_friction:fc=8", "--out", s(&out),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(text(&o).contains("L2 tracking error [m]"), "{}", text(&o));
+    }
+    let json = dir.join("r.json");
+    let html = dir.join("r.html");
+    let o = simgap(&["diagnose", "--urdf", s(&urdf), "--log", s(&dir.join("fit1.mcap")), "--log", s(&dir.join("fit2.mcap")), "--holdout", s(&dir.join("hold.mcap")), "--json", s(&json), "--html", s(&html)]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["joint_types"], serde_json::json!(["prismatic"]));
+    // the hidden effects found, in the axis's units
+    let b = param(&report, "viscous_friction", "b", "axis");
+    let fc = param(&report, "coulomb_friction", "fc", "axis");
+    assert!((b - 30.0).abs() < 3.0 && (fc - 8.0).abs() < 0.8, "b = {b} N·s/m, fc = {fc} N");
+    assert_eq!(selected(&report, "viscous_friction")["units"]["b"], "N·s/m");
+    assert_eq!(selected(&report, "coulomb_friction")["units"]["fc"], "N");
+    // no rotational unit anywhere a user reads: terminal, verdict, notes, HTML
+    let page = std::fs::read_to_string(&html).unwrap();
+    for (what, text) in [("terminal", out.as_str()), ("HTML", page.as_str()), ("verdict", report["verdict"].as_str().unwrap())] {
+        for unit in ["N·m", " rad", "rad/s", "[rad]", "kg·m²"] {
+            assert!(!text.contains(unit), "the {what} of a linear axis says {unit:?}");
+        }
+    }
+    for note in report["notes"].as_array().unwrap() {
+        assert!(!note.as_str().unwrap().contains("N·m"), "note of a linear axis in N·m: {note}");
+    }
+}
