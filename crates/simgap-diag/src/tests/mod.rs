@@ -3,6 +3,7 @@
 mod common;
 mod delay_line;
 mod intervals;
+mod link_side;
 mod physical;
 mod pitfalls;
 mod shooting;
