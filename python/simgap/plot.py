@@ -59,6 +59,15 @@ def _run_index(report: Report, run: int) -> int:
     return run
 
 
+def _units(report: Report, j: int) -> tuple[str, str, str]:
+    """Position, velocity and effort units of joint ``j`` by its type (m, m/s, N on a
+    prismatic joint; rad, rad/s, N·m otherwise)."""
+    types = report["joint_types"] if "joint_types" in report else []
+    if j < len(types) and types[j] == "prismatic":
+        return "m", "m/s", "N"
+    return "rad", "rad/s", "N·m"
+
+
 def _error(sim: Run | None, measured: Run, j: int) -> tuple[np.ndarray, np.ndarray] | None:
     if sim is None:
         return None
@@ -81,7 +90,7 @@ def error_panel(report: Report, run: int = 0, joint: int | str = 0, ax: Axes | N
         if e is not None:
             ax.semilogy(*e, color=style["color"], linewidth=1.0, label=style["label"])
     ax.set_xlabel("time since the log's start [s]")
-    ax.set_ylabel("|q_meas − q_sim| [rad]")
+    ax.set_ylabel(f"|q_meas − q_sim| [{_units(report, j)[0]}]")
     ax.grid(True, which="major", alpha=0.3)
     return ax.figure
 
@@ -104,7 +113,7 @@ def trajectories(report: Report, run: int = 0, joints: list[int | str] | None = 
         for sim, style in ((nominal, NOMINAL), (corrected, CORRECTED)):
             if sim is not None:
                 top.plot(sim.t - sim.t[0], sim.q[:, j], **style)
-        top.set_ylabel(f"{report.joints[j]}: q [rad]")
+        top.set_ylabel(f"{report.joints[j]}: q [{_units(report, j)[0]}]")
         top.grid(True, alpha=0.3)
         error_panel(report, i, j, ax=bottom)
     axes[0, 0].set_title(f"held-out run {report['holdout_logs'][i]}")
@@ -122,8 +131,9 @@ def residual_vs_velocity(report: Report, joint: int | str = 0, ax: Axes | None =
         _, ax = plt.subplots(figsize=(8, 3.5), layout="constrained")
     for f in report.fit_residuals:
         ax.scatter(f["qd"][:, j], f["residual"][:, j], s=2, alpha=0.4, label=f["log"])
-    ax.set_xlabel(f"{report.joints[j]}: q̇ [rad/s]")
-    ax.set_ylabel("torque residual [N·m]")
+    _, velocity, effort = _units(report, j)
+    ax.set_xlabel(f"{report.joints[j]}: q̇ [{velocity}]")
+    ax.set_ylabel(f"torque residual [{effort}]")
     ax.grid(True, alpha=0.3)
     return ax.figure
 
