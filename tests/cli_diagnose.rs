@@ -271,3 +271,13 @@ fn a_prismatic_axis_is_diagnosed_and_reported_in_newtons_and_metres() {
         assert!(!note.as_str().unwrap().contains("N·m"), "note of a linear axis in N·m: {note}");
     }
 }
+
+#[test]
+fn the_demo_page_links_the_exported_model_beside_it() {
+    let (dir, _, _) = demo();
+    let page = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    for file in ["corrected.urdf", "corrected.urdf.effects.json", "corrected.xml", "corrected.xml.effects.json"] {
+        assert!(page.contains(&format!("<a href=\"{file}\">")), "the page does not link {file}");
+        assert!(dir.join(file).is_file(), "{file} linked but not written");
+    }
+}

@@ -166,24 +166,39 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         write_atomically(path, |tmp| std::fs::write(tmp, diagnosis.report.to_json() + "\n").map_err(Into::into))?;
         println!("wrote {}", path.display());
     }
-    if let Some(path) = job.html {
-        write_atomically(path, |tmp| simgap::diag::html::write_html_for(&diagnosis, Some(job.model), tmp).map_err(Into::into))?;
-        println!("wrote {}", path.display());
-    }
     if let Some(path) = job.mcap {
         write_atomically(path, |tmp| write_corrected_mcap(&diagnosis, tmp))?;
         println!("wrote {} (topics /holdout/<run>/{{joint_states,joint_reference,nominal/joint_states,measured/joint_states}})", path.display());
     }
     let runs: Vec<Run> = fit.into_iter().chain(holdout).collect();
-    write_exports(job, &diagnosis, &runs)?;
+    let exported = write_exports(job, &diagnosis, &runs)?;
+    // the page links the exported files: by name beside it, else by their absolute path
+    if let Some(path) = job.html {
+        let here = path.parent().map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf()));
+        let links: Vec<simgap::diag::html::LinkedFile> = exported
+            .iter()
+            .map(|(what, file)| {
+                let dir = file.parent().map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf()));
+                let href = match (file.file_name(), dir == here) {
+                    (Some(name), true) => name.to_string_lossy().to_string(),
+                    _ => file.canonicalize().unwrap_or_else(|_| file.clone()).display().to_string(),
+                };
+                simgap::diag::html::LinkedFile { what: what.clone(), href }
+            })
+            .collect();
+        write_atomically(path, |tmp| simgap::diag::html::write_html_linking(&diagnosis, Some(job.model), tmp, &links).map_err(Into::into))?;
+        println!("wrote {}", path.display());
+    }
     Ok(diagnosis)
 }
 
-/// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`.
-fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::Result<()> {
+/// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`;
+/// returns the files written, each with what it is.
+fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::Result<Vec<(String, PathBuf)>> {
     use simgap::diag::export::{export_mjcf, export_urdf, passive_joints, sample_period_of, sidecar_path, ExportedFile, MjcfOptions};
     let effects = &diagnosis.report.selected_effects;
-    let write = |path: &Path, file: &ExportedFile| -> anyhow::Result<()> {
+    let mut written: Vec<(String, PathBuf)> = Vec::new();
+    let mut write = |path: &Path, file: &ExportedFile, what: &str| -> anyhow::Result<()> {
         write_atomically(path, |tmp| std::fs::write(tmp, &file.text).map_err(Into::into))?;
         let side = sidecar_path(path);
         write_atomically(&side, |tmp| std::fs::write(tmp, file.sidecar.to_json() + "\n").map_err(Into::into))?;
@@ -193,21 +208,23 @@ fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::
             k => format!("{k} selected effects it does not hold"),
         };
         println!("wrote {} and {} ({left})", path.display(), side.display());
+        written.push((what.to_string(), path.to_path_buf()));
+        written.push((format!("sidecar of the {what}, in the report's selected_effects form: {left}"), side));
         Ok(())
     };
     if let Some(path) = job.export_urdf {
         let urdf = job.urdf.context("--export-urdf needs the URDF the model was loaded from")?;
         let text = std::fs::read_to_string(urdf).with_context(|| format!("{}: cannot read the URDF to export", urdf.display()))?;
         let file = export_urdf(&text, &urdf.display().to_string(), job.model, effects).with_context(|| format!("cannot export the corrected URDF to {}", path.display()))?;
-        write(path, &file)?;
+        write(path, &file, "corrected URDF (Pinocchio, Gazebo, Isaac)")?;
     }
     if let Some(path) = job.export_mjcf {
         let timestep = sample_period_of(runs).context("--export-mjcf: the logs have no sample period (no experiment sample_period and fewer than two stamps)")?;
         let options = MjcfOptions { passive: passive_joints(job.model, runs), ..MjcfOptions::new(timestep) };
         let file = export_mjcf(job.model, effects, &options).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
-        write(path, &file)?;
+        write(path, &file, "corrected MJCF (MuJoCo)")?;
     }
-    Ok(())
+    Ok(written)
 }
 
 /// Writes `path` through `X.tmp` and a rename, so it is either the old file or the whole new one.

@@ -37,7 +37,25 @@ pub fn write_html(diagnosis: &Diagnosis, path: &Path) -> Result<()> {
 /// # Errors
 /// [`Error::Write`] when a plot cannot be drawn or the file cannot be written.
 pub fn write_html_for(diagnosis: &Diagnosis, model: Option<&Model>, path: &Path) -> Result<()> {
-    let html = render_html_for(diagnosis, model).map_err(|message| Error::Write { path: path.display().to_string(), message })?;
+    write_html_linking(diagnosis, model, path, &[])
+}
+
+/// A file written beside the report (an exported model, its sidecar), linked from the page.
+#[derive(Clone, Debug)]
+pub struct LinkedFile {
+    /// What it is, e.g. "corrected URDF (Pinocchio, Gazebo, Isaac)".
+    pub what: String,
+    /// Its address from the page: a relative path, or an absolute one.
+    pub href: String,
+}
+
+/// Writes the HTML report of `diagnosis` of `model` to `path`, linking `files` (the corrected
+/// model exported beside it).
+///
+/// # Errors
+/// [`Error::Write`] when a plot cannot be drawn or the file cannot be written.
+pub fn write_html_linking(diagnosis: &Diagnosis, model: Option<&Model>, path: &Path, files: &[LinkedFile]) -> Result<()> {
+    let html = render_html_linking(diagnosis, model, files).map_err(|message| Error::Write { path: path.display().to_string(), message })?;
     std::fs::write(path, html).map_err(|e| Error::Write { path: path.display().to_string(), message: e.to_string() })
 }
 
@@ -54,6 +72,14 @@ pub fn render_html(d: &Diagnosis) -> std::result::Result<String, String> {
 /// # Errors
 /// A message when a plot cannot be drawn.
 pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Result<String, String> {
+    render_html_linking(d, model, &[])
+}
+
+/// The HTML report of `diagnosis` of `model` as a string, linking `files`.
+///
+/// # Errors
+/// A message when a plot cannot be drawn.
+pub fn render_html_linking(d: &Diagnosis, model: Option<&Model>, files: &[LinkedFile]) -> std::result::Result<String, String> {
     let r = &d.report;
     let mut h = String::new();
     let _ = write!(h, "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>simgap diagnosis: {}</title>\n<style>{}</style></head><body>\n", esc(&r.model), CSS);
@@ -152,6 +178,14 @@ pub fn render_html_for(d: &Diagnosis, model: Option<&Model>) -> std::result::Res
             let _ = writeln!(h, "<tr><td><code>{}</code></td><td>{}</td></tr>", esc(&alt.effects.join(" + ")), esc(&alt.why));
         }
         let _ = writeln!(h, "</table>");
+    }
+
+    if !files.is_empty() {
+        let _ = writeln!(h, "<h3 id=\"exported\">The corrected model, exported</h3><ul class=\"exported\">");
+        for f in files {
+            let _ = writeln!(h, "<li><a href=\"{}\">{}</a>: {}</li>", esc(&f.href), esc(&f.href), esc(&f.what));
+        }
+        let _ = writeln!(h, "</ul>");
     }
 
     // held-out trajectories with their error panels
