@@ -200,7 +200,11 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 kept.2.extend(cols.iter().map(|&i| sd.get(i).copied().unwrap_or(f64::NAN)));
                 kept.3.extend(cols.iter().map(|&i| own.get(i).copied().unwrap_or(f64::NAN)));
             };
-            let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, sd, data, &joints) } else { plausible::Judgment::Finding };
+            // a shooting answer is judged by shooting's own spread: its reported one adds the
+            // disagreement of halves and methods, which bounds the error of the values but
+            // would drop terms the shooting fit needs (and it is not refitted without them)
+            let judged_sd: &[f64] = if refined.is_some() && own.len() == k { &own } else { sd };
+            let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, judged_sd, data, &joints) } else { plausible::Judgment::Finding };
             match judgment {
                 plausible::Judgment::Finding => keep(t.clone(), d.clone(), &(0..k).collect::<Vec<_>>(), &mut next),
                 plausible::Judgment::NoFinding(why) => {
