@@ -60,7 +60,7 @@ json.dump(e, open(sys.argv[2], "w"), indent=2)
 EOF
 done
 
-printf '%-8s %-40s %10s  %s\n' case binary wall_s selected
+printf '%-8s %-40s %10s  %s\n' case binary wall_s 'selected (effect@joints)'
 for c in $cases; do
   for b in "${bins[@]}"; do
     tag="$(basename "$b")"
@@ -68,7 +68,7 @@ for c in $cases; do
     "${pin[@]}" "$b" diagnose --urdf arm7.urdf --tip panda_hand --log "$c/fit0.csv" --log "$c/fit1.csv" \
       --holdout "$c/held.csv" --json "$c/report.$tag.json" > "$c/diagnose.$tag.txt" 2>&1
     end=$(date +%s.%N)
-    sel=$(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); print(','.join(sorted(str(e.get('name', e.get('kind', '?'))) for e in r.get('selected', r.get('effects', [])))))" "$c/report.$tag.json" 2>/dev/null || echo '?')
+    sel=$(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); print(' '.join(e['effect'] + '@' + str(len(e['joints'])) for e in r['selected_effects']))" "$c/report.$tag.json" 2>/dev/null || echo '?')
     printf '%-8s %-40s %10.2f  %s\n' "$c" "$tag" "$(echo "$end - $start" | bc -l)" "$sel"
   done
 done
