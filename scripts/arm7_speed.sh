@@ -11,7 +11,8 @@
 # Usage: scripts/arm7_speed.sh [BIN ...]
 #   BIN: simgap binaries to compare side by side (default target/release/simgap); e.g. a copy
 #   of the binary before a change and the current one. Set CASES="replay" to run one case,
-#   CORES="0" to pin to one core (taskset), OUT=DIR for the logs and reports.
+#   CORES="0" to pin to one core (taskset), OUT=DIR for the logs and reports, FIT_S and HELD_S
+#   for the durations of the fit and held-out runs (default 20 and 10 s).
 set -euo pipefail
 
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -45,9 +46,9 @@ run() { # name duration amplitude base-frequency
     --out "pd/$1.csv" > "pd/$1.sim.txt"
 }
 mkdir -p pd replay
-run fit0 20 0.4 0.15
-run fit1 20 0.35 0.19
-run held 10 0.3 0.3
+run fit0 "${FIT_S:-20}" 0.4 0.15
+run fit1 "${FIT_S:-20}" 0.35 0.19
+run held "${HELD_S:-10}" 0.3 0.3
 # the replay case: the same logs, the logged effort applied open loop
 for f in fit0 fit1 held; do
   cp "pd/$f.csv" "replay/$f.csv"
@@ -60,6 +61,7 @@ json.dump(e, open(sys.argv[2], "w"), indent=2)
 EOF
 done
 
+uptime
 printf '%-8s %-40s %10s  %s\n' case binary wall_s 'selected (effect@joints)'
 for c in $cases; do
   for b in "${bins[@]}"; do
