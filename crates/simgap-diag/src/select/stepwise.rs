@@ -15,6 +15,10 @@ fn grid_penalty(t: &Term) -> f64 {
     }
 }
 
+/// A swap of the exchange moves: the selected term's index, the term taking its place, the fit
+/// and the designs after the swap.
+type Swap = (usize, Term, Fit, Vec<TermDesign>);
+
 /// One pass of exchange moves; true when a swap was made.
 #[allow(clippy::too_many_arguments)]
 fn exchange_by_residual(
@@ -31,7 +35,7 @@ fn exchange_by_residual(
     // every selected term's exchanges evaluated in parallel, each term's acceptable swaps in
     // candidate order; the best is then taken in that order (the first of equal residuals)
     let (terms_now, designs_now, current_now) = (&*terms, &*designs, &*current);
-    let swaps: Vec<Vec<(usize, Term, Fit, Vec<TermDesign>)>> = (0..terms_now.len())
+    let swaps: Vec<Vec<Swap>> = (0..terms_now.len())
         .into_par_iter()
         .map(|i| {
             let mut rest_terms = terms_now.to_vec();
@@ -81,7 +85,7 @@ fn exchange_by_residual(
             ok_swaps
         })
         .collect();
-    let mut best: Option<(usize, Term, Fit, Vec<TermDesign>)> = None;
+    let mut best: Option<Swap> = None;
     for swap in swaps.into_iter().flatten() {
         if best.as_ref().is_none_or(|b| swap.2.cv_mse < b.2.cv_mse) {
             best = Some(swap);
