@@ -4,9 +4,9 @@
 
 mod common;
 
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3};
 use simgap_core::{
-    coriolis_matrix, dynamics_terms, forward_dynamics_aba_into, forward_dynamics_crba_into, forward_dynamics_into, gravity_torques, mass_matrix, Formulation, JointKind, Model,
+    bias_torques, coriolis_matrix, dynamics_terms, forward_dynamics_aba_into, forward_dynamics_armature_into, forward_dynamics_crba_into, forward_dynamics_into, gravity_torques, mass_matrix, Formulation, JointKind, Model,
     Workspace,
 };
 
@@ -47,6 +47,35 @@ fn articulated_body_algorithm_equals_crba_cholesky_forward_dynamics() {
                 assert_close(&format!("{} ({n} dof) {f} auto", model.name()), &auto, &crba, 1e-10 * (n as f64).max(1.0));
             }
         }
+    }
+}
+
+#[test]
+fn rotor_inertia_in_the_pivots_equals_solving_with_h_plus_diag_armature() {
+    let mut models: Vec<Model> = fixtures().iter().map(|(_, m)| (**m).clone()).collect();
+    models.extend([1usize, 2, 3, 7, 16].iter().map(|&n| Model::random_chain(n, 11 * n as u64)));
+    for model in &models {
+        let n = model.dof();
+        let mut ws = Workspace::new(model);
+        let mut got = vec![0.0; n];
+        for seed in 0..10 {
+            let [q, qd, tau] = state(n, seed);
+            let ia: Vec<f64> = (0..n).map(|j| 0.05 * (1 + (j + seed as usize) % 4) as f64).collect();
+            for f in Formulation::ALL {
+                // (H + diag(ia)) q̈ = τ − (C q̇ + g), solved densely
+                let h = mass_matrix(model, &mut ws, &q) + DMatrix::from_diagonal(&DVector::from_column_slice(&ia));
+                let rhs = DVector::from_column_slice(&tau) - bias_torques(model, &mut ws, &q, &qd, f);
+                let want = h.cholesky().expect("positive definite").solve(&rhs);
+                assert!(forward_dynamics_armature_into(model, &mut ws, &q, &qd, &tau, &ia, f, &mut got));
+                assert_close(&format!("{} ({n} dof) {f} armature", model.name()), &got, want.as_slice(), 1e-10 * (n as f64).max(1.0));
+            }
+        }
+        // a rotor inertia that makes H + diag(ia) indefinite is reported, not solved
+        let [q, qd, tau] = state(n, 99);
+        let h = mass_matrix(model, &mut ws, &q);
+        let mut ia = vec![0.0; n];
+        ia[n - 1] = -2.0 * h[(n - 1, n - 1)];
+        assert!(!forward_dynamics_armature_into(model, &mut ws, &q, &qd, &tau, &ia, Formulation::EulerLagrange, &mut got), "{}", model.name());
     }
 }
 

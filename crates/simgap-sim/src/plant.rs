@@ -1,7 +1,6 @@
 //! The plant: the nominal model plus unmodelled [`Effect`]s, as the simulator integrates it.
 
-use nalgebra::DMatrix;
-use simgap_core::{bias_torques_into, forward_dynamics_into, mass_matrix, mass_matrix_into, Formulation, Model, Workspace};
+use simgap_core::{forward_dynamics_armature_into, forward_dynamics_into, mass_matrix, Formulation, Model, Workspace};
 
 use crate::effects::{apply_inertial_effects, armature, friction_torque, total_delay, Effect};
 use crate::error::Result;
@@ -21,7 +20,6 @@ pub struct Plant {
     formulation: Formulation,
     effects: Vec<Effect>,
     armature: Vec<f64>,
-    has_armature: bool,
     /// H is positive definite at q = 0 and no armature is added: the one-pass
     /// `forward_dynamics_into` can be used (it panics on a singular H).
     fast_path: bool,
@@ -34,7 +32,6 @@ pub struct Plant {
 pub struct PlantWorkspace {
     /// The dynamics workspace.
     pub ws: Workspace,
-    h: DMatrix<f64>,
     friction: Vec<f64>,
 }
 
@@ -60,7 +57,6 @@ impl Plant {
             fast_path: h_ok && ia.iter().all(|x| *x == 0.0),
             formulation: if coriolis_flip { formulation.other() } else { formulation },
             effects: effects.to_vec(),
-            has_armature: ia.iter().any(|x| *x != 0.0),
             armature: ia,
             delay: total_delay(effects),
             effort_limits: model.joints().iter().map(|j| j.limits.effort).collect(),
@@ -101,7 +97,7 @@ impl Plant {
     /// Scratch space for [`Plant::acceleration`].
     pub fn workspace(&self) -> PlantWorkspace {
         let n = self.dof();
-        PlantWorkspace { ws: Workspace::new(&self.model), h: DMatrix::zeros(n, n), friction: vec![0.0; n] }
+        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n] }
     }
 
     /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation);
@@ -128,20 +124,13 @@ impl Plant {
             forward_dynamics_into(&self.model, &mut pws.ws, q, qd, &pws.friction, self.formulation, out);
             return;
         }
-        // right-hand side: τ + friction − (C q̇ + g)
-        bias_torques_into(&self.model, &mut pws.ws, q, qd, self.formulation, out);
+        // τ + friction, then q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics
+        // pass for the bias torques and H
         friction_torque(&self.effects, q, qd, coulomb_width, &mut pws.friction);
         for i in 0..n {
-            out[i] = tau_applied[i] + pws.friction[i] - out[i];
+            pws.friction[i] += tau_applied[i];
         }
-        // mass matrix plus armature, then Cholesky solve
-        mass_matrix_into(&self.model, &mut pws.ws, q, &mut pws.h);
-        if self.has_armature {
-            for i in 0..n {
-                pws.h[(i, i)] += self.armature[i];
-            }
-        }
-        if !simgap_core::try_solve_spd_in_place(&mut pws.h, out) {
+        if !forward_dynamics_armature_into(&self.model, &mut pws.ws, q, qd, &pws.friction, &self.armature, self.formulation, out) {
             out.fill(f64::NAN);
         }
     }

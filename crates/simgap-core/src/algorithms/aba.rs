@@ -21,6 +21,17 @@ use crate::workspace::Workspace;
 /// # Panics
 /// If a length or `ws` does not match the model, or if H is not positive definite.
 pub fn forward_dynamics_aba_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
+    // a pivot D_i <= 0 is a mass matrix that is not positive definite
+    assert!(articulated_body(model, ws, q, qd, tau, &[], formulation, out), "matrix is not positive definite");
+}
+
+/// [`forward_dynamics_aba_into`] with rotor inertia `armature` (`ia`, length `model.dof()` or
+/// empty for none) on the diagonal of H: `q̈ = (H + diag(ia))⁻¹ (τ − C q̇ − g)`, each joint's
+/// pivot `D_i = S_iᵀ IA_i S_i + ia_i` (Featherstone 2008, §7.3, with the motor inertia of
+/// §9.6). Returns false, with `out` unspecified, when a pivot is not positive and finite
+/// (`H + diag(ia)` is not positive definite).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn articulated_body(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], armature: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
     let n = model.dof();
     check_len(model, "q", q);
     check_len(model, "qd", qd);
@@ -46,10 +57,9 @@ pub fn forward_dynamics_aba_into(model: &Model, ws: &mut Workspace, q: &[f64], q
             lanes.tau[i] = Lanes([tau[i]]);
         }
     }
-    soa::aba(model, lanes);
-    // a pivot D_i <= 0 is a mass matrix that is not positive definite
-    assert!(lanes.dinv[..n].iter().all(|d| d.0[0] > 0.0 && d.0[0].is_finite()), "matrix is not positive definite");
+    soa::aba(model, lanes, armature);
     for i in 0..n {
         out[i] = lanes.tau[i].0[0];
     }
+    lanes.dinv[..n].iter().all(|d| d.0[0] > 0.0 && d.0[0].is_finite())
 }

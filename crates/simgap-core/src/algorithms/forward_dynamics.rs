@@ -74,6 +74,47 @@ pub fn forward_dynamics_crba_into(model: &Model, ws: &mut Workspace, q: &[f64], 
     ws.scratch_matrix = h;
 }
 
+/// Joint accelerations with rotor inertia: `q̈ = (H + diag(ia))⁻¹ (τ − C q̇ − g)`. Returns
+/// false, with `out` unspecified, when `H + diag(ia)` is not positive definite (a negative
+/// rotor inertia).
+///
+/// From [`ABA_MIN_DOF`] joints on, the articulated-body algorithm with the rotor inertia in
+/// each joint's pivot (`D_i = S_iᵀ IA_i S_i + ia_i`, Featherstone 2008, §7.3), O(n); below,
+/// bias torques, the mass matrix plus `diag(ia)` (sharing one kinematics pass) and a Cholesky
+/// solve. Equivalent to [`bias_torques_into`](crate::bias_torques_into), then
+/// [`mass_matrix_into`](crate::mass_matrix_into) plus `diag(ia)` and
+/// [`try_solve_spd_in_place`], to rounding.
+///
+/// `q`, `qd`, `tau`, `armature`: positions, velocities, joint torques [N·m or N] and rotor
+/// inertias `ia` [kg·m² or kg], length `model.dof()`; `out`: q̈, length `model.dof()`.
+///
+/// # Panics
+/// If a length or `ws` does not match the model.
+#[allow(clippy::too_many_arguments)]
+pub fn forward_dynamics_armature_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], armature: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
+    check_len(model, "tau", tau);
+    check_len(model, "armature", armature);
+    let n = model.dof();
+    if n >= ABA_MIN_DOF {
+        return crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, armature, formulation, out);
+    }
+    // bias torques; kinematics and world inertias stay in the workspace for H
+    bias_torques_into(model, ws, q, qd, formulation, out);
+    for i in 0..n {
+        out[i] = tau[i] - out[i];
+    }
+    // mass matrix plus rotor inertia, then Cholesky solve
+    composite_inertias(model, ws);
+    let mut h = std::mem::take(&mut ws.scratch_matrix);
+    fill_mass_matrix(model, ws, &mut h);
+    for i in 0..n {
+        h[(i, i)] += armature[i];
+    }
+    let ok = try_solve_spd_in_place(&mut h, out);
+    ws.scratch_matrix = h;
+    ok
+}
+
 /// Solves `A x = b` for symmetric positive definite `A` by Cholesky, overwriting `A` with its
 /// factor and `b` with `x`.
 ///

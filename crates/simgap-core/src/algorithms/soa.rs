@@ -347,7 +347,7 @@ fn frc_array<const W: usize>(f: Frc<W>) -> [Lanes<W>; 6] {
 /// for the true (Euler–Lagrange) bias. Needs [`kinematics`] at [`InertiaLevel::Full`] and
 /// [`velocities`].
 #[inline(always)]
-pub(crate) fn aba<const W: usize>(model: &Model, ws: &mut SoaWs<W>) {
+pub(crate) fn aba<const W: usize>(model: &Model, ws: &mut SoaWs<W>, armature: &[f64]) {
     let n = ws.n;
     // forward pass: articulated inertias start as the link inertias, bias forces v ×* I v
     for i in 0..n {
@@ -361,7 +361,11 @@ pub(crate) fn aba<const W: usize>(model: &Model, ws: &mut SoaWs<W>) {
     for i in (0..n).rev() {
         let s = ws.s[i];
         let u_vec = ws.art[i].mul(s);
-        let d = s.dot(u_vec);
+        let mut d = s.dot(u_vec);
+        // rotor inertia on the joint: D = Sᵀ IA S + ia (H + diag(ia))
+        if let Some(&a) = armature.get(i) {
+            d += Lanes::splat(a);
+        }
         let dinv = recip(d);
         let u = ws.tau[i] - s.dot(ws.f[i]);
         ws.u[i] = u_vec;

@@ -2,6 +2,8 @@
 //! an exchange of one selected term for another that fits the residual better, and the polish
 //! of searched parameters (Stribeck velocity, saturation limit, delay, payload centre of mass).
 
+use rayon::prelude::*;
+
 use super::*;
 
 /// Extra relative gain demanded of a term found by a large grid search (selection bias: the
@@ -12,6 +14,10 @@ fn grid_penalty(t: &Term) -> f64 {
         _ => 1.0,
     }
 }
+
+/// A swap of the exchange moves: the selected term's index, the term taking its place, the fit
+/// and the designs after the swap.
+type Swap = (usize, Term, Fit, Vec<TermDesign>);
 
 /// One pass of exchange moves; true when a swap was made.
 #[allow(clippy::too_many_arguments)]
@@ -26,50 +32,63 @@ fn exchange_by_residual(
     log: &mut Vec<Step>,
 ) -> bool {
     let p = &ctx.problem;
-    let mut best: Option<(usize, Term, Fit, Vec<TermDesign>)> = None;
-    for i in 0..terms.len() {
-        let mut rest_terms = terms.clone();
-        rest_terms.remove(i);
-        let mut rest = designs.clone();
-        rest.remove(i);
-        let refs: Vec<&TermDesign> = rest.iter().collect();
-        let f0 = fit(p, &grams(p, &refs));
-        let resid = residual_after(p, &rest, &f0.theta);
-        // (a family whose slot is taken is not searched: its best member could not join)
-        let mut cands: Vec<Term> = fams
-            .iter()
-            .filter(|f| !slot_taken(&rest_terms, &f.member()))
-            .map(|f| ctx.best_of_with(f, &resid, &rest))
-            .filter(|t| !slot_taken(&rest_terms, t) && *t != terms[i])
-            .collect();
-        if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == Slot::Inertia) && !matches!(terms[i], Term::InertialError { .. }) {
-            let t = ctx.inertial_term();
-            if !slot_taken(&rest_terms, &t) {
-                cands.push(t);
+    // every selected term's exchanges evaluated in parallel, each term's acceptable swaps in
+    // candidate order; the best is then taken in that order (the first of equal residuals)
+    let (terms_now, designs_now, current_now) = (&*terms, &*designs, &*current);
+    let swaps: Vec<Vec<Swap>> = (0..terms_now.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut rest_terms = terms_now.to_vec();
+            rest_terms.remove(i);
+            let mut rest = designs_now.to_vec();
+            rest.remove(i);
+            let refs: Vec<&TermDesign> = rest.iter().collect();
+            let f0 = fit(p, &grams(p, &refs));
+            let resid = residual_after(p, &rest, &f0.theta);
+            // (a family whose slot is taken is not searched: its best member could not join)
+            let mut cands: Vec<Term> = fams
+                .iter()
+                .filter(|f| !slot_taken(&rest_terms, &f.member()))
+                .map(|f| ctx.best_of_with(f, &resid, &rest))
+                .filter(|t| !slot_taken(&rest_terms, t) && *t != terms_now[i])
+                .collect();
+            if ctx.inertial_basis.ncols() > 0 && !rest_terms.iter().any(|t| t.slot().0 == Slot::Inertia) && !matches!(terms_now[i], Term::InertialError { .. }) {
+                let t = ctx.inertial_term();
+                if !slot_taken(&rest_terms, &t) {
+                    cands.push(t);
+                }
             }
-        }
-        for c in cands {
-            let mut ds = rest.clone();
-            ds.push(ctx.design(&c));
-            let refs: Vec<&TermDesign> = ds.iter().collect();
-            let f = fit(p, &grams(p, &refs));
-            let mut all = rest_terms.clone();
-            all.push(c.clone());
-            if !admissible(&ds, &all, &f.theta) {
-                continue;
+            let mut ok_swaps = Vec::new();
+            for c in cands {
+                let mut ds = rest.clone();
+                ds.push(ctx.design(&c));
+                let refs: Vec<&TermDesign> = ds.iter().collect();
+                let f = fit(p, &grams(p, &refs));
+                let mut all = rest_terms.clone();
+                all.push(c.clone());
+                if !admissible(&ds, &all, &f.theta) {
+                    continue;
+                }
+                // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
+                let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
+                let ok = if simpler && c.joint() == terms_now[i].joint() {
+                    // a simpler term on the same joint that keeps that joint's residual within 1 %
+                    cv_of(&f, &c) <= cv_of(current_now, &c) * 1.01 && f.cv_mse <= current_now.cv_mse * 1.01
+                } else {
+                    // a swap to a term as complex or more must gain visibly, also against the nominal
+                    f.cv_mse < current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current_now.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
+                };
+                if ok {
+                    ok_swaps.push((i, c, f, ds));
+                }
             }
-            // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
-            let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms[i], &designs[i]);
-            let ok = if simpler && c.joint() == terms[i].joint() {
-                // a simpler term on the same joint that keeps that joint's residual within 1 %
-                cv_of(&f, &c) <= cv_of(current, &c) * 1.01 && f.cv_mse <= current.cv_mse * 1.01
-            } else {
-                // a swap to a term as complex or more must gain visibly, also against the nominal
-                f.cv_mse < current.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
-            };
-            if ok && best.as_ref().is_none_or(|b| f.cv_mse < b.2.cv_mse) {
-                best = Some((i, c, f, ds));
-            }
+            ok_swaps
+        })
+        .collect();
+    let mut best: Option<Swap> = None;
+    for swap in swaps.into_iter().flatten() {
+        if best.as_ref().is_none_or(|b| swap.2.cv_mse < b.2.cv_mse) {
+            best = Some(swap);
         }
     }
     match best {
@@ -114,19 +133,20 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == Slot::Inertia) {
             cands.push(ctx.inertial_term());
         }
-        let mut evaluated: Vec<(Term, Fit, Vec<TermDesign>)> = Vec::new();
-        for c in cands {
-            let mut ds = designs.clone();
-            ds.push(ctx.design(&c));
-            let refs: Vec<&TermDesign> = ds.iter().collect();
-            let f = fit(p, &grams(p, &refs));
-            let mut all = terms.clone();
-            all.push(c.clone());
-            if !admissible(&ds, &all, &f.theta) {
-                continue;
-            }
-            evaluated.push((c, f, ds));
-        }
+        // every candidate fitted jointly with the set, in parallel (in candidate order)
+        let (terms_now, designs_now) = (&terms, &designs);
+        let evaluated: Vec<(Term, Fit, Vec<TermDesign>)> = cands
+            .into_par_iter()
+            .filter_map(|c| {
+                let mut ds = designs_now.clone();
+                ds.push(ctx.design(&c));
+                let refs: Vec<&TermDesign> = ds.iter().collect();
+                let f = fit(p, &grams(p, &refs));
+                let mut all = terms_now.clone();
+                all.push(c.clone());
+                admissible(&ds, &all, &f.theta).then_some((c, f, ds))
+            })
+            .collect();
         // the best candidate by the whole-robot gain, then parsimony: the fewest parameters
         // among candidates whose gain is within a tolerance of the best
         let rel = |e: &(Term, Fit, Vec<TermDesign>)| current.cv_mse - e.1.cv_mse;

@@ -90,3 +90,37 @@ fn kstep_replays_a_simulated_delayed_run_to_float_noise() {
         }
     }
 }
+
+/// The paper arm under PD control with an actuation delay of `delay` seconds, logged as a
+/// robot logs: encoder of 1,024,000 counts per revolution, velocity by backward difference.
+fn logged_delayed_pd_run(model: &Model, delay: f64, duration: f64) -> Run {
+    let exp = Experiment { controller: ControllerKind::Pd, joints: joints(model), kp: KP.to_vec(), kv: KV.to_vec(), sample_period: PERIOD, extra: BTreeMap::new() };
+    let reference = Fourier {
+        offset: Q_DESIRED.to_vec(),
+        amplitudes: vec![vec![0.5, 0.15], vec![0.35, 0.2]],
+        frequencies: vec![vec![0.6, 1.7], vec![0.9, 2.1]],
+        phases: vec![vec![0.3, 1.1], vec![0.0, 2.4]],
+    };
+    let sensor = SensorParams { counts_per_rev: Some(1_024_000.0), ..SensorParams::default() };
+    let params = SimParams { duration, sample_period: PERIOD, sensor, ..SimParams::default() };
+    let mut run = simulate_experiment(model, Formulation::EulerLagrange, &[Effect::TimeDelay { delay }], &exp, &reference, &params, None).expect("simulates");
+    run.source = format!("pd, {} ms delay", 1e3 * delay);
+    run
+}
+
+#[test]
+fn closed_loop_resimulation_with_the_true_delay_is_closer_than_without_it() {
+    let model = Model::paper_arm();
+    let delay = 2.0 * PERIOD;
+    let run = logged_delayed_pd_run(&model, delay, 4.0);
+    // the whole run, and its last 40 % as a held-out split of a fit log (re-simulated from its
+    // first logged state, the delay line holding its first command)
+    let tail = run.slice(run.len() * 3 / 5..run.len());
+    for log in [&run, &tail] {
+        let (with, _) = crate::prediction::resim::gap(&model, Formulation::EulerLagrange, &[Effect::TimeDelay { delay }], log);
+        let (without, _) = crate::prediction::resim::gap(&model, Formulation::EulerLagrange, &[], log);
+        assert!(with.status == "completed" && without.status == "completed", "{} / {}", with.status, without.status);
+        assert!(without.l2 > 1e-4, "{} samples: the delay changes the closed loop by only {:e} rad", log.len(), without.l2);
+        assert!(with.l2 < 0.5 * without.l2, "{} samples: closed-loop L² {:e} rad with the true delay, {:e} rad without", log.len(), with.l2, without.l2);
+    }
+}
