@@ -18,9 +18,12 @@
 //! amplitude, 1 for a gain, `+∞` for a saturation limit. Several effects of one kind compose:
 //! frictions, armatures and offsets add, gains multiply, limits take the smallest, delays add.
 //!
-//! `sign(q̇)` in Coulomb and Stribeck friction is smoothed as `tanh(q̇ / w)` with `w` the
-//! `coulomb_width` of [`SimParams`](crate::simulate::SimParams) (default
-//! [`DEFAULT_COULOMB_WIDTH`]), so the right-hand side stays Lipschitz and RK4 converges.
+//! `sign(q̇)` in every dry-friction effect (Coulomb, Stribeck) is smoothed as `tanh(q̇ / w)`
+//! with `w` [rad/s or m/s] a per-joint parameter of the effect itself, so that the effect holds
+//! the model it is simulated with: `w > 0` keeps the right-hand side Lipschitz and RK4
+//! convergent; `w = 0` is the exact sign (stick–slip, discontinuous at q̇ = 0). A spelling that
+//! leaves `w` out takes [`DEFAULT_COULOMB_WIDTH`] ([`Effect::parse`]) or the caller's default
+//! ([`Effect::parse_with_width`]).
 
 use nalgebra::{Matrix3, Vector3};
 use simgap_core::{Model, SpatialInertia};
@@ -28,7 +31,8 @@ use simgap_core::{Model, SpatialInertia};
 use crate::error::{Error, Result};
 use crate::kind::EffectKind;
 
-/// Default smoothing width of `sign(q̇)` [rad/s]: `sign(q̇) ≈ tanh(q̇ / 0.01)`.
+/// Default smoothing width `w` of `sign(q̇)` [rad/s or m/s] for an effect spelled without one
+/// ([`Effect::parse`]): `sign(q̇) ≈ tanh(q̇ / 0.01)`.
 ///
 /// Below about 0.01 rad/s (0.6 °/s) Coulomb friction acts as a steep viscous law of slope
 /// `fc / w`. The width trades the sharpness of the sign against stiffness: the slope makes the
@@ -40,22 +44,26 @@ use crate::kind::EffectKind;
 pub const DEFAULT_COULOMB_WIDTH: f64 = 0.01;
 
 /// Upper bound of the derivative `−∂τ_friction,i/∂q̇_i` of every friction effect on each
-/// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump), into
-/// `out` (overwritten).
+/// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump, each with
+/// the effect's own width `w`), into `out` (overwritten) [N·m·s/rad or N·s/m].
+///
+/// A dry friction with `w = 0` (the exact sign) is a jump, not a slope: it adds nothing here,
+/// so that it never asks for infinitely many substeps (no step size makes RK4 converge on a
+/// discontinuity; the run then chatters near q̇ = 0 as a stick–slip simulation does).
 ///
 /// # Panics
 /// If an effect's vector is shorter than `out`.
-pub fn friction_slope_bound(effects: &[Effect], coulomb_width: f64, out: &mut [f64]) {
+pub fn friction_slope_bound(effects: &[Effect], out: &mut [f64]) {
     out.fill(0.0);
-    let w = if coulomb_width > 0.0 { coulomb_width } else { f64::INFINITY };
+    let over = |level: f64, w: f64| if w > 0.0 { level / w } else { 0.0 };
     for e in effects {
         for i in 0..out.len() {
             out[i] += match e {
                 Effect::ViscousFriction { b } => b[i].abs(),
-                Effect::CoulombFriction { fc } => fc[i].abs() / w,
-                Effect::StribeckFriction { fc, fs, vs } => {
+                Effect::CoulombFriction { fc, w } => over(fc[i].abs(), w[i]),
+                Effect::StribeckFriction { fc, fs, vs, w } => {
                     let hump = if vs[i] > 0.0 { 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
-                    fc[i].abs().max(fs[i].abs()) / w + hump
+                    over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
                 }
                 _ => 0.0,
             };
@@ -85,13 +93,15 @@ pub enum Effect {
         /// Viscous coefficients.
         b: Vec<f64>,
     },
-    /// `τ += −fc sign(q̇)`; `fc` [N·m].
+    /// `τ += −fc tanh(q̇ / w)`; `fc` [N·m or N], `w` [rad/s or m/s] (`w = 0`: the exact sign).
     CoulombFriction {
         /// Coulomb levels.
         fc: Vec<f64>,
+        /// Widths of the smoothed sign, `>= 0`.
+        w: Vec<f64>,
     },
-    /// `τ += −(fc + (fs − fc) e^{−(q̇/vs)²}) sign(q̇)`; `fc`, `fs` [N·m], `vs` [rad/s]
-    /// (`vs ≤ 0` drops the Stribeck term).
+    /// `τ += −(fc + (fs − fc) e^{−(q̇/vs)²}) tanh(q̇ / w)`; `fc`, `fs` [N·m or N], `vs`, `w`
+    /// [rad/s or m/s] (`vs ≤ 0` drops the Stribeck term; `w = 0`: the exact sign).
     StribeckFriction {
         /// Coulomb levels.
         fc: Vec<f64>,
@@ -99,6 +109,8 @@ pub enum Effect {
         fs: Vec<f64>,
         /// Stribeck velocities.
         vs: Vec<f64>,
+        /// Widths of the smoothed sign, `>= 0`.
+        w: Vec<f64>,
     },
     /// Rotor inertia `ia` [kg·m²] added to the diagonal of H.
     Armature {
@@ -180,7 +192,7 @@ impl Effect {
         let nonzero = |v: &[f64]| v.iter().enumerate().filter(|(_, x)| **x != 0.0).map(|(i, _)| i).collect::<Vec<_>>();
         match self {
             Effect::ViscousFriction { b } => nonzero(b),
-            Effect::CoulombFriction { fc } => nonzero(fc),
+            Effect::CoulombFriction { fc, .. } => nonzero(fc),
             Effect::StribeckFriction { fc, fs, .. } => (0..fc.len()).filter(|&i| fc[i] != 0.0 || fs.get(i).is_some_and(|x| *x != 0.0)).collect(),
             Effect::Armature { ia } => nonzero(ia),
             Effect::TorqueOffset { offset } => nonzero(offset),
@@ -218,11 +230,15 @@ impl Effect {
         };
         match self {
             Effect::ViscousFriction { b } => check("b", b, true, false),
-            Effect::CoulombFriction { fc } => check("fc", fc, true, false),
-            Effect::StribeckFriction { fc, fs, vs } => {
+            Effect::CoulombFriction { fc, w } => {
+                check("fc", fc, true, false)?;
+                check("w", w, true, false)
+            }
+            Effect::StribeckFriction { fc, fs, vs, w } => {
                 check("fc", fc, true, false)?;
                 check("fs", fs, true, false)?;
-                check("vs", vs, true, false)
+                check("vs", vs, true, false)?;
+                check("w", w, true, false)
             }
             Effect::Armature { ia } => check("ia", ia, false, false),
             Effect::Payload { mass, com } => {
@@ -264,11 +280,23 @@ impl Effect {
     /// `payload:mass=0.5;com=0,0,-0.1`, `time_delay:delay=0.005`, `coriolis_structure`,
     /// `inertial_error:joint=1;mass=0.2;com=0,0,0.01;inertia=0,0,0,0,0,0`.
     /// Per-joint parameters take one value per joint (`dof` values), or a single value used for
-    /// every joint.
+    /// every joint. A dry friction's width `w` [rad/s or m/s] may be given
+    /// (`coulomb_friction:fc=7.17,1.734;w=0.01,0.02`); left out, it is
+    /// [`DEFAULT_COULOMB_WIDTH`] on every joint.
     ///
     /// # Errors
     /// [`Error::Invalid`] for an unknown name, a missing or unknown parameter, or a bad number.
     pub fn parse(spec: &str, dof: usize) -> Result<Effect> {
+        Effect::parse_with_width(spec, dof, DEFAULT_COULOMB_WIDTH)
+    }
+
+    /// [`Effect::parse`], with `default_w` [rad/s or m/s] the width `w` of a dry friction whose
+    /// spelling leaves it out (e.g. the Python `simulate(..., coulomb_width=...)`).
+    ///
+    /// # Errors
+    /// As [`Effect::parse`]; also [`Error::Invalid`] for a `default_w` that is needed and is not
+    /// a finite number `>= 0`.
+    pub fn parse_with_width(spec: &str, dof: usize, default_w: f64) -> Result<Effect> {
         let (name, rest) = match spec.split_once(':') {
             Some((n, r)) => (n.trim(), r.trim()),
             None => (spec.trim(), ""),
@@ -293,8 +321,7 @@ impl Effect {
         // `mass`, `com`, `inertia`: the spellings of one link's change
         let known: Vec<&str> = match kind {
             EffectKind::InertialError => vec!["joint", "mass", "com", "inertia"],
-            // the smoothing width is the simulation's (`SimParams::coulomb_width`), not an effect's
-            k => k.parameters().iter().filter(|p| p.quantity != crate::kind::Quantity::Width).map(|p| p.name).collect(),
+            k => k.parameters().iter().map(|p| p.name).collect(),
         };
         if let Some((k, _)) = params.iter().find(|(k, _)| !known.contains(&k.as_str())) {
             return Err(invalid(name, format!("unknown parameter '{k}'; expected {}", if known.is_empty() { "none".into() } else { known.join(", ") })));
@@ -307,6 +334,16 @@ impl Effect {
                 n if n == dof => Ok(v),
                 n => Err(invalid(name, format!("parameter '{k}' has {n} values; expected {dof} (one per joint) or 1"))),
             }
+        };
+        // the dry friction's width: given, or the caller's default on every joint
+        let width = |k: &str| -> Result<Vec<f64>> {
+            if params.iter().any(|(p, _)| p == k) {
+                return per_joint(k);
+            }
+            if !(default_w.is_finite() && default_w >= 0.0) {
+                return Err(invalid(name, format!("default width w = {default_w}; expected a finite number >= 0 [rad/s or m/s] (0: the exact sign)")));
+            }
+            Ok(vec![default_w; dof])
         };
         let scalar = |k: &str| -> Result<f64> {
             let v = get(k)?;
@@ -321,8 +358,8 @@ impl Effect {
         };
         let effect = match kind {
             EffectKind::ViscousFriction => Effect::ViscousFriction { b: per_joint("b")? },
-            EffectKind::CoulombFriction => Effect::CoulombFriction { fc: per_joint("fc")? },
-            EffectKind::StribeckFriction => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")? },
+            EffectKind::CoulombFriction => Effect::CoulombFriction { fc: per_joint("fc")?, w: width("w")? },
+            EffectKind::StribeckFriction => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")?, w: width("w")? },
             EffectKind::Armature => Effect::Armature { ia: per_joint("ia")? },
             EffectKind::Payload => Effect::Payload { mass: scalar("mass")?, com: triple("com")? },
             EffectKind::InertialError => {
@@ -382,15 +419,16 @@ pub fn smooth_sign(qd: f64, width: f64) -> f64 {
     }
 }
 
-/// Sum of the friction and cogging torques the effects ADD to the model at `(q, q̇)`:
+/// Sum of the friction and cogging torques the effects ADD to the model at `(q, q̇)` [N·m or N]:
 /// `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q)` with `s = tanh(q̇ / w)`,
-/// `w = coulomb_width` [rad/s]. Negative for dissipation. Overwrites `out`; never allocates.
+/// `w` each dry friction's own width [rad/s or m/s] (the exact sign where `w = 0`). Negative
+/// for dissipation. Overwrites `out`; never allocates.
 ///
 /// `q`, `qd`, `out`: length `dof` (model order).
 ///
 /// # Panics
 /// If the lengths differ or an effect's vector is shorter than `out`.
-pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], coulomb_width: f64, out: &mut [f64]) {
+pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64]) {
     assert!(q.len() == out.len() && qd.len() == out.len(), "friction_torque: q, qd and out must have the same length");
     out.fill(0.0);
     for e in effects {
@@ -400,20 +438,20 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], coulomb_width:
                     out[i] -= b[i] * qd[i];
                 }
             }
-            Effect::CoulombFriction { fc } => {
+            Effect::CoulombFriction { fc, w } => {
                 for i in 0..out.len() {
                     if fc[i] != 0.0 {
-                        out[i] -= fc[i] * smooth_sign(qd[i], coulomb_width);
+                        out[i] -= fc[i] * smooth_sign(qd[i], w[i]);
                     }
                 }
             }
-            Effect::StribeckFriction { fc, fs, vs } => {
+            Effect::StribeckFriction { fc, fs, vs, w } => {
                 for i in 0..out.len() {
                     if fc[i] == 0.0 && fs[i] == 0.0 {
                         continue;
                     }
                     let stribeck = if vs[i] > 0.0 { (fs[i] - fc[i]) * (-(qd[i] / vs[i]).powi(2)).exp() } else { 0.0 };
-                    out[i] -= (fc[i] + stribeck) * smooth_sign(qd[i], coulomb_width);
+                    out[i] -= (fc[i] + stribeck) * smooth_sign(qd[i], w[i]);
                 }
             }
             Effect::Cogging { amplitude, periods_per_rev } => {

@@ -5,7 +5,7 @@
 //! With the effect present, the robot obeys `(H + diag(ia)) q̈ + C q̇ + g = τ_applied + τ_eff`, so
 //!
 //! ```text
-//! viscous        r_j ∋  b_j q̇_j                        coulomb  r_j ∋ fc_j tanh(q̇_j / w)
+//! viscous        r_j ∋  b_j q̇_j                        coulomb  r_j ∋ fc_j tanh(q̇_j / w_j)
 //! stribeck       r_j ∋  (fc + (fs − fc) e^{−(q̇/vs)²}) tanh(q̇/w)
 //! armature       r_j ∋  ia_j q̈_j                       gain     r_j ∋ (1 − k_j) τ_j
 //! offset         r_j ∋ −offset_j                        cogging  r_j ∋ A_j sin(N_j q_j)
@@ -47,14 +47,23 @@ use nalgebra::DVector;
 pub(crate) enum Term {
     /// Viscous friction on a joint.
     Viscous(usize),
-    /// Coulomb friction on a joint.
-    Coulomb(usize),
-    /// Stribeck friction on a joint with Stribeck velocity `vs`.
+    /// Coulomb friction on a joint, its sign smoothed as tanh(q̇ / w).
+    Coulomb {
+        /// Joint index.
+        joint: usize,
+        /// Width of the smoothed sign [rad/s or m/s], searched within what the data allow
+        /// ([`FitData::dry_width`]).
+        w: f64,
+    },
+    /// Stribeck friction on a joint with Stribeck velocity `vs`, its sign smoothed as
+    /// tanh(q̇ / w).
     Stribeck {
         /// Joint index.
         joint: usize,
-        /// Stribeck velocity [rad/s].
+        /// Stribeck velocity [rad/s or m/s].
         vs: f64,
+        /// Width of the smoothed sign [rad/s or m/s] ([`FitData::dry_width`]).
+        w: f64,
     },
     /// Rotor inertia on a joint.
     Armature(usize),
@@ -105,7 +114,7 @@ impl Term {
     pub(crate) fn kind(&self) -> EffectKind {
         match self {
             Term::Viscous(_) => EffectKind::ViscousFriction,
-            Term::Coulomb(_) => EffectKind::CoulombFriction,
+            Term::Coulomb { .. } => EffectKind::CoulombFriction,
             Term::Stribeck { .. } => EffectKind::StribeckFriction,
             Term::Armature(_) => EffectKind::Armature,
             Term::Gain(_) => EffectKind::TorqueGain,
@@ -127,8 +136,8 @@ impl Term {
     /// The joint of a per-joint term.
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
-            Term::Viscous(j) | Term::Coulomb(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) => Some(j),
-            Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
+            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) => Some(j),
+            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
             _ => None,
         }
     }
@@ -137,7 +146,7 @@ impl Term {
     /// Stribeck friction share one; a payload and an inertial error share one).
     pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
         let slot = match self {
-            Term::Coulomb(_) | Term::Stribeck { .. } => Slot::DryFriction,
+            Term::Coulomb { .. } | Term::Stribeck { .. } => Slot::DryFriction,
             Term::Payload { .. } | Term::InertialError { .. } => Slot::Inertia,
             other => Slot::Effect(other.kind()),
         };
@@ -164,9 +173,8 @@ impl Term {
         let joint = self.joint().unwrap_or(usize::MAX);
         let k = self.kind();
         match self {
-            Term::Stribeck { vs: x, .. } | Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } => {
-                TermKey(k, joint, x.to_bits(), [0; 3])
-            }
+            Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } | Term::Coulomb { w: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
+            Term::Stribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
             Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
             Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
             _ => TermKey(k, joint, 0, [0; 3]),
@@ -199,7 +207,7 @@ pub(crate) fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) 
 /// The design of a term over all runs: its columns and the bounds physics puts on them.
 pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     match term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::design(term, data),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::design(term, data),
         Term::Armature(j) => rotor::design(*j, data),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::design(term, data),
         Term::Cogging { joint, periods } => cogging::design(*joint, *periods, data),
@@ -218,7 +226,7 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
 /// physical.
 pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
     match term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::physical(term, theta),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::physical(term, theta),
         Term::Armature(_) => rotor::physical(theta),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
         Term::Payload { .. } => payload::physical(theta),
@@ -231,7 +239,8 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
 pub(crate) fn n_params(term: &Term, d: &TermDesign) -> usize {
     d.cols.len()
         + match term {
-            Term::Stribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
+            Term::Coulomb { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
+            Term::Stribeck { .. } => 2,
             Term::Payload { .. } => 3,
             _ => 0,
         }
@@ -241,7 +250,7 @@ pub(crate) fn n_params(term: &Term, d: &TermDesign) -> usize {
 fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
     let n = model.dof();
     match &f.term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::apply(f, n, out),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::apply(f, n, out),
         Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::apply(f, n, out),
         Term::Cogging { joint, periods } => cogging::apply(*joint, *periods, &f.theta, n, out),
@@ -257,7 +266,7 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
     let ci = |s: f64| 1.96 * s;
     let (th, sd) = (&f.theta, &f.std);
     match &f.term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::report(f, entry),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::report(f, entry),
         Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::report(f, entry),
         Term::Cogging { periods, .. } => cogging::report(*periods, th, sd, entry),

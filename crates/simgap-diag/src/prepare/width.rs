@@ -1,0 +1,138 @@
+//! The range of the width `w` of the smoothed sign of every dry friction,
+//! `sign(q̇) ≈ tanh(q̇ / w)`, per joint from the fit runs, in the joint's own units (rad/s, m/s).
+//!
+//! A width below the velocity noise is one the data cannot resolve (the noise flips the sign
+//! back and forth about q̇ = 0); a width of a good share of the speed blurs a dry friction into
+//! a steep viscous law. So the width is searched (a grid in the selection, like a Stribeck
+//! velocity) within
+//!
+//! ```text
+//! lo_j = max(NOISE_MULTIPLE · σ_j, MIN_SHARE · v_j),   hi_j = max(MAX_SHARE · v_j, lo_j)
+//! ```
+//!
+//! with `σ_j` the noise of the logged velocity of joint `j` (a robust standard deviation of its
+//! second difference, `1.4826 · median |Δ²q̇| / √6`: white noise of variance σ² gives Δ²q̇ of
+//! variance 6σ², while a smooth motion adds only `q⃛ Δt²`) and `v_j` the RMS of its smoothed
+//! velocity over the fit runs. A joint that never moves has no speed to scale by: its range is
+//! [`simgap_sim::DEFAULT_COULOMB_WIDTH`] alone (no dry friction can be seen there anyway).
+//!
+//! The width a term carries is the column of the fit, the width the corrected model simulates
+//! with and the parameter `w` the report states (searched, so without an interval).
+
+use crate::prepare::dataset::FitData;
+
+/// Multiple of the velocity noise below which the width is not searched [–].
+pub(crate) const NOISE_MULTIPLE: f64 = 3.0;
+
+/// Smallest width as a share of the joint's RMS speed [–].
+pub(crate) const MIN_SHARE: f64 = 0.002;
+
+/// Largest width as a share of the joint's RMS speed [–].
+pub(crate) const MAX_SHARE: f64 = 0.05;
+
+/// The widths of a joint's dry friction the data allow [rad/s or m/s] (see `prepare/width.rs`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DryWidth {
+    /// Smallest width: a few times the velocity noise, at least a small share of the speed.
+    pub lo: f64,
+    /// Largest width: 5 % of the joint's RMS speed (at least `lo`).
+    pub hi: f64,
+}
+
+impl DryWidth {
+    /// `count` widths spaced geometrically from `lo` to `hi` (one, `hi`, when they coincide or
+    /// `count` is 1).
+    pub fn grid(&self, count: usize) -> Vec<f64> {
+        if count < 2 || !(self.hi > self.lo) {
+            return vec![self.hi];
+        }
+        let ratio = (self.hi / self.lo).powf(1.0 / (count - 1) as f64);
+        (0..count).map(|i| self.lo * ratio.powi(i as i32)).collect()
+    }
+
+    /// The geometric middle of the range, for a term that is not searched.
+    pub fn mid(&self) -> f64 {
+        (self.lo * self.hi).sqrt()
+    }
+
+    /// `w` brought into the range.
+    pub fn clamp(&self, w: f64) -> f64 {
+        w.clamp(self.lo, self.hi)
+    }
+}
+
+/// The dry-friction width range of every joint (model order) from the fit runs (see the module
+/// docs).
+pub(crate) fn dry_friction_widths(data: &[FitData]) -> Vec<DryWidth> {
+    let Some(n) = data.first().map(|d| d.dof) else { return Vec::new() };
+    (0..n)
+        .map(|j| {
+            // velocity noise: robust spread of the second difference of the logged velocity
+            let mut second: Vec<f64> = Vec::new();
+            for d in data {
+                let qd: Vec<f64> = d.logged_velocity().into_iter().skip(j).step_by(d.dof).collect();
+                second.extend(qd.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).filter(|x| x.is_finite()));
+            }
+            let sigma = if second.is_empty() { 0.0 } else { 1.4826 * median(&mut second) / 6f64.sqrt() };
+            // speed: RMS of the smoothed velocity over every run
+            let (sum, count) = data.iter().flat_map(|d| d.qd.iter().skip(j).step_by(d.dof)).fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));
+            let speed = if count > 0 { (sum / count as f64).sqrt() } else { 0.0 };
+            if !(speed.is_finite() && speed > 0.0) {
+                return DryWidth { lo: simgap_sim::DEFAULT_COULOMB_WIDTH, hi: simgap_sim::DEFAULT_COULOMB_WIDTH };
+            }
+            let lo = (NOISE_MULTIPLE * sigma).max(MIN_SHARE * speed);
+            DryWidth { lo, hi: (MAX_SHARE * speed).max(lo) }
+        })
+        .collect()
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use simgap_core::{Formulation, Model};
+    use simgap_sim::Run;
+
+    /// The paper arm's joints moving as `q = sin t` at 400 Hz, their logged velocities with
+    /// white noise of `sigma` (a fixed pseudo-random sequence).
+    fn pendulum_run(sigma: f64) -> FitData {
+        let model = Model::paper_arm();
+        let mut run = Run::new(model.joint_names().iter().map(|s| s.to_string()).collect());
+        let mut state = 12345u64;
+        for k in 0..4000 {
+            let t = k as f64 * 0.0025;
+            // uniform noise of standard deviation sigma
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let u = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            run.t.push(t);
+            run.q.extend([t.sin(), t.sin()]);
+            run.qd.extend([t.cos() + sigma * u * 12f64.sqrt(), t.cos() - sigma * u * 12f64.sqrt()]);
+            run.tau.extend([0.0, 0.0]);
+        }
+        FitData::new(&model, Formulation::EulerLagrange, run, &Default::default()).unwrap()
+    }
+
+    #[test]
+    fn the_width_range_starts_above_the_velocity_noise_within_its_speed_bounds() {
+        // RMS speed of cos t over 10 s is about 0.71 rad/s: widths between 0.0014 and 0.035
+        let quiet = dry_friction_widths(&[pendulum_run(0.0)])[0];
+        let noisy = dry_friction_widths(&[pendulum_run(0.005)])[0];
+        let loud = dry_friction_widths(&[pendulum_run(1.0)])[0];
+        let d = pendulum_run(0.0);
+        let v: Vec<f64> = d.qd.iter().step_by(2).copied().collect();
+        let speed = (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        assert!((quiet.lo - MIN_SHARE * speed).abs() < 1e-12 && (quiet.hi - MAX_SHARE * speed).abs() < 1e-12, "quiet {quiet:?}, speed {speed}");
+        // a noise above the speed bound: the range is one width, the noise's
+        assert!(loud.lo > MAX_SHARE * speed && loud.hi == loud.lo, "loud {loud:?}");
+        // 3 σ of a 0.005 rad/s noise, within 20 %
+        assert!((noisy.lo - 0.015).abs() < 0.003 && (noisy.hi - MAX_SHARE * speed).abs() < 1e-12, "noisy {noisy:?}");
+        // the grid spans the range geometrically
+        let g = quiet.grid(5);
+        assert!((g[0] - quiet.lo).abs() < 1e-15 && (g[4] - quiet.hi).abs() < 1e-12 && (g[2] - quiet.mid()).abs() < 1e-12, "{g:?}");
+    }
+}
