@@ -5,4 +5,5 @@ mod delay_line;
 mod intervals;
 mod physical;
 mod pitfalls;
+mod rebuild;
 mod shooting;
