@@ -159,6 +159,13 @@ pub enum Effect {
     },
     /// The plant uses the other formulation of C than the model under test.
     CoriolisStructure,
+    /// `τ += −k (q − q0)`; `k` [N·m/rad or N/m] `>= 0`, `q0` [rad or m] the rest position.
+    JointSpring {
+        /// Stiffnesses.
+        k: Vec<f64>,
+        /// Rest positions.
+        q0: Vec<f64>,
+    },
 }
 
 impl Effect {
@@ -177,6 +184,7 @@ impl Effect {
             Effect::TimeDelay { .. } => EffectKind::TimeDelay,
             Effect::Cogging { .. } => EffectKind::Cogging,
             Effect::CoriolisStructure => EffectKind::CoriolisStructure,
+            Effect::JointSpring { .. } => EffectKind::JointSpring,
         }
     }
 
@@ -197,6 +205,7 @@ impl Effect {
             Effect::Armature { ia } => nonzero(ia),
             Effect::TorqueOffset { offset } => nonzero(offset),
             Effect::Cogging { amplitude, .. } => nonzero(amplitude),
+            Effect::JointSpring { k, .. } => nonzero(k),
             Effect::TorqueGain { k } => k.iter().enumerate().filter(|(_, x)| **x != 1.0).map(|(i, _)| i).collect(),
             Effect::TorqueSaturation { limit } => limit.iter().enumerate().filter(|(_, x)| x.is_finite()).map(|(i, _)| i).collect(),
             Effect::InertialError { deltas } => {
@@ -272,6 +281,10 @@ impl Effect {
                 check("periods_per_rev", periods_per_rev, false, false)
             }
             Effect::CoriolisStructure => Ok(()),
+            Effect::JointSpring { k, q0 } => {
+                check("k", k, true, false)?;
+                check("q0", q0, false, false)
+            }
         }
     }
 
@@ -380,6 +393,7 @@ impl Effect {
             EffectKind::TimeDelay => Effect::TimeDelay { delay: scalar("delay")? },
             EffectKind::Cogging => Effect::Cogging { amplitude: per_joint("amplitude")?, periods_per_rev: per_joint("periods_per_rev")? },
             EffectKind::CoriolisStructure => Effect::CoriolisStructure,
+            EffectKind::JointSpring => Effect::JointSpring { k: per_joint("k")?, q0: per_joint("q0")? },
         };
         effect.validate(dof)?;
         Ok(effect)
@@ -419,8 +433,9 @@ pub fn smooth_sign(qd: f64, width: f64) -> f64 {
     }
 }
 
-/// Sum of the friction and cogging torques the effects ADD to the model at `(q, q̇)` [N·m or N]:
-/// `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q)` with `s = tanh(q̇ / w)`,
+/// Sum of the friction, cogging and spring torques the effects ADD to the model at `(q, q̇)`
+/// [N·m or N]: `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q) − k (q − q0)`
+/// with `s = tanh(q̇ / w)`,
 /// `w` each dry friction's own width [rad/s or m/s] (the exact sign where `w = 0`). Negative
 /// for dissipation. Overwrites `out`; never allocates.
 ///
@@ -459,6 +474,11 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64
                     if amplitude[i] != 0.0 {
                         out[i] -= amplitude[i] * (periods_per_rev[i] * q[i]).sin();
                     }
+                }
+            }
+            Effect::JointSpring { k, q0 } => {
+                for i in 0..out.len() {
+                    out[i] -= k[i] * (q[i] - q0[i]);
                 }
             }
             _ => {}

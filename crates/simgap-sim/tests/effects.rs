@@ -57,7 +57,9 @@ fn every_effect_name_parses() {
         "time_delay:delay=0.005",
         "cogging:amplitude=0.3,0.1;periods_per_rev=8,8",
         "coriolis_structure",
+        "joint_spring:k=3,0.5;q0=0.1,-0.2",
     ];
+    assert_eq!(specs.len(), EffectKind::ALL.len(), "one spelling per effect");
     for (spec, kind) in specs.iter().zip(EffectKind::ALL) {
         let e = Effect::parse(spec, 2).unwrap_or_else(|err| panic!("{spec}: {err}"));
         assert_eq!(e.kind(), kind);
@@ -91,6 +93,17 @@ fn friction_torques_have_the_documented_values() {
     let mut slope = [0.0; 2];
     friction_slope_bound(&[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![w; 2] }], &mut slope);
     assert!((slope[1] - 173.4).abs() < 1e-9);
+}
+
+#[test]
+fn a_joint_spring_pulls_back_to_its_rest_position() {
+    let mut out = [0.0; 2];
+    friction_torque(&[Effect::JointSpring { k: vec![3.0, 0.0], q0: vec![0.1, 5.0] }], &[0.4, -1.0], &[0.7, 0.7], &mut out);
+    assert!((out[0] + 3.0 * 0.3).abs() < 1e-15 && out[1] == 0.0, "{out:?}");
+    assert_eq!(Effect::JointSpring { k: vec![3.0, 0.0], q0: vec![0.1, 5.0] }.joints_acted(), vec![0]);
+    assert!(Effect::parse("joint_spring:k=-1;q0=0", 2).is_err());
+    assert_eq!(EffectKind::JointSpring.unit("k", simgap_core::JointKind::Prismatic), Some("N/m"));
+    assert_eq!(EffectKind::JointSpring.unit("q0", simgap_core::JointKind::Revolute), Some("rad"));
 }
 
 #[test]

@@ -101,6 +101,7 @@ pub(crate) fn families(dof: usize) -> Vec<Family> {
         f.push(Family::Fixed(Term::Offset(j)));
         f.push(Family::Saturation(j));
         f.push(Family::Cogging(j));
+        f.push(Family::Fixed(Term::Spring(j)));
     }
     f.push(Family::Delay);
     f.push(Family::Fixed(Term::CoriolisStructure));
@@ -628,7 +629,7 @@ pub(crate) struct Selection {
 /// together they admit the trivial fit k = 0, π = 0).
 pub(crate) fn slot_taken(terms: &[Term], t: &Term) -> bool {
     let gain_vs_inertia = |a: &Term, b: &Term| matches!(a, Term::Gain(_)) && matches!(b, Term::InertialError { .. });
-    terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
+    terms.iter().any(|s| s.shares_slot(t) || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
 }
 
 /// Whether a fitted parameter of a term sits at a plausibility bound other than zero (a payload

@@ -7,3 +7,4 @@ mod physical;
 mod pitfalls;
 mod rebuild;
 mod shooting;
+mod spring;

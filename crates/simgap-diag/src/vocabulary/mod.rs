@@ -12,6 +12,7 @@
 //! saturation     r_j ∋  τ_j − clamp(τ_j, ±L_j)          (fixed coefficient, L searched)
 //! time_delay     r   ∋  τ(t) − τ(t − d)                 (fixed coefficient, d searched)
 //! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
+//! joint_spring   r_j ∋  k_j q_j − k_j q0_j              (k ≥ 0, k q0 free)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
@@ -25,6 +26,7 @@ mod friction;
 mod inertial;
 mod payload;
 mod rotor;
+mod spring;
 
 pub use effects::{EffectReport, Param};
 
@@ -78,6 +80,8 @@ pub(crate) enum Term {
         /// Limit [N·m].
         limit: f64,
     },
+    /// A spring on a joint, −k (q − q0).
+    Spring(usize),
     /// Cogging on a joint.
     Cogging {
         /// Joint index.
@@ -121,6 +125,7 @@ impl Term {
             Term::Offset(_) => EffectKind::TorqueOffset,
             Term::Saturation { .. } => EffectKind::TorqueSaturation,
             Term::Cogging { .. } => EffectKind::Cogging,
+            Term::Spring(_) => EffectKind::JointSpring,
             Term::Delay { .. } => EffectKind::TimeDelay,
             Term::CoriolisStructure => EffectKind::CoriolisStructure,
             Term::Payload { .. } => EffectKind::Payload,
@@ -136,14 +141,26 @@ impl Term {
     /// The joint of a per-joint term.
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
-            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) => Some(j),
+            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) => Some(j),
             Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
             _ => None,
         }
     }
 
+    /// Whether the term and `other` occupy a slot in common ([`Term::slot`], and the torque
+    /// offset's slot a spring also occupies on its joint: both hold a constant).
+    pub(crate) fn shares_slot(&self, other: &Term) -> bool {
+        let also = |t: &Term| match t {
+            Term::Spring(j) => Some((Slot::Effect(EffectKind::TorqueOffset), Some(*j))),
+            _ => None,
+        };
+        let (a, b) = (self.slot(), other.slot());
+        a == b || also(self) == Some(b) || also(other) == Some(a) || (also(self).is_some() && also(self) == also(other))
+    }
+
     /// The slot the term occupies: at most one term per slot is selected (Coulomb and
-    /// Stribeck friction share one; a payload and an inertial error share one).
+    /// Stribeck friction share one; a payload and an inertial error share one; see also
+    /// [`Term::shares_slot`]).
     pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
         let slot = match self {
             Term::Coulomb { .. } | Term::Stribeck { .. } => Slot::DryFriction,
@@ -211,6 +228,7 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
         Term::Armature(j) => rotor::design(*j, data),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::design(term, data),
         Term::Cogging { joint, periods } => cogging::design(*joint, *periods, data),
+        Term::Spring(j) => spring::design(*j, data),
         Term::Delay { delay } => delay::design(*delay, data),
         Term::CoriolisStructure => coriolis::design(data),
         Term::Payload { com, max_mass } => payload::design(*com, *max_mass, data),
@@ -230,6 +248,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
         Term::Armature(_) => rotor::physical(theta),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
         Term::Payload { .. } => payload::physical(theta),
+        Term::Spring(_) => spring::physical(theta),
         Term::InertialError { prior } => prior.is_physical(theta),
         Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure => true,
     }
@@ -254,6 +273,7 @@ fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
         Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::apply(f, n, out),
         Term::Cogging { joint, periods } => cogging::apply(*joint, *periods, &f.theta, n, out),
+        Term::Spring(j) => spring::apply(*j, &f.theta, n, out),
         Term::Delay { delay } => out.push(Effect::TimeDelay { delay: *delay }),
         Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
         Term::Payload { com, .. } => out.push(Effect::Payload { mass: f.theta[0], com: *com }),
@@ -270,6 +290,7 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
         Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::report(f, entry),
         Term::Cogging { periods, .. } => cogging::report(*periods, th, sd, entry),
+        Term::Spring(_) => spring::report(th, sd, entry),
         Term::Delay { delay } => entry.number("delay", *delay, f64::NAN),
         Term::CoriolisStructure => {}
         Term::Payload { com, .. } => payload::report(*com, th, sd, entry),
@@ -284,6 +305,7 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         Ok(EffectKind::Armature) => rotor::describe(e),
         Ok(EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation) => actuator::describe(e),
         Ok(EffectKind::Cogging) => cogging::describe(e),
+        Ok(EffectKind::JointSpring) => spring::describe(e),
         Ok(EffectKind::TimeDelay) => delay::describe(e),
         Ok(EffectKind::CoriolisStructure) => coriolis::describe(),
         Ok(EffectKind::Payload) => payload::describe(model, e),
@@ -297,6 +319,7 @@ fn describe(model: &Model, e: &EffectReport) -> String {
 pub(crate) fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
     match term {
         Term::Stribeck { .. } => friction::contract_stribeck(raw),
+        Term::Spring(_) => spring::contract(raw),
         _ => raw.to_vec(),
     }
 }
@@ -312,6 +335,9 @@ pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVect
         if matches!(t, Term::Stribeck { .. }) {
             // fs = fc + (fs − fc): the spread of a sum, its covariance ignored
             sd[1] = sd[0].hypot(sd[1]);
+        }
+        if matches!(t, Term::Spring(_)) {
+            spring::contract_std(&th, &mut sd);
         }
         out.push(FittedTerm { term: t.clone(), theta: th, std: sd });
         c += k;
