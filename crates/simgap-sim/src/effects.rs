@@ -44,7 +44,8 @@ use crate::kind::EffectKind;
 pub const DEFAULT_COULOMB_WIDTH: f64 = 0.01;
 
 /// Upper bound of the derivative `−∂τ_friction,i/∂q̇_i` of every friction effect on each
-/// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump, each with
+/// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump, directional
+/// `max(b_pos, b_neg) + (fc_pos + fc_neg) / 2w + |b_pos − b_neg| / 4`, each with
 /// the effect's own width `w`), into `out` (overwritten) [N·m·s/rad or N·s/m].
 ///
 /// A dry friction with `w = 0` (the exact sign) is a jump, not a slope: it adds nothing here,
@@ -64,6 +65,11 @@ pub fn friction_slope_bound(effects: &[Effect], out: &mut [f64]) {
                 Effect::StribeckFriction { fc, fs, vs, w } => {
                     let hump = if vs[i] > 0.0 { 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
                     over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
+                }
+                // the viscous parts, the dry step (fc_pos + fc_neg) / 2 over w, and the switch
+                // between the viscous slopes (|Δb| q̇ sech²(q̇/w) / 2w ≤ 0.23 |Δb|)
+                Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
+                    b_pos[i].abs().max(b_neg[i].abs()) + over(0.5 * (fc_pos[i].abs() + fc_neg[i].abs()), w[i]) + 0.25 * (b_pos[i] - b_neg[i]).abs()
                 }
                 _ => 0.0,
             };
@@ -166,6 +172,22 @@ pub enum Effect {
         /// Rest positions.
         q0: Vec<f64>,
     },
+    /// Friction that differs with the direction of motion: `τ += −s⁺ (fc_pos + b_pos q̇) +
+    /// s⁻ (fc_neg − b_neg q̇)` with `s± = (1 ± tanh(q̇ / w)) / 2` (`w = 0`: the exact sign), i.e.
+    /// `−(fc_pos + b_pos q̇)` moving forward and `fc_neg − b_neg q̇` moving back; `fc_pos`,
+    /// `fc_neg` [N·m or N], `b_pos`, `b_neg` [N·m·s/rad or N·s/m], `w` [rad/s or m/s], all `>= 0`.
+    DirectionalFriction {
+        /// Dry friction levels moving forward (q̇ > 0).
+        fc_pos: Vec<f64>,
+        /// Dry friction levels moving back (q̇ < 0).
+        fc_neg: Vec<f64>,
+        /// Viscous coefficients moving forward.
+        b_pos: Vec<f64>,
+        /// Viscous coefficients moving back.
+        b_neg: Vec<f64>,
+        /// Widths of the smoothed sign.
+        w: Vec<f64>,
+    },
 }
 
 impl Effect {
@@ -185,6 +207,7 @@ impl Effect {
             Effect::Cogging { .. } => EffectKind::Cogging,
             Effect::CoriolisStructure => EffectKind::CoriolisStructure,
             Effect::JointSpring { .. } => EffectKind::JointSpring,
+            Effect::DirectionalFriction { .. } => EffectKind::DirectionalFriction,
         }
     }
 
@@ -206,6 +229,9 @@ impl Effect {
             Effect::TorqueOffset { offset } => nonzero(offset),
             Effect::Cogging { amplitude, .. } => nonzero(amplitude),
             Effect::JointSpring { k, .. } => nonzero(k),
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, .. } => {
+                (0..fc_pos.len()).filter(|&i| [fc_pos, fc_neg, b_pos, b_neg].iter().any(|v| v.get(i).is_some_and(|x| *x != 0.0))).collect()
+            }
             Effect::TorqueGain { k } => k.iter().enumerate().filter(|(_, x)| **x != 1.0).map(|(i, _)| i).collect(),
             Effect::TorqueSaturation { limit } => limit.iter().enumerate().filter(|(_, x)| x.is_finite()).map(|(i, _)| i).collect(),
             Effect::InertialError { deltas } => {
@@ -284,6 +310,13 @@ impl Effect {
             Effect::JointSpring { k, q0 } => {
                 check("k", k, true, false)?;
                 check("q0", q0, false, false)
+            }
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
+                check("fc_pos", fc_pos, true, false)?;
+                check("fc_neg", fc_neg, true, false)?;
+                check("b_pos", b_pos, true, false)?;
+                check("b_neg", b_neg, true, false)?;
+                check("w", w, true, false)
             }
         }
     }
@@ -394,6 +427,9 @@ impl Effect {
             EffectKind::Cogging => Effect::Cogging { amplitude: per_joint("amplitude")?, periods_per_rev: per_joint("periods_per_rev")? },
             EffectKind::CoriolisStructure => Effect::CoriolisStructure,
             EffectKind::JointSpring => Effect::JointSpring { k: per_joint("k")?, q0: per_joint("q0")? },
+            EffectKind::DirectionalFriction => {
+                Effect::DirectionalFriction { fc_pos: per_joint("fc_pos")?, fc_neg: per_joint("fc_neg")?, b_pos: per_joint("b_pos")?, b_neg: per_joint("b_neg")?, w: width("w")? }
+            }
         };
         effect.validate(dof)?;
         Ok(effect)
@@ -435,7 +471,7 @@ pub fn smooth_sign(qd: f64, width: f64) -> f64 {
 
 /// Sum of the friction, cogging and spring torques the effects ADD to the model at `(q, q̇)`
 /// [N·m or N]: `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q) − k (q − q0)`
-/// with `s = tanh(q̇ / w)`,
+/// with `s = tanh(q̇ / w)` (and the directional friction of [`Effect::DirectionalFriction`]),
 /// `w` each dry friction's own width [rad/s or m/s] (the exact sign where `w = 0`). Negative
 /// for dissipation. Overwrites `out`; never allocates.
 ///
@@ -479,6 +515,13 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64
             Effect::JointSpring { k, q0 } => {
                 for i in 0..out.len() {
                     out[i] -= k[i] * (q[i] - q0[i]);
+                }
+            }
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
+                for i in 0..out.len() {
+                    let s = smooth_sign(qd[i], w[i]);
+                    let (pos, neg) = (0.5 * (1.0 + s), 0.5 * (1.0 - s));
+                    out[i] += -pos * (fc_pos[i] + b_pos[i] * qd[i]) + neg * (fc_neg[i] - b_neg[i] * qd[i]);
                 }
             }
             _ => {}

@@ -41,6 +41,8 @@ pub enum EffectKind {
     CoriolisStructure,
     /// `joint_spring`: −k (q − q0) (cables, hoses, a counterbalance spring).
     JointSpring,
+    /// `directional_friction`: −(fc_pos + b_pos q̇) for q̇ > 0, fc_neg − b_neg q̇ for q̇ < 0.
+    DirectionalFriction,
 }
 
 /// The physical quantity of a parameter, which gives its unit on a joint of either type.
@@ -157,11 +159,18 @@ const OFFSET: &[ParamSpec] = &[p("offset", Effort, Some(0.0), true)];
 const SATURATION: &[ParamSpec] = &[p("limit", Effort, Some(f64::INFINITY), false)];
 const DELAY: &[ParamSpec] = &[p("delay", Time, Some(0.0), false)];
 const SPRING: &[ParamSpec] = &[p("k", Stiffness, Some(0.0), true), p("q0", Position, None, true)];
+const DIRECTIONAL: &[ParamSpec] = &[
+    p("fc_pos", Effort, Some(0.0), true),
+    p("fc_neg", Effort, Some(0.0), true),
+    p("b_pos", Damping, Some(0.0), true),
+    p("b_neg", Damping, Some(0.0), true),
+    p("w", Width, None, false),
+];
 const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.
-    pub const ALL: [EffectKind; 13] = [
+    pub const ALL: [EffectKind; 14] = [
         EffectKind::ViscousFriction,
         EffectKind::CoulombFriction,
         EffectKind::StribeckFriction,
@@ -175,6 +184,7 @@ impl EffectKind {
         EffectKind::Cogging,
         EffectKind::CoriolisStructure,
         EffectKind::JointSpring,
+        EffectKind::DirectionalFriction,
     ];
 
     /// The contract name (`viscous_friction`, …, `coriolis_structure`).
@@ -193,6 +203,7 @@ impl EffectKind {
             EffectKind::Cogging => "cogging",
             EffectKind::CoriolisStructure => "coriolis_structure",
             EffectKind::JointSpring => "joint_spring",
+            EffectKind::DirectionalFriction => "directional_friction",
         }
     }
 
@@ -212,6 +223,7 @@ impl EffectKind {
             EffectKind::Cogging => COGGING,
             EffectKind::CoriolisStructure => &[],
             EffectKind::JointSpring => SPRING,
+            EffectKind::DirectionalFriction => DIRECTIONAL,
         }
     }
 

@@ -58,6 +58,7 @@ fn every_effect_name_parses() {
         "cogging:amplitude=0.3,0.1;periods_per_rev=8,8",
         "coriolis_structure",
         "joint_spring:k=3,0.5;q0=0.1,-0.2",
+        "directional_friction:fc_pos=1,2;fc_neg=0.5,1;b_pos=0.1,0.2;b_neg=0.3,0.4;w=0.01",
     ];
     assert_eq!(specs.len(), EffectKind::ALL.len(), "one spelling per effect");
     for (spec, kind) in specs.iter().zip(EffectKind::ALL) {
@@ -93,6 +94,23 @@ fn friction_torques_have_the_documented_values() {
     let mut slope = [0.0; 2];
     friction_slope_bound(&[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![w; 2] }], &mut slope);
     assert!((slope[1] - 173.4).abs() < 1e-9);
+}
+
+#[test]
+fn directional_friction_differs_with_the_direction_of_motion() {
+    let e = [Effect::DirectionalFriction { fc_pos: vec![2.0, 2.0], fc_neg: vec![1.0, 1.0], b_pos: vec![0.5, 0.5], b_neg: vec![0.1, 0.1], w: vec![1e-4, 0.0] }];
+    let mut out = [0.0; 2];
+    friction_torque(&e, &[0.0, 0.0], &[1.0, -1.0], &mut out);
+    assert!((out[0] + (2.0 + 0.5)).abs() < 1e-12 && (out[1] - (1.0 + 0.1)).abs() < 1e-12, "{out:?}");
+    // equal directions are Coulomb plus viscous friction
+    let sym = [Effect::DirectionalFriction { fc_pos: vec![2.0; 2], fc_neg: vec![2.0; 2], b_pos: vec![0.5; 2], b_neg: vec![0.5; 2], w: vec![0.01; 2] }];
+    let pair = [Effect::CoulombFriction { fc: vec![2.0; 2], w: vec![0.01; 2] }, Effect::ViscousFriction { b: vec![0.5; 2] }];
+    let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+    friction_torque(&sym, &[0.0, 0.0], &[0.004, -0.02], &mut a);
+    friction_torque(&pair, &[0.0, 0.0], &[0.004, -0.02], &mut b);
+    assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12, "{a:?} vs {b:?}");
+    assert_eq!(EffectKind::DirectionalFriction.unit("b_neg", simgap_core::JointKind::Prismatic), Some("N·s/m"));
+    assert_eq!(EffectKind::DirectionalFriction.unit("w", simgap_core::JointKind::Prismatic), Some("m/s"));
 }
 
 #[test]

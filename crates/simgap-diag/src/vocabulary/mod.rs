@@ -309,7 +309,9 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         Ok(EffectKind::TimeDelay) => delay::describe(e),
         Ok(EffectKind::CoriolisStructure) => coriolis::describe(),
         Ok(EffectKind::Payload) => payload::describe(model, e),
-        Ok(EffectKind::InertialError) | Err(_) => String::new(),
+        // an inertial error states its changes per link; a directional friction is simulated, not
+        // yet fitted (no term)
+        Ok(EffectKind::InertialError | EffectKind::DirectionalFriction) | Err(_) => String::new(),
     }
 }
 
