@@ -179,7 +179,7 @@ impl FitData {
         }
         let mut data =
             FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, tau_measured, residual, coriolis_delta, regressor, dry_width: Vec::new(), raw: run, smoother, kept };
-        data.dry_width = crate::prepare::width::dry_friction_widths(std::slice::from_ref(&data));
+        data.dry_width = crate::prepare::width::dry_friction_widths(n, &[(data.logged_velocity(), &data.qd)]);
         Ok(data)
     }
 

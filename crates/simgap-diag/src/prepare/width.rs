@@ -19,8 +19,6 @@
 //! The width a term carries is the column of the fit, the width the corrected model simulates
 //! with and the parameter `w` the report states (searched, so without an interval).
 
-use crate::prepare::dataset::FitData;
-
 /// Multiple of the velocity noise below which the width is not searched [–].
 pub(crate) const NOISE_MULTIPLE: f64 = 3.0;
 
@@ -61,21 +59,21 @@ impl DryWidth {
     }
 }
 
-/// The dry-friction width range of every joint (model order) from the fit runs (see the module
-/// docs).
-pub(crate) fn dry_friction_widths(data: &[FitData]) -> Vec<DryWidth> {
-    let Some(n) = data.first().map(|d| d.dof) else { return Vec::new() };
+/// The dry-friction width range of each of `n` joints (model order) from the fit runs (see the
+/// module docs): per run, its logged velocities and its smoothed velocities, both row-major with
+/// `n` columns.
+pub(crate) fn dry_friction_widths(n: usize, runs: &[(Vec<f64>, &[f64])]) -> Vec<DryWidth> {
     (0..n)
         .map(|j| {
             // velocity noise: robust spread of the second difference of the logged velocity
             let mut second: Vec<f64> = Vec::new();
-            for d in data {
-                let qd: Vec<f64> = d.logged_velocity().into_iter().skip(j).step_by(d.dof).collect();
+            for (logged, _) in runs {
+                let qd: Vec<f64> = logged.iter().skip(j).step_by(n).copied().collect();
                 second.extend(qd.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).filter(|x| x.is_finite()));
             }
             let sigma = if second.is_empty() { 0.0 } else { 1.4826 * median(&mut second) / 6f64.sqrt() };
             // speed: RMS of the smoothed velocity over every run
-            let (sum, count) = data.iter().flat_map(|d| d.qd.iter().skip(j).step_by(d.dof)).fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));
+            let (sum, count) = runs.iter().flat_map(|(_, qd)| qd.iter().skip(j).step_by(n)).fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));
             let speed = if count > 0 { (sum / count as f64).sqrt() } else { 0.0 };
             if !(speed.is_finite() && speed > 0.0) {
                 return DryWidth { lo: simgap_sim::DEFAULT_COULOMB_WIDTH, hi: simgap_sim::DEFAULT_COULOMB_WIDTH };
@@ -95,41 +93,34 @@ fn median(v: &mut [f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use simgap_core::{Formulation, Model};
-    use simgap_sim::Run;
 
-    /// The paper arm's joints moving as `q = sin t` at 400 Hz, their logged velocities with
-    /// white noise of `sigma` (a fixed pseudo-random sequence).
-    fn pendulum_run(sigma: f64) -> FitData {
-        let model = Model::paper_arm();
-        let mut run = Run::new(model.joint_names().iter().map(|s| s.to_string()).collect());
+    /// One joint moving as `q̇ = cos t` at 400 Hz for 10 s, its logged velocity with white noise
+    /// of `sigma` (a fixed pseudo-random sequence), its smoothed velocity exact.
+    fn widths(sigma: f64) -> (DryWidth, f64) {
         let mut state = 12345u64;
+        let (mut logged, mut smooth) = (Vec::new(), Vec::new());
         for k in 0..4000 {
             let t = k as f64 * 0.0025;
             // uniform noise of standard deviation sigma
             state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             let u = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-            run.t.push(t);
-            run.q.extend([t.sin(), t.sin()]);
-            run.qd.extend([t.cos() + sigma * u * 12f64.sqrt(), t.cos() - sigma * u * 12f64.sqrt()]);
-            run.tau.extend([0.0, 0.0]);
+            logged.push(t.cos() + sigma * u * 12f64.sqrt());
+            smooth.push(t.cos());
         }
-        FitData::new(&model, Formulation::EulerLagrange, run, &Default::default()).unwrap()
+        let speed = (smooth.iter().map(|x| x * x).sum::<f64>() / smooth.len() as f64).sqrt();
+        (dry_friction_widths(1, &[(logged, &smooth)])[0], speed)
     }
 
     #[test]
     fn the_width_range_starts_above_the_velocity_noise_within_its_speed_bounds() {
         // RMS speed of cos t over 10 s is about 0.71 rad/s: widths between 0.0014 and 0.035
-        let quiet = dry_friction_widths(&[pendulum_run(0.0)])[0];
-        let noisy = dry_friction_widths(&[pendulum_run(0.005)])[0];
-        let loud = dry_friction_widths(&[pendulum_run(1.0)])[0];
-        let d = pendulum_run(0.0);
-        let v: Vec<f64> = d.qd.iter().step_by(2).copied().collect();
-        let speed = (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let (quiet, speed) = widths(0.0);
         assert!((quiet.lo - MIN_SHARE * speed).abs() < 1e-12 && (quiet.hi - MAX_SHARE * speed).abs() < 1e-12, "quiet {quiet:?}, speed {speed}");
         // a noise above the speed bound: the range is one width, the noise's
+        let (loud, _) = widths(1.0);
         assert!(loud.lo > MAX_SHARE * speed && loud.hi == loud.lo, "loud {loud:?}");
         // 3 σ of a 0.005 rad/s noise, within 20 %
+        let (noisy, _) = widths(0.005);
         assert!((noisy.lo - 0.015).abs() < 0.003 && (noisy.hi - MAX_SHARE * speed).abs() < 1e-12, "noisy {noisy:?}");
         // the grid spans the range geometrically
         let g = quiet.grid(5);
