@@ -50,7 +50,7 @@ fn paper_experiment(c: &mut Criterion) {
     let params = SimParams::default();
     let mut group = c.benchmark_group("simulate");
     group.measurement_time(Duration::from_secs(5));
-    let friction = [Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734] }];
+    let friction = [Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }];
     for (id, effects) in [("paper_experiment", &[][..]), ("paper_experiment_friction", &friction[..])] {
         group.bench_function(id, |b| {
             b.iter(|| {
@@ -167,7 +167,7 @@ fn steps(c: &mut Criterion) {
                     let (q, qd) = y.split_at(n);
                     let (dq, ddq) = dy.split_at_mut(n);
                     dq.copy_from_slice(qd);
-                    plant.acceleration(&mut pws, q, qd, &tau, 0.01, ddq);
+                    plant.acceleration(&mut pws, q, qd, &tau, ddq);
                 };
                 y.copy_from_slice(&y0);
                 rk4.step(&mut f, 0.0, black_box(1e-3), &mut y);
@@ -179,7 +179,7 @@ fn steps(c: &mut Criterion) {
         let mut out = vec![0.0; n];
         group.bench_function(*name, |b| {
             b.iter(|| {
-                plant.acceleration(&mut pws, black_box(&y0[..n]), black_box(&y0[n..]), &tau, 0.01, &mut out);
+                plant.acceleration(&mut pws, black_box(&y0[..n]), black_box(&y0[n..]), &tau, &mut out);
                 black_box(out[0])
             })
         });

@@ -395,12 +395,13 @@ def simulate(
     ``controller``: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
     g(q)) or "replay" (the logged effort of ``replay``, default the reference run, open loop).
     ``kp``, ``kv``: gains, shape (dof,), in model order. ``effects``: unmodelled effects in the
-    CLI spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734".
+    CLI spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".
     ``integrator``: "rk4" (``substeps`` steps per sample, raised automatically for stiff
     friction) or "adaptive" (Dormand–Prince with ``rtol``, ``atol``). ``counts_per_rev``:
     encoder resolution (default 1,024,000 counts per revolution; None = exact positions); ``velocity``: "backward_difference" or
-    "exact"; ``noise_std``, ``seed``: Gaussian position noise. ``coulomb_width``: smoothing
-    of sign(q̇) [rad/s]. ``divergence_bound``: |q̇| beyond which the run has diverged.
+    "exact"; ``noise_std``, ``seed``: Gaussian position noise. ``coulomb_width``: the width
+    w of sign(q̇) ≈ tanh(q̇/w) [rad/s or m/s] for every dry friction spelled without its own
+    ``w`` (0: the exact sign; a ``w`` in the spelling wins). ``divergence_bound``: |q̇| beyond which the run has diverged.
 
     The GIL is released while simulating; Ctrl-C stops the run at its next sample and raises
     KeyboardInterrupt. Raises SimulationError when the run diverges or a parameter is invalid,

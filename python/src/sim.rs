@@ -417,7 +417,9 @@ fn joint_vector(name: &str, arr: &ArrayArg<'_>, dof: usize) -> PyResult<Vec<f64>
 /// `controller`: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
 /// g(q)) or "replay" (the logged effort of `replay`, default the reference run, open loop).
 /// `kp`, `kv`: gains, shape (dof,), in model order. `effects`: unmodelled effects in the CLI
-/// spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734".
+/// spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".
+/// `coulomb_width` [rad/s or m/s]: the width `w` of sign(q̇) ≈ tanh(q̇/w) for every dry
+/// friction spelled without its own `w` (0: the exact sign); a `w` in the spelling wins.
 /// `integrator`: "rk4" (`substeps` steps per sample, raised automatically for stiff friction)
 /// or "adaptive" (Dormand–Prince with `rtol`, `atol`). `counts_per_rev`: encoder resolution
 /// (default 1,024,000 counts per revolution; None = exact positions); `velocity`:
@@ -469,8 +471,12 @@ pub(crate) fn simulate(
     let dof = model_arc.dof();
     let joints: Vec<String> = model_arc.joint_names().into_iter().map(str::to_owned).collect();
     let formulation = self::formulation(formulation)?;
-    let effects = effects.iter().map(|s| Effect::parse(s, dof)).collect::<Result<Vec<_>, _>>().map_err(from_sim)?;
     let bad = |what: &str, message: String| from_sim(simgap_sim::Error::Invalid { what: what.into(), message });
+    // the width of dry frictions spelled without `w`: checked whether or not one needs it
+    if !(coulomb_width.is_finite() && coulomb_width >= 0.0) {
+        return Err(bad("coulomb_width", format!("{} rad/s; expected a finite width >= 0 (0: the exact sign)", simgap_sim::simulate::number(coulomb_width))));
+    }
+    let effects = effects.iter().map(|s| Effect::parse_with_width(s, dof, coulomb_width)).collect::<Result<Vec<_>, _>>().map_err(from_sim)?;
 
     // the reference: a target or a run (then also the defaults of the run)
     let (reference_run, target) = match reference.cast::<PyRun>() {
@@ -542,7 +548,6 @@ pub(crate) fn simulate(
         substeps,
         integrator,
         sensor: SensorParams { counts_per_rev, velocity, noise_std, seed },
-        coulomb_width,
         torque_limits_from_model,
         divergence_bound,
         q0: state("q0", q0, first_state.as_ref().map(|s| s.0.clone()))?,

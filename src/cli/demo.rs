@@ -109,7 +109,7 @@ fn truth_rows(effects: &[Effect], model: &Model) -> Vec<(&'static str, &'static 
     for e in effects {
         match e {
             Effect::ViscousFriction { b } => per_joint("viscous_friction", "b", b),
-            Effect::CoulombFriction { fc } => per_joint("coulomb_friction", "fc", fc),
+            Effect::CoulombFriction { fc, .. } => per_joint("coulomb_friction", "fc", fc),
             Effect::TorqueSaturation { limit } => per_joint("torque_saturation", "limit", limit),
             _ => {}
         }

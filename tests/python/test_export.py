@@ -213,8 +213,10 @@ def effect_specs(effects: list[dict[str, Any]], names: list[str]) -> list[str]:
                 inertia = ",".join(map(str, p["delta_inertia"][k]))
                 specs.append(f"inertial_error:joint={names.index(joint)};mass={p['delta_mass'][k]};com={com};inertia={inertia}")
         else:
-            neutral = {"k": 1.0, "limit": float("inf")}
-            params = [f"{key}={','.join(map(str, per_joint(e, key, names, neutral.get(key, 0.0))))}" for key in p if key != "w"]
+            # the width w of a dry friction is spelled as the report states it (joints the
+            # effect does not act on have fc = 0: any width there)
+            neutral = {"k": 1.0, "limit": float("inf"), "w": 0.01}
+            params = [f"{key}={','.join(map(str, per_joint(e, key, names, neutral.get(key, 0.0))))}" for key in p]
             specs.append(f"{kind}:{';'.join(params)}")
     return specs
 
@@ -247,7 +249,7 @@ def kstep_mujoco(xml: Path, run: simgap.Run) -> list[float]:
     return out
 
 
-def kstep_simgap(model: simgap.Model, run: simgap.Run, effects: list[str], coulomb_width: float) -> list[float]:
+def kstep_simgap(model: simgap.Model, run: simgap.Run, effects: list[str]) -> list[float]:
     """The same windows predicted by simgap: the logged torque replayed open loop from the
     logged state, with the selected effects."""
     dt = float(np.median(np.diff(run.t)))
@@ -258,7 +260,7 @@ def kstep_simgap(model: simgap.Model, run: simgap.Run, effects: list[str], coulo
         for k in window_starts(run, h):
             pred = simgap.simulate(
                 model, run, controller="replay", replay=run, t0=float(run.t[k]), duration=steps * dt, q0=run.q[k], qd0=run.qd[k],
-                effects=effects, counts_per_rev=None, velocity="exact", sample_period=dt, coulomb_width=coulomb_width,
+                effects=effects, counts_per_rev=None, velocity="exact", sample_period=dt,
             )
             end = int(np.argmin(np.abs(pred.t - (run.t[k] + steps * dt))))
             errors.append(pred.q[end] - run.q[k + steps])
@@ -266,18 +268,10 @@ def kstep_simgap(model: simgap.Model, run: simgap.Run, effects: list[str], coulo
     return out
 
 
-def coulomb_width(effects: list[dict[str, Any]]) -> float:
-    for e in effects:
-        w = e["parameters"].get("w")
-        if w is not None:
-            return float(np.max(w))
-    return 0.01
-
-
 def check_kstep(model: simgap.Model, run: simgap.Run, report_effects: list[dict[str, Any]], xml: Path, label: str) -> None:
     names = model.joint_names
-    corrected = kstep_simgap(model, run, effect_specs(report_effects, names), coulomb_width(report_effects))
-    nominal = kstep_simgap(model, run, [], 0.01)
+    corrected = kstep_simgap(model, run, effect_specs(report_effects, names))
+    nominal = kstep_simgap(model, run, [])
     ours = kstep_mujoco(xml, run)
     print(f"{label}: k-step RMS [rad] at {HORIZONS} s: simgap nominal {nominal}, simgap corrected {corrected}, MuJoCo corrected MJCF {ours}")
     for h, n, c, mj in zip(HORIZONS, nominal, corrected, ours):

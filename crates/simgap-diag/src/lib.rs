@@ -48,7 +48,7 @@ pub use locate::{JointGap, Segment, Where};
 pub use options::{DiagnoseOptions, Progress};
 pub use pipeline::{diagnose, predict};
 pub use prediction::resim::{InferredSensors, RunGap};
-pub use prepare::{FitData, PrepareOptions};
+pub use prepare::{DryWidth, FitData, PrepareOptions};
 #[cfg(feature = "html")]
 pub use report::html;
 pub use report::residual::ResidualTest;

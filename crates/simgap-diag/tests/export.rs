@@ -207,6 +207,20 @@ fn mjcf_holds_joint_and_actuator_effects_and_leaves_the_rest_to_the_sidecar() {
 }
 
 #[test]
+fn a_joint_spring_is_mjcf_stiffness_and_springref_and_a_urdf_sidecar_entry() {
+    let model = Model::from_urdf_str(PAPER_ARM_URDF).unwrap();
+    let effects = [effect("joint_spring", &["elbow"], &[("k", Param::PerJoint(vec![4.0])), ("q0", Param::PerJoint(vec![0.3]))])];
+    let out = export_mjcf(&model, &effects, &MjcfOptions::new(0.0025)).unwrap();
+    assert!(out.text.contains("stiffness=\"4\" springref=\"0.3\""), "{}", out.text);
+    assert!(out.sidecar.selected_effects.is_empty() && out.sidecar.held.len() == 1, "{:?}", out.sidecar);
+    roxmltree::Document::parse(&out.text).unwrap();
+    let urdf = export_urdf(PAPER_ARM_URDF, "paper_arm.urdf", &model, &effects).unwrap();
+    let deferred: Vec<&str> = urdf.sidecar.selected_effects.iter().map(|e| e.effect.as_str()).collect();
+    assert_eq!(deferred, ["joint_spring"]);
+    assert_eq!(urdf.sidecar.selected_effects[0].parameters["q0"], Param::PerJoint(vec![0.3]));
+}
+
+#[test]
 fn mjcf_body_frames_follow_the_urdf_joint_placements() {
     // panda_joint2 is rotated by rpy (−π/2, 0, 0): quat (cos(−π/4), sin(−π/4), 0, 0)
     let model = arm7();

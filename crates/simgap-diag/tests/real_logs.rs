@@ -77,7 +77,7 @@ fn as_replay(mut runs: Vec<Run>) -> Vec<Run> {
 #[test]
 fn open_loop_replays_are_judged_by_k_step_prediction() {
     // friction only, the logs relabelled as open-loop replays of the commanded torque
-    let effects = vec![Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734] }];
+    let effects = vec![Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }];
     let (fit, hold) = demo_runs(&effects);
     let d = run_diagnosis(&as_replay(fit), &as_replay(hold)).unwrap();
     let g = &d.report.gap;

@@ -18,9 +18,12 @@
 //! amplitude, 1 for a gain, `+∞` for a saturation limit. Several effects of one kind compose:
 //! frictions, armatures and offsets add, gains multiply, limits take the smallest, delays add.
 //!
-//! `sign(q̇)` in Coulomb and Stribeck friction is smoothed as `tanh(q̇ / w)` with `w` the
-//! `coulomb_width` of [`SimParams`](crate::simulate::SimParams) (default
-//! [`DEFAULT_COULOMB_WIDTH`]), so the right-hand side stays Lipschitz and RK4 converges.
+//! `sign(q̇)` in every dry-friction effect (Coulomb, Stribeck) is smoothed as `tanh(q̇ / w)`
+//! with `w` [rad/s or m/s] a per-joint parameter of the effect itself, so that the effect holds
+//! the model it is simulated with: `w > 0` keeps the right-hand side Lipschitz and RK4
+//! convergent; `w = 0` is the exact sign (stick–slip, discontinuous at q̇ = 0). A spelling that
+//! leaves `w` out takes [`DEFAULT_COULOMB_WIDTH`] ([`Effect::parse`]) or the caller's default
+//! ([`Effect::parse_with_width`]).
 
 use nalgebra::{Matrix3, Vector3};
 use simgap_core::{Model, SpatialInertia};
@@ -28,7 +31,8 @@ use simgap_core::{Model, SpatialInertia};
 use crate::error::{Error, Result};
 use crate::kind::EffectKind;
 
-/// Default smoothing width of `sign(q̇)` [rad/s]: `sign(q̇) ≈ tanh(q̇ / 0.01)`.
+/// Default smoothing width `w` of `sign(q̇)` [rad/s or m/s] for an effect spelled without one
+/// ([`Effect::parse`]): `sign(q̇) ≈ tanh(q̇ / 0.01)`.
 ///
 /// Below about 0.01 rad/s (0.6 °/s) Coulomb friction acts as a steep viscous law of slope
 /// `fc / w`. The width trades the sharpness of the sign against stiffness: the slope makes the
@@ -40,22 +44,32 @@ use crate::kind::EffectKind;
 pub const DEFAULT_COULOMB_WIDTH: f64 = 0.01;
 
 /// Upper bound of the derivative `−∂τ_friction,i/∂q̇_i` of every friction effect on each
-/// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump), into
-/// `out` (overwritten).
+/// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump, directional
+/// `max(b_pos, b_neg) + (fc_pos + fc_neg) / 2w + |b_pos − b_neg| / 4`, each with
+/// the effect's own width `w`), into `out` (overwritten) [N·m·s/rad or N·s/m].
+///
+/// A dry friction with `w = 0` (the exact sign) is a jump, not a slope: it adds nothing here,
+/// so that it never asks for infinitely many substeps (no step size makes RK4 converge on a
+/// discontinuity; the run then chatters near q̇ = 0 as a stick–slip simulation does).
 ///
 /// # Panics
 /// If an effect's vector is shorter than `out`.
-pub fn friction_slope_bound(effects: &[Effect], coulomb_width: f64, out: &mut [f64]) {
+pub fn friction_slope_bound(effects: &[Effect], out: &mut [f64]) {
     out.fill(0.0);
-    let w = if coulomb_width > 0.0 { coulomb_width } else { f64::INFINITY };
+    let over = |level: f64, w: f64| if w > 0.0 { level / w } else { 0.0 };
     for e in effects {
         for i in 0..out.len() {
             out[i] += match e {
                 Effect::ViscousFriction { b } => b[i].abs(),
-                Effect::CoulombFriction { fc } => fc[i].abs() / w,
-                Effect::StribeckFriction { fc, fs, vs } => {
+                Effect::CoulombFriction { fc, w } => over(fc[i].abs(), w[i]),
+                Effect::StribeckFriction { fc, fs, vs, w } => {
                     let hump = if vs[i] > 0.0 { 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
-                    fc[i].abs().max(fs[i].abs()) / w + hump
+                    over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
+                }
+                // the viscous parts, the dry step (fc_pos + fc_neg) / 2 over w, and the switch
+                // between the viscous slopes (|Δb| q̇ sech²(q̇/w) / 2w ≤ 0.23 |Δb|)
+                Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
+                    b_pos[i].abs().max(b_neg[i].abs()) + over(0.5 * (fc_pos[i].abs() + fc_neg[i].abs()), w[i]) + 0.25 * (b_pos[i] - b_neg[i]).abs()
                 }
                 _ => 0.0,
             };
@@ -85,13 +99,15 @@ pub enum Effect {
         /// Viscous coefficients.
         b: Vec<f64>,
     },
-    /// `τ += −fc sign(q̇)`; `fc` [N·m].
+    /// `τ += −fc tanh(q̇ / w)`; `fc` [N·m or N], `w` [rad/s or m/s] (`w = 0`: the exact sign).
     CoulombFriction {
         /// Coulomb levels.
         fc: Vec<f64>,
+        /// Widths of the smoothed sign, `>= 0`.
+        w: Vec<f64>,
     },
-    /// `τ += −(fc + (fs − fc) e^{−(q̇/vs)²}) sign(q̇)`; `fc`, `fs` [N·m], `vs` [rad/s]
-    /// (`vs ≤ 0` drops the Stribeck term).
+    /// `τ += −(fc + (fs − fc) e^{−(q̇/vs)²}) tanh(q̇ / w)`; `fc`, `fs` [N·m or N], `vs`, `w`
+    /// [rad/s or m/s] (`vs ≤ 0` drops the Stribeck term; `w = 0`: the exact sign).
     StribeckFriction {
         /// Coulomb levels.
         fc: Vec<f64>,
@@ -99,6 +115,8 @@ pub enum Effect {
         fs: Vec<f64>,
         /// Stribeck velocities.
         vs: Vec<f64>,
+        /// Widths of the smoothed sign, `>= 0`.
+        w: Vec<f64>,
     },
     /// Rotor inertia `ia` [kg·m²] added to the diagonal of H.
     Armature {
@@ -147,6 +165,29 @@ pub enum Effect {
     },
     /// The plant uses the other formulation of C than the model under test.
     CoriolisStructure,
+    /// `τ += −k (q − q0)`; `k` [N·m/rad or N/m] `>= 0`, `q0` [rad or m] the rest position.
+    JointSpring {
+        /// Stiffnesses.
+        k: Vec<f64>,
+        /// Rest positions.
+        q0: Vec<f64>,
+    },
+    /// Friction that differs with the direction of motion: `τ += −s⁺ (fc_pos + b_pos q̇) +
+    /// s⁻ (fc_neg − b_neg q̇)` with `s± = (1 ± tanh(q̇ / w)) / 2` (`w = 0`: the exact sign), i.e.
+    /// `−(fc_pos + b_pos q̇)` moving forward and `fc_neg − b_neg q̇` moving back; `fc_pos`,
+    /// `fc_neg` [N·m or N], `b_pos`, `b_neg` [N·m·s/rad or N·s/m], `w` [rad/s or m/s], all `>= 0`.
+    DirectionalFriction {
+        /// Dry friction levels moving forward (q̇ > 0).
+        fc_pos: Vec<f64>,
+        /// Dry friction levels moving back (q̇ < 0).
+        fc_neg: Vec<f64>,
+        /// Viscous coefficients moving forward.
+        b_pos: Vec<f64>,
+        /// Viscous coefficients moving back.
+        b_neg: Vec<f64>,
+        /// Widths of the smoothed sign.
+        w: Vec<f64>,
+    },
 }
 
 impl Effect {
@@ -165,6 +206,8 @@ impl Effect {
             Effect::TimeDelay { .. } => EffectKind::TimeDelay,
             Effect::Cogging { .. } => EffectKind::Cogging,
             Effect::CoriolisStructure => EffectKind::CoriolisStructure,
+            Effect::JointSpring { .. } => EffectKind::JointSpring,
+            Effect::DirectionalFriction { .. } => EffectKind::DirectionalFriction,
         }
     }
 
@@ -180,11 +223,15 @@ impl Effect {
         let nonzero = |v: &[f64]| v.iter().enumerate().filter(|(_, x)| **x != 0.0).map(|(i, _)| i).collect::<Vec<_>>();
         match self {
             Effect::ViscousFriction { b } => nonzero(b),
-            Effect::CoulombFriction { fc } => nonzero(fc),
+            Effect::CoulombFriction { fc, .. } => nonzero(fc),
             Effect::StribeckFriction { fc, fs, .. } => (0..fc.len()).filter(|&i| fc[i] != 0.0 || fs.get(i).is_some_and(|x| *x != 0.0)).collect(),
             Effect::Armature { ia } => nonzero(ia),
             Effect::TorqueOffset { offset } => nonzero(offset),
             Effect::Cogging { amplitude, .. } => nonzero(amplitude),
+            Effect::JointSpring { k, .. } => nonzero(k),
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, .. } => {
+                (0..fc_pos.len()).filter(|&i| [fc_pos, fc_neg, b_pos, b_neg].iter().any(|v| v.get(i).is_some_and(|x| *x != 0.0))).collect()
+            }
             Effect::TorqueGain { k } => k.iter().enumerate().filter(|(_, x)| **x != 1.0).map(|(i, _)| i).collect(),
             Effect::TorqueSaturation { limit } => limit.iter().enumerate().filter(|(_, x)| x.is_finite()).map(|(i, _)| i).collect(),
             Effect::InertialError { deltas } => {
@@ -218,11 +265,15 @@ impl Effect {
         };
         match self {
             Effect::ViscousFriction { b } => check("b", b, true, false),
-            Effect::CoulombFriction { fc } => check("fc", fc, true, false),
-            Effect::StribeckFriction { fc, fs, vs } => {
+            Effect::CoulombFriction { fc, w } => {
+                check("fc", fc, true, false)?;
+                check("w", w, true, false)
+            }
+            Effect::StribeckFriction { fc, fs, vs, w } => {
                 check("fc", fc, true, false)?;
                 check("fs", fs, true, false)?;
-                check("vs", vs, true, false)
+                check("vs", vs, true, false)?;
+                check("w", w, true, false)
             }
             Effect::Armature { ia } => check("ia", ia, false, false),
             Effect::Payload { mass, com } => {
@@ -256,6 +307,17 @@ impl Effect {
                 check("periods_per_rev", periods_per_rev, false, false)
             }
             Effect::CoriolisStructure => Ok(()),
+            Effect::JointSpring { k, q0 } => {
+                check("k", k, true, false)?;
+                check("q0", q0, false, false)
+            }
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
+                check("fc_pos", fc_pos, true, false)?;
+                check("fc_neg", fc_neg, true, false)?;
+                check("b_pos", b_pos, true, false)?;
+                check("b_neg", b_neg, true, false)?;
+                check("w", w, true, false)
+            }
         }
     }
 
@@ -264,11 +326,23 @@ impl Effect {
     /// `payload:mass=0.5;com=0,0,-0.1`, `time_delay:delay=0.005`, `coriolis_structure`,
     /// `inertial_error:joint=1;mass=0.2;com=0,0,0.01;inertia=0,0,0,0,0,0`.
     /// Per-joint parameters take one value per joint (`dof` values), or a single value used for
-    /// every joint.
+    /// every joint. A dry friction's width `w` [rad/s or m/s] may be given
+    /// (`coulomb_friction:fc=7.17,1.734;w=0.01,0.02`); left out, it is
+    /// [`DEFAULT_COULOMB_WIDTH`] on every joint.
     ///
     /// # Errors
     /// [`Error::Invalid`] for an unknown name, a missing or unknown parameter, or a bad number.
     pub fn parse(spec: &str, dof: usize) -> Result<Effect> {
+        Effect::parse_with_width(spec, dof, DEFAULT_COULOMB_WIDTH)
+    }
+
+    /// [`Effect::parse`], with `default_w` [rad/s or m/s] the width `w` of a dry friction whose
+    /// spelling leaves it out (e.g. the Python `simulate(..., coulomb_width=...)`).
+    ///
+    /// # Errors
+    /// As [`Effect::parse`]; also [`Error::Invalid`] for a `default_w` that is needed and is not
+    /// a finite number `>= 0`.
+    pub fn parse_with_width(spec: &str, dof: usize, default_w: f64) -> Result<Effect> {
         let (name, rest) = match spec.split_once(':') {
             Some((n, r)) => (n.trim(), r.trim()),
             None => (spec.trim(), ""),
@@ -293,8 +367,7 @@ impl Effect {
         // `mass`, `com`, `inertia`: the spellings of one link's change
         let known: Vec<&str> = match kind {
             EffectKind::InertialError => vec!["joint", "mass", "com", "inertia"],
-            // the smoothing width is the simulation's (`SimParams::coulomb_width`), not an effect's
-            k => k.parameters().iter().filter(|p| p.quantity != crate::kind::Quantity::Width).map(|p| p.name).collect(),
+            k => k.parameters().iter().map(|p| p.name).collect(),
         };
         if let Some((k, _)) = params.iter().find(|(k, _)| !known.contains(&k.as_str())) {
             return Err(invalid(name, format!("unknown parameter '{k}'; expected {}", if known.is_empty() { "none".into() } else { known.join(", ") })));
@@ -307,6 +380,16 @@ impl Effect {
                 n if n == dof => Ok(v),
                 n => Err(invalid(name, format!("parameter '{k}' has {n} values; expected {dof} (one per joint) or 1"))),
             }
+        };
+        // the dry friction's width: given, or the caller's default on every joint
+        let width = |k: &str| -> Result<Vec<f64>> {
+            if params.iter().any(|(p, _)| p == k) {
+                return per_joint(k);
+            }
+            if !(default_w.is_finite() && default_w >= 0.0) {
+                return Err(invalid(name, format!("default width w = {default_w}; expected a finite number >= 0 [rad/s or m/s] (0: the exact sign)")));
+            }
+            Ok(vec![default_w; dof])
         };
         let scalar = |k: &str| -> Result<f64> {
             let v = get(k)?;
@@ -321,8 +404,8 @@ impl Effect {
         };
         let effect = match kind {
             EffectKind::ViscousFriction => Effect::ViscousFriction { b: per_joint("b")? },
-            EffectKind::CoulombFriction => Effect::CoulombFriction { fc: per_joint("fc")? },
-            EffectKind::StribeckFriction => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")? },
+            EffectKind::CoulombFriction => Effect::CoulombFriction { fc: per_joint("fc")?, w: width("w")? },
+            EffectKind::StribeckFriction => Effect::StribeckFriction { fc: per_joint("fc")?, fs: per_joint("fs")?, vs: per_joint("vs")?, w: width("w")? },
             EffectKind::Armature => Effect::Armature { ia: per_joint("ia")? },
             EffectKind::Payload => Effect::Payload { mass: scalar("mass")?, com: triple("com")? },
             EffectKind::InertialError => {
@@ -343,6 +426,10 @@ impl Effect {
             EffectKind::TimeDelay => Effect::TimeDelay { delay: scalar("delay")? },
             EffectKind::Cogging => Effect::Cogging { amplitude: per_joint("amplitude")?, periods_per_rev: per_joint("periods_per_rev")? },
             EffectKind::CoriolisStructure => Effect::CoriolisStructure,
+            EffectKind::JointSpring => Effect::JointSpring { k: per_joint("k")?, q0: per_joint("q0")? },
+            EffectKind::DirectionalFriction => {
+                Effect::DirectionalFriction { fc_pos: per_joint("fc_pos")?, fc_neg: per_joint("fc_neg")?, b_pos: per_joint("b_pos")?, b_neg: per_joint("b_neg")?, w: width("w")? }
+            }
         };
         effect.validate(dof)?;
         Ok(effect)
@@ -382,15 +469,17 @@ pub fn smooth_sign(qd: f64, width: f64) -> f64 {
     }
 }
 
-/// Sum of the friction and cogging torques the effects ADD to the model at `(q, q̇)`:
-/// `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q)` with `s = tanh(q̇ / w)`,
-/// `w = coulomb_width` [rad/s]. Negative for dissipation. Overwrites `out`; never allocates.
+/// Sum of the friction, cogging and spring torques the effects ADD to the model at `(q, q̇)`
+/// [N·m or N]: `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q) − k (q − q0)`
+/// with `s = tanh(q̇ / w)` (and the directional friction of [`Effect::DirectionalFriction`]),
+/// `w` each dry friction's own width [rad/s or m/s] (the exact sign where `w = 0`). Negative
+/// for dissipation. Overwrites `out`; never allocates.
 ///
 /// `q`, `qd`, `out`: length `dof` (model order).
 ///
 /// # Panics
 /// If the lengths differ or an effect's vector is shorter than `out`.
-pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], coulomb_width: f64, out: &mut [f64]) {
+pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64]) {
     assert!(q.len() == out.len() && qd.len() == out.len(), "friction_torque: q, qd and out must have the same length");
     out.fill(0.0);
     for e in effects {
@@ -400,20 +489,20 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], coulomb_width:
                     out[i] -= b[i] * qd[i];
                 }
             }
-            Effect::CoulombFriction { fc } => {
+            Effect::CoulombFriction { fc, w } => {
                 for i in 0..out.len() {
                     if fc[i] != 0.0 {
-                        out[i] -= fc[i] * smooth_sign(qd[i], coulomb_width);
+                        out[i] -= fc[i] * smooth_sign(qd[i], w[i]);
                     }
                 }
             }
-            Effect::StribeckFriction { fc, fs, vs } => {
+            Effect::StribeckFriction { fc, fs, vs, w } => {
                 for i in 0..out.len() {
                     if fc[i] == 0.0 && fs[i] == 0.0 {
                         continue;
                     }
                     let stribeck = if vs[i] > 0.0 { (fs[i] - fc[i]) * (-(qd[i] / vs[i]).powi(2)).exp() } else { 0.0 };
-                    out[i] -= (fc[i] + stribeck) * smooth_sign(qd[i], coulomb_width);
+                    out[i] -= (fc[i] + stribeck) * smooth_sign(qd[i], w[i]);
                 }
             }
             Effect::Cogging { amplitude, periods_per_rev } => {
@@ -421,6 +510,18 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], coulomb_width:
                     if amplitude[i] != 0.0 {
                         out[i] -= amplitude[i] * (periods_per_rev[i] * q[i]).sin();
                     }
+                }
+            }
+            Effect::JointSpring { k, q0 } => {
+                for i in 0..out.len() {
+                    out[i] -= k[i] * (q[i] - q0[i]);
+                }
+            }
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
+                for i in 0..out.len() {
+                    let s = smooth_sign(qd[i], w[i]);
+                    let (pos, neg) = (0.5 * (1.0 + s), 0.5 * (1.0 - s));
+                    out[i] += -pos * (fc_pos[i] + b_pos[i] * qd[i]) + neg * (fc_neg[i] - b_neg[i] * qd[i]);
                 }
             }
             _ => {}

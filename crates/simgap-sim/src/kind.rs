@@ -39,6 +39,10 @@ pub enum EffectKind {
     Cogging,
     /// `coriolis_structure`: the model's C misses (or wrongly has) its skew-symmetric part.
     CoriolisStructure,
+    /// `joint_spring`: −k (q − q0) (cables, hoses, a counterbalance spring).
+    JointSpring,
+    /// `directional_friction`: −(fc_pos + b_pos q̇) for q̇ > 0, fc_neg − b_neg q̇ for q̇ < 0.
+    DirectionalFriction,
 }
 
 /// The physical quantity of a parameter, which gives its unit on a joint of either type.
@@ -138,7 +142,7 @@ const fn p(name: &'static str, quantity: Quantity, neutral: Option<f64>, estimat
     ParamSpec { name, quantity, neutral, estimated }
 }
 
-use Quantity::{Count, Damping, Effort, JointInertia, Length, LinkInertia, Mass, Ratio, Time, Velocity, Width};
+use Quantity::{Count, Damping, Effort, JointInertia, Length, LinkInertia, Mass, Position, Ratio, Stiffness, Time, Velocity, Width};
 const VISCOUS: &[ParamSpec] = &[p("b", Damping, Some(0.0), true)];
 const COULOMB: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("w", Width, None, false)];
 const STRIBECK: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("fs", Effort, Some(0.0), true), p("vs", Velocity, None, false), p("w", Width, None, false)];
@@ -154,11 +158,19 @@ const GAIN: &[ParamSpec] = &[p("k", Ratio, Some(1.0), true)];
 const OFFSET: &[ParamSpec] = &[p("offset", Effort, Some(0.0), true)];
 const SATURATION: &[ParamSpec] = &[p("limit", Effort, Some(f64::INFINITY), false)];
 const DELAY: &[ParamSpec] = &[p("delay", Time, Some(0.0), false)];
+const SPRING: &[ParamSpec] = &[p("k", Stiffness, Some(0.0), true), p("q0", Position, None, true)];
+const DIRECTIONAL: &[ParamSpec] = &[
+    p("fc_pos", Effort, Some(0.0), true),
+    p("fc_neg", Effort, Some(0.0), true),
+    p("b_pos", Damping, Some(0.0), true),
+    p("b_neg", Damping, Some(0.0), true),
+    p("w", Width, None, false),
+];
 const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.
-    pub const ALL: [EffectKind; 12] = [
+    pub const ALL: [EffectKind; 14] = [
         EffectKind::ViscousFriction,
         EffectKind::CoulombFriction,
         EffectKind::StribeckFriction,
@@ -171,6 +183,8 @@ impl EffectKind {
         EffectKind::TimeDelay,
         EffectKind::Cogging,
         EffectKind::CoriolisStructure,
+        EffectKind::JointSpring,
+        EffectKind::DirectionalFriction,
     ];
 
     /// The contract name (`viscous_friction`, …, `coriolis_structure`).
@@ -188,6 +202,8 @@ impl EffectKind {
             EffectKind::TimeDelay => "time_delay",
             EffectKind::Cogging => "cogging",
             EffectKind::CoriolisStructure => "coriolis_structure",
+            EffectKind::JointSpring => "joint_spring",
+            EffectKind::DirectionalFriction => "directional_friction",
         }
     }
 
@@ -206,6 +222,8 @@ impl EffectKind {
             EffectKind::TimeDelay => DELAY,
             EffectKind::Cogging => COGGING,
             EffectKind::CoriolisStructure => &[],
+            EffectKind::JointSpring => SPRING,
+            EffectKind::DirectionalFriction => DIRECTIONAL,
         }
     }
 

@@ -100,15 +100,15 @@ impl Plant {
         PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n] }
     }
 
-    /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation);
-    /// `coulomb_width` [rad/s] smooths `sign(q̇)`. Never allocates.
+    /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation; each
+    /// dry friction smooths `sign(q̇)` with its own width). Never allocates.
     ///
     /// When `H + diag(ia)` is not positive definite (a negative armature) or the state is not
     /// finite, `out` is filled with NaN; the simulator reports that as divergence.
     ///
     /// # Panics
     /// If a length does not match the model.
-    pub fn acceleration(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], coulomb_width: f64, out: &mut [f64]) {
+    pub fn acceleration(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], out: &mut [f64]) {
         let n = self.dof();
         assert!(q.len() == n && qd.len() == n && tau_applied.len() == n && out.len() == n, "Plant::acceleration: lengths must be model.dof()");
         if q.iter().chain(qd).any(|x| !x.is_finite()) {
@@ -117,7 +117,7 @@ impl Plant {
         }
         // fast path: one kinematics pass, q̈ = H⁻¹ (τ + friction − C q̇ − g)
         if self.fast_path {
-            friction_torque(&self.effects, q, qd, coulomb_width, &mut pws.friction);
+            friction_torque(&self.effects, q, qd, &mut pws.friction);
             for i in 0..n {
                 pws.friction[i] += tau_applied[i];
             }
@@ -126,7 +126,7 @@ impl Plant {
         }
         // τ + friction, then q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics
         // pass for the bias torques and H
-        friction_torque(&self.effects, q, qd, coulomb_width, &mut pws.friction);
+        friction_torque(&self.effects, q, qd, &mut pws.friction);
         for i in 0..n {
             pws.friction[i] += tau_applied[i];
         }

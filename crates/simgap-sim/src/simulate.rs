@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};
 
 use crate::controller::{controller_from_experiment, Controller};
-use crate::effects::{armature, friction_slope_bound, Effect, DEFAULT_COULOMB_WIDTH};
+use crate::effects::{armature, friction_slope_bound, Effect};
 use crate::error::{Error, Result};
 use crate::integrate::Integrator;
 use crate::plant::Plant;
@@ -61,9 +61,6 @@ pub struct SimParams {
     /// Sensor model. Default: the paper's encoders (1,024,000 counts/rev) and backward
     /// difference velocity.
     pub sensor: SensorParams,
-    /// Smoothing width of `sign(q̇)` in Coulomb and Stribeck friction [rad/s]. Default
-    /// [`DEFAULT_COULOMB_WIDTH`] (0.01).
-    pub coulomb_width: f64,
     /// Also saturate applied torques at the model's (URDF) effort limits. Default false (the
     /// paper's simulation does not saturate).
     pub torque_limits_from_model: bool,
@@ -88,7 +85,6 @@ impl Default for SimParams {
             substeps: DEFAULT_SUBSTEPS,
             integrator: Integrator::Rk4,
             sensor: SensorParams::default(),
-            coulomb_width: DEFAULT_COULOMB_WIDTH,
             torque_limits_from_model: false,
             divergence_bound: 1e4,
             q0: Vec::new(),
@@ -130,7 +126,7 @@ impl SimParams {
     /// Checks every parameter against its range, before anything is simulated: `sample_period`
     /// in [1e-6, 1] s, `duration` in (0, 86400] s, `t0` finite, `substeps` in [1, 10000],
     /// at most 1e9 integration steps (samples × substeps), adaptive tolerances positive,
-    /// `coulomb_width` finite and ≥ 0, `divergence_bound` positive, `q0`/`qd0` empty or one
+    /// `divergence_bound` positive, `q0`/`qd0` empty or one
     /// finite value per joint, encoder counts positive, noise in [0, 1] rad (see [`limits`]).
     /// [`simulate`], the CLI and the Python bindings all refuse through it, with the same words.
     ///
@@ -173,9 +169,6 @@ impl SimParams {
             if !(rtol > 0.0 && atol > 0.0 && rtol.is_finite() && atol.is_finite()) {
                 return bad("integrator", format!("rtol = {rtol}, atol = {atol}; expected positive tolerances"));
             }
-        }
-        if !(self.coulomb_width.is_finite() && self.coulomb_width >= 0.0) {
-            return bad("coulomb_width", format!("{} rad/s; expected a finite width >= 0 (0: the exact sign)", number(self.coulomb_width)));
         }
         if !(self.divergence_bound > 0.0) {
             return bad("divergence_bound", format!("{}; expected a positive number", self.divergence_bound));
@@ -316,10 +309,12 @@ fn step_loop(
 /// `h · λ <= 2` where `λ = Σ_i s_i (H⁻¹)_ii >= λ_max(H⁻¹ diag(s))` bounds the friction
 /// stiffness (`s` from [`friction_slope_bound`], `H` the plant's mass matrix plus armature at
 /// `q0`). RK4's stability interval on the negative real axis is `h·λ < 2.785`. At most 10,000.
+/// Each dry friction counts with its own width `w`; one with `w = 0` (the exact sign) counts
+/// not at all (see [`friction_slope_bound`]).
 pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
     let n = plant.dof();
     let mut slope = vec![0.0; n];
-    friction_slope_bound(plant.effects(), params.coulomb_width, &mut slope);
+    friction_slope_bound(plant.effects(), &mut slope);
     if slope.iter().all(|s| *s == 0.0) || !matches!(params.integrator, Integrator::Rk4) {
         return params.substeps;
     }

@@ -52,13 +52,12 @@ pub struct Stepper<'p> {
     period: f64,
     substeps: usize,
     h_max: f64,
-    coulomb_width: f64,
     divergence_bound: f64,
 }
 
 impl<'p> Stepper<'p> {
     /// A stepper of `plant` under `params` (sample period, substeps raised by
-    /// [`effective_substeps`], integrator, sensors, Coulomb width, effort limits, divergence
+    /// [`effective_substeps`], integrator, sensors, effort limits, divergence
     /// bound) for runs of at most `samples` samples (which bounds the delay ring: a delay longer
     /// than the run holds the first command throughout and allocates nothing more).
     ///
@@ -94,7 +93,6 @@ impl<'p> Stepper<'p> {
             period: params.sample_period,
             substeps,
             h_max: params.sample_period / substeps as f64,
-            coulomb_width: params.coulomb_width,
             divergence_bound: params.divergence_bound,
         })
     }
@@ -211,12 +209,12 @@ impl<'p> Stepper<'p> {
             }
         }
         // integrate the plant over the interval with the held torque
-        let (plant, pws, applied, width) = (self.plant, &mut self.pws, &self.applied, self.coulomb_width);
+        let (plant, pws, applied) = (self.plant, &mut self.pws, &self.applied);
         let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
             let (q, qd) = y.split_at(n);
             let (dq, ddq) = dy.split_at_mut(n);
             dq.copy_from_slice(qd);
-            plant.acceleration(pws, q, qd, applied, width, ddq);
+            plant.acceleration(pws, q, qd, applied, ddq);
         };
         match self.dopri.as_mut() {
             Some(d) => {

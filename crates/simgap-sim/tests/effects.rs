@@ -57,7 +57,10 @@ fn every_effect_name_parses() {
         "time_delay:delay=0.005",
         "cogging:amplitude=0.3,0.1;periods_per_rev=8,8",
         "coriolis_structure",
+        "joint_spring:k=3,0.5;q0=0.1,-0.2",
+        "directional_friction:fc_pos=1,2;fc_neg=0.5,1;b_pos=0.1,0.2;b_neg=0.3,0.4;w=0.01",
     ];
+    assert_eq!(specs.len(), EffectKind::ALL.len(), "one spelling per effect");
     for (spec, kind) in specs.iter().zip(EffectKind::ALL) {
         let e = Effect::parse(spec, 2).unwrap_or_else(|err| panic!("{spec}: {err}"));
         assert_eq!(e.kind(), kind);
@@ -76,21 +79,93 @@ fn friction_torques_have_the_documented_values() {
     let (q, qd) = ([0.3, -0.2], [0.5, -2.0]);
     let mut out = [0.0; 2];
     let w = 0.01;
-    friction_torque(&[Effect::ViscousFriction { b: vec![2.288, 0.175] }], &q, &qd, w, &mut out);
+    friction_torque(&[Effect::ViscousFriction { b: vec![2.288, 0.175] }], &q, &qd, &mut out);
     assert!((out[0] + 2.288 * 0.5).abs() < 1e-15 && (out[1] - 0.175 * 2.0).abs() < 1e-15);
-    friction_torque(&[Effect::CoulombFriction { fc: vec![7.17, 1.734] }], &q, &qd, w, &mut out);
+    friction_torque(&[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![w; 2] }], &q, &qd, &mut out);
     assert!((out[0] + 7.17).abs() < 1e-12 && (out[1] - 1.734).abs() < 1e-12);
     // Stribeck: fs near rest, fc at speed
-    let st = [Effect::StribeckFriction { fc: vec![1.0, 1.0], fs: vec![2.0, 2.0], vs: vec![0.1, 0.1] }];
-    friction_torque(&st, &q, &[0.05, 10.0], 1e-4, &mut out);
+    let st = [Effect::StribeckFriction { fc: vec![1.0, 1.0], fs: vec![2.0, 2.0], vs: vec![0.1, 0.1], w: vec![1e-4; 2] }];
+    friction_torque(&st, &q, &[0.05, 10.0], &mut out);
     assert!((out[0] + (1.0 + (-0.25f64).exp())).abs() < 1e-9, "{out:?}");
     assert!((out[1] + 1.0).abs() < 1e-9);
-    friction_torque(&[Effect::Cogging { amplitude: vec![0.3, 0.0], periods_per_rev: vec![8.0, 8.0] }], &q, &qd, w, &mut out);
+    friction_torque(&[Effect::Cogging { amplitude: vec![0.3, 0.0], periods_per_rev: vec![8.0, 8.0] }], &q, &qd, &mut out);
     assert!((out[0] + 0.3 * (8.0f64 * 0.3).sin()).abs() < 1e-15 && out[1] == 0.0);
     assert_eq!(smooth_sign(0.0, w), 0.0);
     let mut slope = [0.0; 2];
-    friction_slope_bound(&[Effect::CoulombFriction { fc: vec![7.17, 1.734] }], w, &mut slope);
+    friction_slope_bound(&[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![w; 2] }], &mut slope);
     assert!((slope[1] - 173.4).abs() < 1e-9);
+}
+
+#[test]
+fn directional_friction_differs_with_the_direction_of_motion() {
+    let e = [Effect::DirectionalFriction { fc_pos: vec![2.0, 2.0], fc_neg: vec![1.0, 1.0], b_pos: vec![0.5, 0.5], b_neg: vec![0.1, 0.1], w: vec![1e-4, 0.0] }];
+    let mut out = [0.0; 2];
+    friction_torque(&e, &[0.0, 0.0], &[1.0, -1.0], &mut out);
+    assert!((out[0] + (2.0 + 0.5)).abs() < 1e-12 && (out[1] - (1.0 + 0.1)).abs() < 1e-12, "{out:?}");
+    // equal directions are Coulomb plus viscous friction
+    let sym = [Effect::DirectionalFriction { fc_pos: vec![2.0; 2], fc_neg: vec![2.0; 2], b_pos: vec![0.5; 2], b_neg: vec![0.5; 2], w: vec![0.01; 2] }];
+    let pair = [Effect::CoulombFriction { fc: vec![2.0; 2], w: vec![0.01; 2] }, Effect::ViscousFriction { b: vec![0.5; 2] }];
+    let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+    friction_torque(&sym, &[0.0, 0.0], &[0.004, -0.02], &mut a);
+    friction_torque(&pair, &[0.0, 0.0], &[0.004, -0.02], &mut b);
+    assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12, "{a:?} vs {b:?}");
+    assert_eq!(EffectKind::DirectionalFriction.unit("b_neg", simgap_core::JointKind::Prismatic), Some("N·s/m"));
+    assert_eq!(EffectKind::DirectionalFriction.unit("w", simgap_core::JointKind::Prismatic), Some("m/s"));
+}
+
+#[test]
+fn a_joint_spring_pulls_back_to_its_rest_position() {
+    let mut out = [0.0; 2];
+    friction_torque(&[Effect::JointSpring { k: vec![3.0, 0.0], q0: vec![0.1, 5.0] }], &[0.4, -1.0], &[0.7, 0.7], &mut out);
+    assert!((out[0] + 3.0 * 0.3).abs() < 1e-15 && out[1] == 0.0, "{out:?}");
+    assert_eq!(Effect::JointSpring { k: vec![3.0, 0.0], q0: vec![0.1, 5.0] }.joints_acted(), vec![0]);
+    assert!(Effect::parse("joint_spring:k=-1;q0=0", 2).is_err());
+    assert_eq!(EffectKind::JointSpring.unit("k", simgap_core::JointKind::Prismatic), Some("N/m"));
+    assert_eq!(EffectKind::JointSpring.unit("q0", simgap_core::JointKind::Revolute), Some("rad"));
+}
+
+#[test]
+fn each_dry_friction_smooths_its_sign_with_its_own_width() {
+    // tanh(q̇ / w) per joint: at q̇ = w the level is fc tanh(1), at q̇ = 0.1 w it is fc tanh(0.1)
+    let (q, qd) = ([0.0, 0.0], [0.02, 0.002]);
+    let mut out = [0.0; 2];
+    friction_torque(&[Effect::CoulombFriction { fc: vec![2.0, 3.0], w: vec![0.02, 0.02] }], &q, &qd, &mut out);
+    assert!((out[0] + 2.0 * 1.0f64.tanh()).abs() < 1e-12 && (out[1] + 3.0 * 0.1f64.tanh()).abs() < 1e-12, "{out:?}");
+    // w = 0 is the exact sign
+    friction_torque(&[Effect::CoulombFriction { fc: vec![2.0, 3.0], w: vec![0.0, 0.002] }], &q, &qd, &mut out);
+    assert!((out[0] + 2.0).abs() < 1e-15 && (out[1] + 3.0 * 1.0f64.tanh()).abs() < 1e-12, "{out:?}");
+    // the slope bound is fc / w per joint, nothing for the exact sign
+    let mut slope = [0.0; 2];
+    friction_slope_bound(&[Effect::CoulombFriction { fc: vec![2.0, 3.0], w: vec![0.0, 0.002] }], &mut slope);
+    assert_eq!(slope[0], 0.0);
+    assert!((slope[1] - 1500.0).abs() < 1e-9, "{slope:?}");
+}
+
+#[test]
+fn an_exact_sign_never_asks_for_unbounded_substeps() {
+    let model = Model::paper_arm();
+    let params = SimParams { substeps: 2, ..SimParams::default() };
+    let exact = Plant::new(&model, Formulation::EulerLagrange, &[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.0; 2] }]).unwrap();
+    assert_eq!(simgap_sim::effective_substeps(&exact, &params), 2);
+    // a narrow width raises them, a wider one less
+    let narrow = Plant::new(&model, Formulation::EulerLagrange, &[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![1e-3; 2] }]).unwrap();
+    let wide = Plant::new(&model, Formulation::EulerLagrange, &[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![1e-2; 2] }]).unwrap();
+    let (n, w) = (simgap_sim::effective_substeps(&narrow, &params), simgap_sim::effective_substeps(&wide, &params));
+    assert!(n > w && w > 2, "narrow {n}, wide {w}");
+}
+
+#[test]
+fn a_dry_friction_width_is_parsed_or_defaulted() {
+    let e = Effect::parse("coulomb_friction:fc=7.17,1.734;w=0.02,0", 2).unwrap();
+    assert_eq!(e, Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.02, 0.0] });
+    let e = Effect::parse("coulomb_friction:fc=1", 2).unwrap();
+    assert_eq!(e, Effect::CoulombFriction { fc: vec![1.0, 1.0], w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; 2] });
+    let e = Effect::parse_with_width("stribeck_friction:fc=1;fs=2;vs=0.1", 2, 0.05).unwrap();
+    assert_eq!(e, Effect::StribeckFriction { fc: vec![1.0; 2], fs: vec![2.0; 2], vs: vec![0.1; 2], w: vec![0.05; 2] });
+    assert!(Effect::parse("coulomb_friction:fc=1;w=-0.01", 2).unwrap_err().to_string().contains("'w'"));
+    assert!(Effect::parse_with_width("coulomb_friction:fc=1", 2, f64::NAN).is_err());
+    // a width given beats the default
+    assert_eq!(Effect::parse_with_width("coulomb_friction:fc=1;w=0.3", 2, f64::NAN).unwrap(), Effect::CoulombFriction { fc: vec![1.0; 2], w: vec![0.3; 2] });
 }
 
 #[test]
@@ -116,7 +191,7 @@ fn viscous_friction_removes_energy() {
 #[test]
 fn coulomb_friction_removes_energy_and_stops_the_arm() {
     let model = Model::paper_arm();
-    let effects = [Effect::CoulombFriction { fc: vec![7.17, 1.734] }];
+    let effects = [Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }];
     let r = run(&model, &effects, &mut ZeroTorque, &free_params());
     let e = energies(&model, &r);
     assert!(e.windows(2).all(|w| w[1] <= w[0] + 1e-9), "energy increased");
@@ -238,7 +313,7 @@ fn coriolis_structure_swaps_the_formulation() {
 #[test]
 fn stribeck_friction_removes_energy() {
     let model = Model::paper_arm();
-    let r = run(&model, &[Effect::StribeckFriction { fc: vec![2.0, 0.5], fs: vec![3.0, 0.8], vs: vec![0.1, 0.1] }], &mut ZeroTorque, &free_params());
+    let r = run(&model, &[Effect::StribeckFriction { fc: vec![2.0, 0.5], fs: vec![3.0, 0.8], vs: vec![0.1, 0.1], w: vec![0.01; 2] }], &mut ZeroTorque, &free_params());
     let e = energies(&model, &r);
     assert!(e.windows(2).all(|w| w[1] <= w[0] + 1e-9), "energy increased");
     assert!(e[e.len() - 1] < e[0]);

@@ -271,7 +271,7 @@ fn tracking_l2_computed_as_the_run_goes_equals_the_whole_run_l2_to_the_last_bit(
 fn stepper_restarted_from_a_logged_state_with_the_logged_commands_retraces_the_run() {
     let model = Model::paper_arm();
     // a delay of 2.4 samples: the restart must prime the delay ring with commands before k0
-    let effects = [simgap_sim::Effect::TimeDelay { delay: 0.006 }, simgap_sim::Effect::CoulombFriction { fc: vec![7.17, 1.734] }];
+    let effects = [simgap_sim::Effect::TimeDelay { delay: 0.006 }, simgap_sim::Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }];
     let plant = Plant::new(&model, Formulation::EulerLagrange, &effects).unwrap();
     let params = SimParams { sensor: SensorParams::exact(), duration: 2.0, ..SimParams::default() };
     let (run, end) = run_with(&plant, &mut paper_pd(), &paper_step(), &params);

@@ -85,24 +85,6 @@ pub struct RunSpec {
 /// # Errors
 /// Simulator errors (including divergence).
 pub fn generate(model: &Model, formulation: Formulation, effects: &[Effect], spec: &RunSpec, sample_period: f64, counts_per_rev: f64) -> Result<Run> {
-    generate_with_width(model, formulation, effects, spec, sample_period, counts_per_rev, simgap_sim::DEFAULT_COULOMB_WIDTH)
-}
-
-/// [`generate`] with the plant's `sign(q̇)` in Coulomb and Stribeck friction smoothed as
-/// `tanh(q̇ / coulomb_width)` [rad/s] (a friction shape the diagnosis's vocabulary does not hold
-/// when the width differs much from the default).
-///
-/// # Errors
-/// Simulator errors (including divergence).
-pub fn generate_with_width(
-    model: &Model,
-    formulation: Formulation,
-    effects: &[Effect],
-    spec: &RunSpec,
-    sample_period: f64,
-    counts_per_rev: f64,
-    coulomb_width: f64,
-) -> Result<Run> {
     let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     let exp = Experiment { controller: spec.controller, joints, kp: spec.kp.clone(), kv: spec.kv.clone(), sample_period, extra: BTreeMap::new() };
     let reference: Box<dyn Reference> = match &spec.reference {
@@ -116,7 +98,7 @@ pub fn generate_with_width(
         }
     };
     let sensor = SensorParams { counts_per_rev: Some(counts_per_rev), ..SensorParams::default() };
-    let params = SimParams { duration: spec.duration, sample_period, sensor, coulomb_width, ..SimParams::default() };
+    let params = SimParams { duration: spec.duration, sample_period, sensor, ..SimParams::default() };
     let mut run = simulate_experiment(model, formulation, effects, &exp, reference.as_ref(), &params, None)?;
     run.source = spec.name.clone();
     if let RefSpec::FeedForward(f) = &spec.reference {
@@ -161,7 +143,11 @@ pub fn random_setpoints(dof: usize, amplitude: f64, duration: f64, every: f64, r
 /// The demo's bench robot: the paper's arm with its published friction (viscous 2.288 and
 /// 0.175 N·m·s/rad, Coulomb 7.17 and 1.734 N·m) and the elbow motor's 15 N·m limit.
 pub fn demo_effects() -> Vec<Effect> {
-    vec![Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734] }, Effect::TorqueSaturation { limit: vec![f64::INFINITY, 15.0] }]
+    vec![
+        Effect::ViscousFriction { b: vec![2.288, 0.175] },
+        Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; 2] },
+        Effect::TorqueSaturation { limit: vec![f64::INFINITY, 15.0] },
+    ]
 }
 
 /// The demo's runs on the paper arm: three 4 s fit runs (the paper's step, an excitation and

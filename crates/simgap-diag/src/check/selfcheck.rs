@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use simgap_core::{mass_matrix, Formulation, Model, UrdfOptions, Workspace};
 use simgap_sim::{ControllerKind, Effect, LinkDelta, Run};
 
-use crate::check::bench::{gains_for, generate, generate_with_width, random_fourier, random_setpoints, RefSpec, RunSpec};
+use crate::check::bench::{gains_for, generate, random_fourier, random_setpoints, RefSpec, RunSpec};
 use crate::options::DiagnoseOptions;
 use crate::pipeline::diagnose;
 use crate::report::Diagnosis;
@@ -86,10 +86,15 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
     };
     match name {
         "viscous_friction" => Effect::ViscousFriction { b: v(0.0, rng.random_range(0.08..0.25) * tau / qd) },
-        "coulomb_friction" => Effect::CoulombFriction { fc: v(0.0, rng.random_range(0.08..0.25) * tau) },
+        "coulomb_friction" => Effect::CoulombFriction { fc: v(0.0, rng.random_range(0.08..0.25) * tau), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] },
         "stribeck_friction" => {
             let fc = rng.random_range(0.08..0.2) * tau;
-            Effect::StribeckFriction { fc: v(0.0, fc), fs: v(0.0, fc * rng.random_range(1.8..3.0)), vs: v(0.0, rng.random_range(0.1..0.3) * qd) }
+            Effect::StribeckFriction {
+                fc: v(0.0, fc),
+                fs: v(0.0, fc * rng.random_range(1.8..3.0)),
+                vs: v(0.0, rng.random_range(0.1..0.3) * qd),
+                w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n],
+            }
         }
         "armature" => {
             let mut ws = Workspace::new(model);
@@ -282,7 +287,6 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
         let fit_specs: Vec<RunSpec> = (0..3).map(|i| spec(format!("s{index}-fit{i}"), 4.0, &mut rng)).collect();
         let hold_specs = [spec(format!("s{index}-holdout"), 6.0, &mut rng)];
         let nominal = generate(&model, Formulation::EulerLagrange, &[], &fit_specs[0], 0.0025, 1_024_000.0)?;
-        let mut width = simgap_sim::DEFAULT_COULOMB_WIDTH;
         let effects: Vec<Effect> = match family {
             "random" => {
                 let count = [0, 1, 1, 1, 1, 1, 2, 2, 2, 0][rng.random_range(0..10)];
@@ -301,12 +305,12 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
                 vec![draw_effect(name, &model, &nominal, joint, &mut rng)]
             }
             "friction_shape" => {
-                width = rng.random_range(0.1..0.3);
+                let width = rng.random_range(0.1..0.3);
                 let joint = rng.random_range(0..n);
                 let tau = rms(&nominal, &nominal.tau, joint).max(1e-6);
                 let mut fc = vec![0.0; n];
                 fc[joint] = rng.random_range(0.1..0.25) * tau;
-                vec![Effect::CoulombFriction { fc }]
+                vec![Effect::CoulombFriction { fc, w: vec![width; n] }]
             }
             "per_joint_gains" => {
                 // distinct gains from a grid of twelve (0.60–0.85 and 1.15–1.40 in steps of 0.05),
@@ -332,7 +336,7 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
                 }
             }
         };
-        let gen = |s: &RunSpec| generate_with_width(&model, Formulation::EulerLagrange, &effects, s, 0.0025, 1_024_000.0, width);
+        let gen = |s: &RunSpec| generate(&model, Formulation::EulerLagrange, &effects, s, 0.0025, 1_024_000.0);
         let fit: crate::Result<Vec<Run>> = fit_specs.iter().map(gen).collect();
         let hold: crate::Result<Vec<Run>> = hold_specs.iter().map(gen).collect();
         let open_loop = match family {
@@ -433,7 +437,7 @@ fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectReport]) -> Vec
         };
         match e {
             Effect::ViscousFriction { b } => out.extend(per_joint("b", b)),
-            Effect::CoulombFriction { fc } => out.extend(per_joint("fc", fc)),
+            Effect::CoulombFriction { fc, .. } => out.extend(per_joint("fc", fc)),
             Effect::StribeckFriction { fc, fs, .. } => {
                 out.extend(per_joint("fc", fc));
                 out.extend(per_joint("fs", fs));

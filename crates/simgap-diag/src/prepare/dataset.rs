@@ -6,6 +6,7 @@ use simgap_sim::{DelayLine, Run};
 
 use crate::error::{Error, Result};
 use crate::prepare::differentiate::Smoother;
+use crate::prepare::width::DryWidth;
 
 /// Options of the data preparation.
 #[derive(Clone, Debug)]
@@ -108,6 +109,10 @@ pub struct FitData {
     /// Per joint, the largest diagonal entry `H_jj(q)` of the mass matrix over the kept
     /// samples: the link inertia the joint moves [kg·m² or kg].
     pub h_max: Vec<f64>,
+    /// The widths `w` of the smoothed sign of dry friction the data allow, per joint [rad/s or
+    /// m/s]: from this run alone by [`FitData::new`], from every fit run by the diagnosis (the
+    /// same on each of them; see [`DryWidth`]).
+    pub dry_width: Vec<DryWidth>,
     /// The aligned raw run.
     pub raw: Run,
     smoother: Smoother,
@@ -179,7 +184,27 @@ impl FitData {
                 }
             }
         }
-        Ok(FitData { name: run.source.clone(), dof: n, t, q, qd, qdd, tau, tau_measured, residual, coriolis_delta, regressor, h_max, raw: run, smoother, kept })
+        let mut data = FitData {
+            name: run.source.clone(),
+            dof: n,
+            t,
+            q,
+            qd,
+            qdd,
+            tau,
+            tau_measured,
+            residual,
+            coriolis_delta,
+            regressor,
+            h_max,
+            dry_width: Vec::new(),
+            raw: run,
+            smoother,
+            kept,
+        };
+        let kinds: Vec<simgap_core::JointKind> = model.joints().iter().map(|j| j.kind).collect();
+        data.dry_width = crate::prepare::width::dry_friction_widths(&kinds, &[(data.logged_velocity(), &data.qd)]);
+        Ok(data)
     }
 
     /// Number of kept samples.
@@ -203,6 +228,28 @@ impl FitData {
         }
         let s = self.smoother.apply_zoh(&mapped, n);
         self.kept.iter().flat_map(|&k| s[k * n..(k + 1) * n].iter().copied()).collect()
+    }
+
+    /// The velocities as logged (the controller's, row-major `raw.len() × dof`), or the backward
+    /// difference of the logged positions when the log has none (the first row then repeats
+    /// the second).
+    pub fn logged_velocity(&self) -> Vec<f64> {
+        let (raw, n) = (&self.raw, self.dof);
+        if raw.qd.len() == raw.q.len() && !raw.qd.is_empty() {
+            return raw.qd.clone();
+        }
+        let mut v = vec![0.0; raw.q.len()];
+        for k in 1..raw.len() {
+            let dt = raw.t[k] - raw.t[k - 1];
+            for j in 0..n {
+                v[k * n + j] = (raw.q[k * n + j] - raw.q[(k - 1) * n + j]) / dt;
+            }
+        }
+        if raw.len() > 1 {
+            let (first, rest) = v.split_at_mut(n);
+            first.copy_from_slice(&rest[..n]);
+        }
+        v
     }
 
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the

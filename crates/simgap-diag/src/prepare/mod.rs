@@ -5,6 +5,7 @@
 pub(crate) mod dataset;
 pub(crate) mod differentiate;
 pub(crate) mod robust;
+pub(crate) mod width;
 
 use simgap_core::{Formulation, Model};
 use simgap_sim::Run;
@@ -14,6 +15,7 @@ use crate::prediction::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use crate::prediction::resim;
 pub(crate) use dataset::align_run;
 pub use dataset::{FitData, PrepareOptions};
+pub use width::DryWidth;
 
 /// Everything the stages share: the model, the prepared runs, the fit context.
 pub(crate) struct Prepared {
@@ -124,7 +126,15 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
             notes.push(format!("joint {} is passive (commanded effort always 0): actuator effects (gain, offset, saturation) are not tried on it", model.joint_names()[j]));
         }
     }
-    let data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
+    let mut data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
+    // the dry-friction widths each joint's data allow, from every fit run (the width a term
+    // takes within them is its column, the corrected model's and the report's)
+    let velocities: Vec<(Vec<f64>, &[f64])> = data.iter().map(|d| (d.logged_velocity(), &d.qd[..])).collect();
+    let kinds: Vec<simgap_core::JointKind> = model.joints().iter().map(|j| j.kind).collect();
+    let widths = width::dry_friction_widths(&kinds, &velocities);
+    for d in &mut data {
+        d.dry_width = widths.clone();
+    }
     let horizons = self::horizons(horizons)?;
     let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
     let fit_pred: Vec<PredictionRun> =

@@ -39,7 +39,7 @@ pub(crate) fn urdf_pitfalls(model: &Model, data: &[FitData]) -> Vec<String> {
     }
     let n = model.dof();
     let p = Problem::new(data);
-    let friction: Vec<TermDesign> = (0..n).flat_map(|j| [design(&Term::Coulomb(j), data), design(&Term::Viscous(j), data)]).collect();
+    let friction: Vec<TermDesign> = (0..n).flat_map(|j| [design(&Term::Coulomb { joint: j, w: data[0].dry_width[j].mid() }, data), design(&Term::Viscous(j), data)]).collect();
     let fit_with = |extra: &[TermDesign]| -> Fit {
         let mut ds: Vec<&TermDesign> = friction.iter().collect();
         ds.extend(extra.iter());

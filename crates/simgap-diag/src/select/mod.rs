@@ -21,12 +21,20 @@ use nalgebra::{DMatrix, DVector};
 use simgap_core::PARAMS_PER_LINK;
 
 use crate::prepare::dataset::FitData;
+use crate::prepare::width::DryWidth;
 use std::sync::Arc;
 
 use crate::lsq::inertial::InertialPrior;
 use crate::lsq::{block_squares, fit, grams, grams_against_known, Fit, Grams, Problem};
 use crate::vocabulary::{contract_parameters, fit_terms};
 use crate::vocabulary::{design, largest_command, n_params, payload_basis_rows, payload_mass_bound, physical, point_mass_parameters, Column, Slot, Term, TermDesign};
+
+/// Widths a Coulomb friction's grid tries on a joint (then refined within its range).
+const DRY_WIDTH_GRID: usize = 8;
+
+/// Widths a Stribeck friction's grid tries with each Stribeck velocity (one: the top of the
+/// joint's range; its hump below vs shapes the sign near rest).
+const STRIBECK_WIDTH_GRID: usize = 1;
 
 /// Thresholds of the selection.
 #[derive(Clone, Debug)]
@@ -53,7 +61,9 @@ impl Default for SelectOptions {
 pub(crate) enum Family {
     /// A fixed term.
     Fixed(Term),
-    /// Stribeck velocity searched.
+    /// Coulomb friction, its width `w` searched within the joint's [`DryWidth`].
+    Coulomb(usize),
+    /// Stribeck velocity searched, and its width `w` within the joint's [`DryWidth`].
     Stribeck(usize),
     /// Saturation limit searched.
     Saturation(usize),
@@ -70,7 +80,8 @@ impl Family {
     fn member(&self) -> Term {
         match *self {
             Family::Fixed(ref t) => t.clone(),
-            Family::Stribeck(joint) => Term::Stribeck { joint, vs: 1.0 },
+            Family::Coulomb(joint) => Term::Coulomb { joint, w: 1.0 },
+            Family::Stribeck(joint) => Term::Stribeck { joint, vs: 1.0, w: 1.0 },
             Family::Saturation(joint) => Term::Saturation { joint, limit: 1.0 },
             Family::Cogging(joint) => Term::Cogging { joint, periods: 1.0 },
             Family::Delay => Term::Delay { delay: 0.0 },
@@ -84,13 +95,14 @@ pub(crate) fn families(dof: usize) -> Vec<Family> {
     let mut f = Vec::new();
     for j in 0..dof {
         f.push(Family::Fixed(Term::Viscous(j)));
-        f.push(Family::Fixed(Term::Coulomb(j)));
+        f.push(Family::Coulomb(j));
         f.push(Family::Stribeck(j));
         f.push(Family::Fixed(Term::Armature(j)));
         f.push(Family::Fixed(Term::Gain(j)));
         f.push(Family::Fixed(Term::Offset(j)));
         f.push(Family::Saturation(j));
         f.push(Family::Cogging(j));
+        f.push(Family::Fixed(Term::Spring(j)));
     }
     f.push(Family::Delay);
     f.push(Family::Fixed(Term::CoriolisStructure));
@@ -114,6 +126,8 @@ pub(crate) struct Context<'a> {
     pub saturation_floor: Vec<f64>,
     /// Sample period (for the delay grid) [s].
     pub sample_period: f64,
+    /// The dry-friction widths the data allow on every joint ([`FitData::dry_width`]).
+    pub dry_width: Vec<DryWidth>,
     /// Designs already built, by term (the same grid members recur at every step).
     cache: std::sync::Mutex<std::collections::HashMap<crate::vocabulary::TermKey, std::sync::Arc<TermDesign>>>,
     /// The payload's basis, built at its first search.
@@ -150,7 +164,9 @@ impl<'a> Context<'a> {
             .collect();
         let mut prior = prior.clone();
         prior.identifiable = inertial_basis.ncols();
-        let mut ctx = Context { data, problem, inertial_basis, prior: Arc::new(prior), saturation_floor, sample_period, cache: Default::default(), payload: Default::default() };
+        let dry_width = data.first().map_or_else(Vec::new, |d| d.dry_width.clone());
+        let mut ctx =
+            Context { data, problem, inertial_basis, prior: Arc::new(prior), saturation_floor, sample_period, dry_width, cache: Default::default(), payload: Default::default() };
         if ctx.inertial_basis.ncols() > 0 {
             let w = ctx.choose_prior_weight();
             let mut prior = (*ctx.prior).clone();
@@ -211,7 +227,11 @@ impl<'a> Context<'a> {
     fn grid(&self, family: &Family) -> Vec<Term> {
         match *family {
             Family::Fixed(ref t) => vec![t.clone()],
-            Family::Stribeck(j) => (0..12).map(|i| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i) }).collect(),
+            Family::Coulomb(j) => self.dry_width[j].grid(DRY_WIDTH_GRID).into_iter().map(|w| Term::Coulomb { joint: j, w }).collect(),
+            Family::Stribeck(j) => {
+                let widths = self.dry_width[j].grid(STRIBECK_WIDTH_GRID);
+                (0..12).flat_map(|i| widths.iter().map(move |&w| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i), w })).collect()
+            }
             Family::Saturation(j) => {
                 let max = self.max_command(j);
                 let floor = self.saturation_floor[j];
@@ -246,8 +266,15 @@ impl<'a> Context<'a> {
                 let cands: Vec<Term> = (-8..=8).map(|i| Term::Delay { delay: (delay * (1.0 + 0.05 * i as f64)).max(1e-6) }).collect();
                 screen_best(self, &cands, resid).0
             }
-            Term::Stribeck { joint, vs } => {
-                let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i) }).collect();
+            Term::Coulomb { joint, w } => {
+                // ±60 % in 10 % steps, within the range the data allow
+                let range = self.dry_width[joint];
+                let mut cands: Vec<Term> = (-5..=5).map(|i| Term::Coulomb { joint, w: range.clamp(w * 1.1f64.powi(i)) }).collect();
+                cands.dedup();
+                screen_best(self, &cands, resid).0
+            }
+            Term::Stribeck { joint, vs, w } => {
+                let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i), w }).collect();
                 screen_best(self, &cands, resid).0
             }
             Term::Payload { .. } => self.payload_search(resid, &[]),
@@ -603,7 +630,7 @@ pub(crate) struct Selection {
 /// together they admit the trivial fit k = 0, π = 0).
 pub(crate) fn slot_taken(terms: &[Term], t: &Term) -> bool {
     let gain_vs_inertia = |a: &Term, b: &Term| matches!(a, Term::Gain(_)) && matches!(b, Term::InertialError { .. });
-    terms.iter().any(|s| s.slot() == t.slot() || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
+    terms.iter().any(|s| s.shares_slot(t) || gain_vs_inertia(s, t) || gain_vs_inertia(t, s))
 }
 
 /// Whether a fitted parameter of a term sits at a plausibility bound other than zero (a payload

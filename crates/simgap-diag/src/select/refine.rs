@@ -90,7 +90,7 @@ pub(crate) fn refine_by_shooting(
     if has_inertial {
         let mut natural = vec![ctx.inertial_term()];
         for j in 0..n {
-            natural.push(Term::Coulomb(j));
+            natural.push(Term::Coulomb { joint: j, w: ctx.dry_width[j].mid() });
             natural.push(Term::Viscous(j));
             if !prep.passive[j] {
                 natural.push(Term::Armature(j));

@@ -18,9 +18,8 @@ pub(crate) fn select_nothing(ctx: &Context<'_>) -> Selection {
 /// Every effect of the vocabulary as one candidate: per-joint families on every joint (best
 /// grid member per joint against the nominal residual), whole-robot ones once.
 pub(crate) fn candidate_groups(ctx: &Context<'_>, resid: &Column) -> Vec<(&'static str, Vec<Term>)> {
-    let dof = ctx.problem.dof;
     let mut groups: Vec<(&'static str, Vec<Term>)> = Vec::new();
-    let fams = families(dof);
+    let fams = families(ctx.problem.dof);
     for f in &fams {
         let t = ctx.best_of(f, resid);
         let name = t.effect_name();

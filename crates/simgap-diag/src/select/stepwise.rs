@@ -245,6 +245,7 @@ pub(crate) fn repolish(ctx: &Context<'_>, terms: &[Term]) -> Vec<Term> {
 /// The family a term belongs to.
 fn family_of(t: &Term) -> Option<Family> {
     match *t {
+        Term::Coulomb { joint, .. } => Some(Family::Coulomb(joint)),
         Term::Stribeck { joint, .. } => Some(Family::Stribeck(joint)),
         Term::Saturation { joint, .. } => Some(Family::Saturation(joint)),
         Term::Cogging { joint, .. } => Some(Family::Cogging(joint)),

@@ -6,4 +6,6 @@ mod intervals;
 mod link_side;
 mod physical;
 mod pitfalls;
+mod rebuild;
 mod shooting;
+mod spring;

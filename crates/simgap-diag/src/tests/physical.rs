@@ -34,9 +34,9 @@ fn paper_arm_data(effects: &[Effect]) -> (Model, Vec<FitData>, Vec<Run>, Vec<Run
 
 #[test]
 fn bounded_fit_keeps_coulomb_non_negative() {
-    let (_, data, _, _) = paper_arm_data(&[Effect::CoulombFriction { fc: vec![7.17, 1.734] }]);
+    let (_, data, _, _) = paper_arm_data(&[Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }]);
     let mut p = Problem::new(&data);
-    let terms = [Term::Coulomb(0), Term::Coulomb(1)];
+    let terms = [Term::Coulomb { joint: 0, w: 0.01 }, Term::Coulomb { joint: 1, w: 0.01 }];
     // friction that dissipates: recovered
     let (_, _, f) = fit_terms(&p, &data, &terms);
     assert!((f.theta[0] - 7.17).abs() < 0.1 * 7.17 && (f.theta[1] - 1.734).abs() < 0.1 * 1.734, "fc = {}", f.theta);
@@ -54,12 +54,13 @@ fn bounded_fit_keeps_coulomb_non_negative() {
 
 #[test]
 fn bounded_fits_keep_viscous_armature_stribeck_and_payload_physical() {
-    let (model, data, _, _) = paper_arm_data(&[Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734] }]);
+    let (model, data, _, _) = paper_arm_data(&[Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }]);
     let mut p = Problem::new(&data);
     for v in &mut p.y.values {
         *v = -*v;
     }
-    let terms = [Term::Viscous(0), Term::Armature(1), Term::Stribeck { joint: 0, vs: 0.1 }, Term::Gain(1), Term::Payload { com: [0.2, 0.0, 0.0], max_mass: f64::INFINITY }];
+    let terms =
+        [Term::Viscous(0), Term::Armature(1), Term::Stribeck { joint: 0, vs: 0.1, w: 0.01 }, Term::Gain(1), Term::Payload { com: [0.2, 0.0, 0.0], max_mass: f64::INFINITY }];
     let (designs, gr, f) = fit_terms(&p, &data, &terms);
     let std = crate::lsq::bootstrap_std(&gr, 20, 3);
     let fitted = crate::vocabulary::fitted_terms(&terms, &designs, &f.theta, Some(&std));

@@ -37,7 +37,7 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
     // hidden: rotor inertia of 30 % of each joint's inertia at rest, and Coulomb friction
     let ia = [0.3 * h[(0, 0)], 0.3 * h[(1, 1)]];
     let fc = [7.17, 1.734];
-    let hidden = [Effect::Armature { ia: ia.to_vec() }, Effect::CoulombFriction { fc: fc.to_vec() }];
+    let hidden = [Effect::Armature { ia: ia.to_vec() }, Effect::CoulombFriction { fc: fc.to_vec(), w: vec![0.01; fc.len()] }];
     let truth = [ia[0], ia[1], fc[0], fc[1]];
     let period = 0.0025;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
@@ -50,7 +50,7 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
     let prepare = PrepareOptions::default();
     let data: Vec<FitData> = fit.iter().map(|r| FitData::new(&model, formulation, align_run(&model, r).unwrap(), &prepare).unwrap()).collect();
     let problem = Problem::new(&data);
-    let terms = [Term::Armature(0), Term::Armature(1), Term::Coulomb(0), Term::Coulomb(1)];
+    let terms = [Term::Armature(0), Term::Armature(1), Term::Coulomb { joint: 0, w: 0.01 }, Term::Coulomb { joint: 1, w: 0.01 }];
     let (designs, _, torque_fit) = fit_terms(&problem, &data, &terms);
 
     // multiple shooting from it

@@ -1,27 +1,27 @@
 //! Friction: `viscous_friction` (−b q̇), `coulomb_friction` (−fc sign q̇) and
 //! `stribeck_friction` (−(fc + (fs − fc) e^{−(q̇/vs)²}) sign q̇), with sign(q̇) smoothed as
-//! tanh(q̇ / [`COULOMB_WIDTH`]) in fitting as in simulation.
+//! tanh(q̇ / w) in fitting as in simulation, `w` the joint's width chosen from the data
+//! ([`FitData::dry_width`], `prepare/width.rs`) and carried by the term, so that the column,
+//! the simulated effect and the reported parameter `w` are one number.
 //!
 //! Columns: `b_j q̇_j`; `fc_j tanh(q̇_j / w)`; `fc tanh(q̇/w) + (fs − fc) e^{−(q̇/vs)²} tanh(q̇/w)`,
 //! with b, fc ≥ 0 and fs − fc ≥ 0 (friction dissipates; a Stribeck hump rises above fc).
 //! The Stribeck velocity vs is searched on a grid.
 
+use simgap_sim::effects::smooth_sign;
 use simgap_sim::Effect;
 
 use super::effects::{list_per_joint, per_joint as reported, sig3, unit_of, Entry, FittedTerm};
 use super::{per_joint, EffectReport, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
-/// Width [rad/s] of the tanh that smooths sign(q̇) in fitting and in simulation.
-pub(crate) const COULOMB_WIDTH: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
-
 /// The columns of a friction term.
 pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
-    let tanh = |x: f64| (x / COULOMB_WIDTH).tanh();
     match *term {
         Term::Viscous(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qd[i])], 0.0),
-        Term::Coulomb(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| tanh(d.qd[i]))], 0.0),
-        Term::Stribeck { joint, vs } => {
+        Term::Coulomb { joint, w } => TermDesign::at_least(vec![per_joint(data, joint, |d, i| smooth_sign(d.qd[i], w))], 0.0),
+        Term::Stribeck { joint, vs, w } => {
+            let tanh = |v: f64| smooth_sign(v, w);
             // fc tanh + (fs − fc) e tanh, with fc ≥ 0 and fs − fc ≥ 0
             let e = |v: f64| (-(v / vs).powi(2)).exp();
             TermDesign::at_least(vec![per_joint(data, joint, |d, i| tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))], 0.0)
@@ -39,17 +39,17 @@ pub(crate) const RESOLVED_SHARE: f64 = 0.02;
 /// twice the smoothing width of the sign, or slower than all but [`RESOLVED_SHARE`] of the fit
 /// samples.
 pub(super) fn simpler(term: &Term, data: &[FitData]) -> Option<super::Nested> {
-    let Term::Stribeck { joint, vs } = *term else { return None };
+    let Term::Stribeck { joint, vs, w } = *term else { return None };
     let (slower, total) = data.iter().fold((0usize, 0usize), |(s, n), d| (s + (0..d.len()).filter(|&i| d.qd[i * d.dof + joint].abs() < vs).count(), n + d.len()));
     let share = if total > 0 { slower as f64 / total as f64 } else { 0.0 };
-    let unresolved = if vs <= 2.0 * COULOMB_WIDTH {
-        Some(format!("its Stribeck velocity vs is {} times the width w over which the sign of the velocity is smoothed (the runs cannot resolve a hump within twice that width)", sig3(vs / COULOMB_WIDTH)))
+    let unresolved = if vs <= 2.0 * w {
+        Some(format!("its Stribeck velocity vs is {} times the width w over which the sign of the velocity is smoothed (the runs cannot resolve a hump within twice that width)", sig3(vs / w)))
     } else if share < RESOLVED_SHARE {
         Some(format!("only {:.1} % of the fit samples move slower than its Stribeck velocity vs: the runs do not resolve its hump", 100.0 * share))
     } else {
         None
     };
-    Some(super::Nested { terms: vec![Term::Coulomb(joint)], extra: vec![1], unresolved })
+    Some(super::Nested { terms: vec![Term::Coulomb { joint, w }], extra: vec![1], unresolved })
 }
 
 /// fc and fs of a Stribeck term from its columns' coefficients (fc, fs − fc).
@@ -75,16 +75,20 @@ pub(super) fn apply(f: &FittedTerm, n: usize, out: &mut Vec<Effect>) {
                 b[j] = th[0];
             }
         }
-        Term::Coulomb(j) => {
-            if let Effect::CoulombFriction { fc } = super::effects::slot(out, Effect::CoulombFriction { fc: vec![0.0; n] }) {
-                fc[j] = th[0];
+        Term::Coulomb { joint, w } => {
+            let make = Effect::CoulombFriction { fc: vec![0.0; n], w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] };
+            if let Effect::CoulombFriction { fc, w: width } = super::effects::slot(out, make) {
+                fc[joint] = th[0];
+                width[joint] = w;
             }
         }
-        Term::Stribeck { joint, vs } => {
-            if let Effect::StribeckFriction { fc, fs, vs: v } = super::effects::slot(out, Effect::StribeckFriction { fc: vec![0.0; n], fs: vec![0.0; n], vs: vec![0.0; n] }) {
+        Term::Stribeck { joint, vs, w } => {
+            let make = Effect::StribeckFriction { fc: vec![0.0; n], fs: vec![0.0; n], vs: vec![0.0; n], w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] };
+            if let Effect::StribeckFriction { fc, fs, vs: v, w: width } = super::effects::slot(out, make) {
                 fc[joint] = th[0];
                 fs[joint] = th[1];
                 v[joint] = vs;
+                width[joint] = w;
             }
         }
         _ => {}
@@ -97,11 +101,15 @@ pub(super) fn report(f: &FittedTerm, entry: &mut Entry<'_>) {
     let (th, sd) = (&f.theta, &f.std);
     match f.term {
         Term::Viscous(_) => entry.push("b", th[0], ci(sd[0])),
-        Term::Coulomb(_) => entry.push("fc", th[0], ci(sd[0])),
-        Term::Stribeck { vs, .. } => {
+        Term::Coulomb { w, .. } => {
+            entry.push("fc", th[0], ci(sd[0]));
+            entry.push("w", w, f64::NAN);
+        }
+        Term::Stribeck { vs, w, .. } => {
             entry.push("fc", th[0], ci(sd[0]));
             entry.push("fs", th[1], ci(sd[1]));
             entry.push("vs", vs, f64::NAN);
+            entry.push("w", w, f64::NAN);
         }
         _ => {}
     }

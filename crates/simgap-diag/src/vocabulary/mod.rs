@@ -5,13 +5,14 @@
 //! With the effect present, the robot obeys `(H + diag(ia)) q̈ + C q̇ + g = τ_applied + τ_eff`, so
 //!
 //! ```text
-//! viscous        r_j ∋  b_j q̇_j                        coulomb  r_j ∋ fc_j tanh(q̇_j / w)
+//! viscous        r_j ∋  b_j q̇_j                        coulomb  r_j ∋ fc_j tanh(q̇_j / w_j)
 //! stribeck       r_j ∋  (fc + (fs − fc) e^{−(q̇/vs)²}) tanh(q̇/w)
 //! armature       r_j ∋  ia_j q̈_j                       gain     r_j ∋ (1 − k_j) τ_j
 //! offset         r_j ∋ −offset_j                        cogging  r_j ∋ A_j sin(N_j q_j)
 //! saturation     r_j ∋  τ_j − clamp(τ_j, ±L_j)          (fixed coefficient, L searched)
 //! time_delay     r   ∋  τ(t) − τ(t − d)                 (fixed coefficient, d searched)
 //! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
+//! joint_spring   r_j ∋  k_j q_j − k_j q0_j              (k ≥ 0, k q0 free)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
@@ -25,6 +26,7 @@ mod friction;
 mod inertial;
 mod payload;
 mod rotor;
+mod spring;
 
 pub use effects::{EffectReport, Param};
 
@@ -47,14 +49,23 @@ use nalgebra::DVector;
 pub(crate) enum Term {
     /// Viscous friction on a joint.
     Viscous(usize),
-    /// Coulomb friction on a joint.
-    Coulomb(usize),
-    /// Stribeck friction on a joint with Stribeck velocity `vs`.
+    /// Coulomb friction on a joint, its sign smoothed as tanh(q̇ / w).
+    Coulomb {
+        /// Joint index.
+        joint: usize,
+        /// Width of the smoothed sign [rad/s or m/s], searched within what the data allow
+        /// ([`FitData::dry_width`]).
+        w: f64,
+    },
+    /// Stribeck friction on a joint with Stribeck velocity `vs`, its sign smoothed as
+    /// tanh(q̇ / w).
     Stribeck {
         /// Joint index.
         joint: usize,
-        /// Stribeck velocity [rad/s].
+        /// Stribeck velocity [rad/s or m/s].
         vs: f64,
+        /// Width of the smoothed sign [rad/s or m/s] ([`FitData::dry_width`]).
+        w: f64,
     },
     /// Rotor inertia on a joint.
     Armature(usize),
@@ -69,6 +80,8 @@ pub(crate) enum Term {
         /// Limit [N·m].
         limit: f64,
     },
+    /// A spring on a joint, −k (q − q0).
+    Spring(usize),
     /// Cogging on a joint.
     Cogging {
         /// Joint index.
@@ -105,13 +118,14 @@ impl Term {
     pub(crate) fn kind(&self) -> EffectKind {
         match self {
             Term::Viscous(_) => EffectKind::ViscousFriction,
-            Term::Coulomb(_) => EffectKind::CoulombFriction,
+            Term::Coulomb { .. } => EffectKind::CoulombFriction,
             Term::Stribeck { .. } => EffectKind::StribeckFriction,
             Term::Armature(_) => EffectKind::Armature,
             Term::Gain(_) => EffectKind::TorqueGain,
             Term::Offset(_) => EffectKind::TorqueOffset,
             Term::Saturation { .. } => EffectKind::TorqueSaturation,
             Term::Cogging { .. } => EffectKind::Cogging,
+            Term::Spring(_) => EffectKind::JointSpring,
             Term::Delay { .. } => EffectKind::TimeDelay,
             Term::CoriolisStructure => EffectKind::CoriolisStructure,
             Term::Payload { .. } => EffectKind::Payload,
@@ -127,17 +141,29 @@ impl Term {
     /// The joint of a per-joint term.
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
-            Term::Viscous(j) | Term::Coulomb(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) => Some(j),
-            Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
+            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) => Some(j),
+            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
             _ => None,
         }
     }
 
+    /// Whether the term and `other` occupy a slot in common ([`Term::slot`], and the torque
+    /// offset's slot a spring also occupies on its joint: both hold a constant).
+    pub(crate) fn shares_slot(&self, other: &Term) -> bool {
+        let also = |t: &Term| match t {
+            Term::Spring(j) => Some((Slot::Effect(EffectKind::TorqueOffset), Some(*j))),
+            _ => None,
+        };
+        let (a, b) = (self.slot(), other.slot());
+        a == b || also(self) == Some(b) || also(other) == Some(a) || (also(self).is_some() && also(self) == also(other))
+    }
+
     /// The slot the term occupies: at most one term per slot is selected (Coulomb and
-    /// Stribeck friction share one; a payload and an inertial error share one).
+    /// Stribeck friction share one; a payload and an inertial error share one; see also
+    /// [`Term::shares_slot`]).
     pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
         let slot = match self {
-            Term::Coulomb(_) | Term::Stribeck { .. } => Slot::DryFriction,
+            Term::Coulomb { .. } | Term::Stribeck { .. } => Slot::DryFriction,
             Term::Payload { .. } | Term::InertialError { .. } => Slot::Inertia,
             other => Slot::Effect(other.kind()),
         };
@@ -164,9 +190,8 @@ impl Term {
         let joint = self.joint().unwrap_or(usize::MAX);
         let k = self.kind();
         match self {
-            Term::Stribeck { vs: x, .. } | Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } => {
-                TermKey(k, joint, x.to_bits(), [0; 3])
-            }
+            Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } | Term::Coulomb { w: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
+            Term::Stribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
             Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
             Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
             _ => TermKey(k, joint, 0, [0; 3]),
@@ -199,10 +224,11 @@ pub(crate) fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) 
 /// The design of a term over all runs: its columns and the bounds physics puts on them.
 pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     match term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::design(term, data),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::design(term, data),
         Term::Armature(j) => rotor::design(*j, data),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::design(term, data),
         Term::Cogging { joint, periods } => cogging::design(*joint, *periods, data),
+        Term::Spring(j) => spring::design(*j, data),
         Term::Delay { delay } => delay::design(*delay, data),
         Term::CoriolisStructure => coriolis::design(data),
         Term::Payload { com, max_mass } => payload::design(*com, *max_mass, data),
@@ -218,10 +244,11 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
 /// physical.
 pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
     match term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::physical(term, theta),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::physical(term, theta),
         Term::Armature(_) => rotor::physical(theta),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
         Term::Payload { .. } => payload::physical(theta),
+        Term::Spring(_) => spring::physical(theta),
         Term::InertialError { prior } => prior.is_physical(theta),
         Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure => true,
     }
@@ -241,10 +268,11 @@ pub(crate) fn n_params(term: &Term, d: &TermDesign) -> usize {
 fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
     let n = model.dof();
     match &f.term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::apply(f, n, out),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::apply(f, n, out),
         Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::apply(f, n, out),
         Term::Cogging { joint, periods } => cogging::apply(*joint, *periods, &f.theta, n, out),
+        Term::Spring(j) => spring::apply(*j, &f.theta, n, out),
         Term::Delay { delay } => out.push(Effect::TimeDelay { delay: *delay }),
         Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
         Term::Payload { com, .. } => out.push(Effect::Payload { mass: f.theta[0], com: *com }),
@@ -257,10 +285,11 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
     let ci = |s: f64| 1.96 * s;
     let (th, sd) = (&f.theta, &f.std);
     match &f.term {
-        Term::Viscous(_) | Term::Coulomb(_) | Term::Stribeck { .. } => friction::report(f, entry),
+        Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::report(f, entry),
         Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::report(f, entry),
         Term::Cogging { periods, .. } => cogging::report(*periods, th, sd, entry),
+        Term::Spring(_) => spring::report(th, sd, entry),
         Term::Delay { delay } => entry.number("delay", *delay, f64::NAN),
         Term::CoriolisStructure => {}
         Term::Payload { com, .. } => payload::report(*com, th, sd, entry),
@@ -275,10 +304,13 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         Ok(EffectKind::Armature) => rotor::describe(e),
         Ok(EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation) => actuator::describe(e),
         Ok(EffectKind::Cogging) => cogging::describe(e),
+        Ok(EffectKind::JointSpring) => spring::describe(e),
         Ok(EffectKind::TimeDelay) => delay::describe(e),
         Ok(EffectKind::CoriolisStructure) => coriolis::describe(),
         Ok(EffectKind::Payload) => payload::describe(model, e),
-        Ok(EffectKind::InertialError) | Err(_) => String::new(),
+        // an inertial error states its changes per link; a directional friction is simulated, not
+        // yet fitted (no term)
+        Ok(EffectKind::InertialError | EffectKind::DirectionalFriction) | Err(_) => String::new(),
     }
 }
 
@@ -310,6 +342,7 @@ pub(crate) fn simpler(term: &Term, data: &[FitData]) -> Option<Nested> {
 pub(crate) fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
     match term {
         Term::Stribeck { .. } => friction::contract_stribeck(raw),
+        Term::Spring(_) => spring::contract(raw),
         _ => raw.to_vec(),
     }
 }
@@ -325,6 +358,9 @@ pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVect
         if matches!(t, Term::Stribeck { .. }) {
             // fs = fc + (fs − fc): the spread of a sum, its covariance ignored
             sd[1] = sd[0].hypot(sd[1]);
+        }
+        if matches!(t, Term::Spring(_)) {
+            spring::contract_std(&th, &mut sd);
         }
         out.push(FittedTerm { term: t.clone(), theta: th, std: sd });
         c += k;
