@@ -236,13 +236,14 @@ fn a_prismatic_axis_is_diagnosed_and_reported_in_newtons_and_metres() {
     let dir = scratch("prismatic");
     let urdf = dir.join("slider.urdf");
     std::fs::write(&urdf, SLIDER).unwrap();
-    // a ball-screw-like axis with viscous and dry friction, tracked by a PD loop at 1 kHz
+    // a ball-screw-like axis with viscous and dry friction (its sign smoothed over 2 mm/s),
+    // tracked by a PD loop at 1 kHz
     let runs = [("fit1", "amplitude=0.1;frequency=0.7", "0"), ("fit2", "amplitude=0.15;frequency=0.3", "0.05"), ("hold", "amplitude=0.12;frequency=1.1", "0")];
     for (name, fourier, target) in runs {
         let out = dir.join(format!("{name}.mcap"));
         let o = simgap(&[
             "simulate", "--urdf", s(&urdf), "--kp", "2000", "--kv", "100", "--fourier", fourier, "--target", target, "--duration", "6", "--sample-period", "0.001",
-            "--effect", "viscous_friction:b=30", "--effect", "coulomb_friction:fc=8", "--out", s(&out),
+            "--effect", "viscous_friction:b=30", "--effect", "coulomb_friction:fc=8;w=0.002", "--out", s(&out),
         ]);
         assert!(o.status.success(), "{}", text(&o));
         assert!(text(&o).contains("L2 tracking error [m]"), "{}", text(&o));
@@ -260,6 +261,10 @@ fn a_prismatic_axis_is_diagnosed_and_reported_in_newtons_and_metres() {
     assert!((b - 30.0).abs() < 3.0 && (fc - 8.0).abs() < 0.8, "b = {b} N·s/m, fc = {fc} N");
     assert_eq!(selected(&report, "viscous_friction")["units"]["b"], "N·s/m");
     assert_eq!(selected(&report, "coulomb_friction")["units"]["fc"], "N");
+    // the width of its smoothed sign stated in m/s (a linear axis's typical 2 mm/s here)
+    assert_eq!(selected(&report, "coulomb_friction")["units"]["w"], "m/s");
+    let w = param(&report, "coulomb_friction", "w", "axis");
+    assert!((w - 0.002).abs() < 1e-9, "w = {w} m/s");
     // no rotational unit anywhere a user reads: terminal, verdict, notes, HTML
     let page = std::fs::read_to_string(&html).unwrap();
     for (what, text) in [("terminal", out.as_str()), ("HTML", page.as_str()), ("verdict", report["verdict"].as_str().unwrap())] {
