@@ -203,7 +203,7 @@ impl FitData {
             kept,
         };
         let kinds: Vec<simgap_core::JointKind> = model.joints().iter().map(|j| j.kind).collect();
-        data.dry_width = crate::prepare::width::dry_friction_widths(&kinds, &[(data.logged_velocity(), &data.qd)]);
+        data.dry_width = crate::prepare::width::dry_friction_widths(&kinds, &[&data.qd]);
         Ok(data)
     }
 
@@ -230,27 +230,6 @@ impl FitData {
         self.kept.iter().flat_map(|&k| s[k * n..(k + 1) * n].iter().copied()).collect()
     }
 
-    /// The velocities as logged (the controller's, row-major `raw.len() × dof`), or the backward
-    /// difference of the logged positions when the log has none (the first row then repeats
-    /// the second).
-    pub fn logged_velocity(&self) -> Vec<f64> {
-        let (raw, n) = (&self.raw, self.dof);
-        if raw.qd.len() == raw.q.len() && !raw.qd.is_empty() {
-            return raw.qd.clone();
-        }
-        let mut v = vec![0.0; raw.q.len()];
-        for k in 1..raw.len() {
-            let dt = raw.t[k] - raw.t[k - 1];
-            for j in 0..n {
-                v[k * n + j] = (raw.q[k * n + j] - raw.q[(k - 1) * n + j]) / dt;
-            }
-        }
-        if raw.len() > 1 {
-            let (first, rest) = v.split_at_mut(n);
-            first.copy_from_slice(&rest[..n]);
-        }
-        v
-    }
 
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the
     /// simulator applies it: with `delay = m T + r`, `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`

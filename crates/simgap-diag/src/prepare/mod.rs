@@ -129,7 +129,7 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
     let mut data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
     // the dry-friction widths each joint's data allow, from every fit run (the width a term
     // takes within them is its column, the corrected model's and the report's)
-    let velocities: Vec<(Vec<f64>, &[f64])> = data.iter().map(|d| (d.logged_velocity(), &d.qd[..])).collect();
+    let velocities: Vec<&[f64]> = data.iter().map(|d| &d.qd[..]).collect();
     let kinds: Vec<simgap_core::JointKind> = model.joints().iter().map(|j| j.kind).collect();
     let widths = width::dry_friction_widths(&kinds, &velocities);
     for d in &mut data {
