@@ -1,6 +1,6 @@
 //! A 7-DOF arm whose joint torques are measured on the link side (after the gearbox), as torque
 //! sensing arms log them: the logged effort already excludes the rotor, so no rotor inertia can
-//! be found, while the sensors' biases (torque offsets) must be. The recorder low-pass filters
+//! be found, while the sensors' biases (torque offsets) and the cables' spring must be. The recorder low-pass filters
 //! its signals without phase (as an offline export does), and the fit runs repeat one trajectory.
 
 use simgap_core::{Formulation, Model, UrdfOptions};
@@ -53,15 +53,17 @@ fn recorded(mut run: Run, hz: f64, period: f64) -> Run {
 }
 
 #[test]
-fn link_side_torque_sensing_finds_the_sensor_offsets_and_no_rotor_inertia() {
+fn link_side_torque_sensing_finds_the_sensor_offsets_and_the_spring_and_no_rotor_inertia() {
     let model = Model::from_urdf_str_with(simgap_core::ARM7_URDF, "arm7.urdf", &UrdfOptions { tip: Some("panda_hand".into()) }).unwrap();
     let n = model.dof();
     let period = 0.005;
     // the sensors' biases on four joints, and the friction every arm has
     let offsets = vec![0.8, 0.0, -0.7, 0.0, 0.6, 0.0, -0.9];
+    // cables along the wrist: a spring of 2 N·m/rad about q = 0.3 rad on joint 6
     let truth = vec![
         Effect::TorqueOffset { offset: offsets.clone() },
         Effect::ViscousFriction { b: vec![0.6, 0.6, 0.5, 0.5, 0.2, 0.2, 0.1] },
+        Effect::JointSpring { k: vec![0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0], q0: vec![0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0] },
     ];
     let (kp, kv) = gains_for(&model, 2.0);
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(7);
@@ -100,6 +102,14 @@ fn link_side_torque_sensing_finds_the_sensor_offsets_and_no_rotor_inertia() {
         };
         assert!((value - o).abs() < 0.2 * o.abs(), "offset on {}: {value} against {o}", names[j]);
     }
+    // the cables' spring found
+    let spring = selected("joint_spring").unwrap_or_else(|| panic!("no joint spring selected: {:?}", d.report.selected_effects));
+    assert_eq!(spring.joints, [names[5]], "{spring:?}");
+    let k_found = match spring.parameters.get("k") {
+        Some(crate::vocabulary::Param::PerJoint(v)) => v[0],
+        _ => panic!("{spring:?}"),
+    };
+    assert!((k_found - 2.0).abs() < 0.3, "spring k = {k_found} against 2 N·m/rad");
     // the verdict is honest against constant-velocity extrapolation
     let k = &d.report.gap.kstep;
     if d.report.verdict.starts_with("the gap is explained") {
