@@ -242,15 +242,48 @@ fn a_prismatic_axis_is_diagnosed_and_reported_in_newtons_and_metres() {
     for (name, fourier, target) in runs {
         let out = dir.join(format!("{name}.mcap"));
         let o = simgap(&[
-            "simulate", "--urdf", s(&urdf), "--kp", "2000", "--kv", "100", "--fourier", fourier, "--target", target, "--duration", "6", "--sample-period", "0.001",
-            "--effect", "viscous_friction:b=30", "--effect", "coulomb_friction:fc=8;w=0.002", "--out", s(&out),
+            "simulate",
+            "--urdf",
+            s(&urdf),
+            "--kp",
+            "2000",
+            "--kv",
+            "100",
+            "--fourier",
+            fourier,
+            "--target",
+            target,
+            "--duration",
+            "6",
+            "--sample-period",
+            "0.001",
+            "--effect",
+            "viscous_friction:b=30",
+            "--effect",
+            "coulomb_friction:fc=8;w=0.002",
+            "--out",
+            s(&out),
         ]);
         assert!(o.status.success(), "{}", text(&o));
         assert!(text(&o).contains("L2 tracking error [m]"), "{}", text(&o));
     }
     let json = dir.join("r.json");
     let html = dir.join("r.html");
-    let o = simgap(&["diagnose", "--urdf", s(&urdf), "--log", s(&dir.join("fit1.mcap")), "--log", s(&dir.join("fit2.mcap")), "--holdout", s(&dir.join("hold.mcap")), "--json", s(&json), "--html", s(&html)]);
+    let o = simgap(&[
+        "diagnose",
+        "--urdf",
+        s(&urdf),
+        "--log",
+        s(&dir.join("fit1.mcap")),
+        "--log",
+        s(&dir.join("fit2.mcap")),
+        "--holdout",
+        s(&dir.join("hold.mcap")),
+        "--json",
+        s(&json),
+        "--html",
+        s(&html),
+    ]);
     let out = text(&o);
     assert!(o.status.success(), "{out}");
     let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();

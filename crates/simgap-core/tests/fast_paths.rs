@@ -6,8 +6,8 @@ mod common;
 
 use nalgebra::{DMatrix, DVector, Vector3};
 use simgap_core::{
-    bias_torques, coriolis_matrix, dynamics_terms, forward_dynamics_aba_into, forward_dynamics_armature_into, forward_dynamics_crba_into, forward_dynamics_into, gravity_torques, mass_matrix, Formulation, JointKind, Model,
-    Workspace,
+    bias_torques, coriolis_matrix, dynamics_terms, forward_dynamics_aba_into, forward_dynamics_armature_into, forward_dynamics_crba_into, forward_dynamics_into, gravity_torques,
+    mass_matrix, Formulation, JointKind, Model, Workspace,
 };
 
 use common::fixtures;

@@ -392,7 +392,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // what is left: the torque residual after the selected effects, joint by joint
     let residual_tests = if moving { residual::test(p, data, &select::residual_after(p, &selection.designs, &selection.fit.theta), &joints, &kinds) } else { Vec::new() };
     notes.extend(residual_tests.iter().filter(|t| t.kind != "negligible").map(|t| t.sentence()));
-    let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, before, after, &before_runs, &units);
+    let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, (before, after), &before_runs, &units);
     let selection_log = selection
         .log
         .iter()

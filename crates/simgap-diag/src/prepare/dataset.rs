@@ -230,7 +230,6 @@ impl FitData {
         self.kept.iter().flat_map(|&k| s[k * n..(k + 1) * n].iter().copied()).collect()
     }
 
-
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the
     /// simulator applies it: with `delay = m T + r`, `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`
     /// (before the first sample, the first command; see [`simgap_sim::DelayLine`]).

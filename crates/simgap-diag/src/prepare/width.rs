@@ -87,7 +87,7 @@ pub(crate) fn dry_friction_widths(kinds: &[simgap_core::JointKind], runs: &[&[f6
 pub(crate) fn speed_range(n: usize, j: usize, runs: &[&[f64]]) -> Option<DryWidth> {
     let (sum, count) = runs.iter().flat_map(|qd| qd.iter().skip(j).step_by(n)).fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));
     let speed = if count > 0 { (sum / count as f64).sqrt() } else { 0.0 };
-    (speed.is_finite() && speed > 0.0).then(|| DryWidth { lo: MIN_SHARE * speed, hi: MAX_SHARE * speed })
+    (speed.is_finite() && speed > 0.0).then_some(DryWidth { lo: MIN_SHARE * speed, hi: MAX_SHARE * speed })
 }
 
 #[cfg(test)]

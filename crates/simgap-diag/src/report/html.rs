@@ -210,7 +210,11 @@ pub fn render_html_linking(d: &Diagnosis, model: Option<&Model>, files: &[Linked
     }
     let _ = writeln!(h, "</table>");
     if !r.location.worst_segments.is_empty() {
-        let _ = writeln!(h, "<h3>Worst time segments</h3><table><tr><th>log</th><th>t since the log's start [s]</th><th>joint</th><th>phase</th><th>RMS error [{}]</th></tr>", all.position);
+        let _ = writeln!(
+            h,
+            "<h3>Worst time segments</h3><table><tr><th>log</th><th>t since the log's start [s]</th><th>joint</th><th>phase</th><th>RMS error [{}]</th></tr>",
+            all.position
+        );
         for s in &r.location.worst_segments {
             let t0 = log_start(d, &s.log);
             let _ = writeln!(

@@ -210,7 +210,16 @@ impl Report {
         let all = units::Units::of(&kinds);
         for j in &self.location.per_joint {
             let u = joint_units(&j.joint);
-            let _ = writeln!(s, "  {:<14} sim L2 {:>10.3e} {}  share {:>5.1} %  torque residual L2 {:>9.3e} {}", j.joint, j.sim_l2, u.position, 100.0 * j.share, j.torque_residual_l2, u.effort);
+            let _ = writeln!(
+                s,
+                "  {:<14} sim L2 {:>10.3e} {}  share {:>5.1} %  torque residual L2 {:>9.3e} {}",
+                j.joint,
+                j.sim_l2,
+                u.position,
+                100.0 * j.share,
+                j.torque_residual_l2,
+                u.effort
+            );
         }
         for seg in self.location.worst_segments.iter().take(3) {
             let u = joint_units(&seg.joint);
@@ -271,7 +280,8 @@ impl Report {
             }
         }
         let _ = writeln!(s, "\nHOW FAR (held-out runs, closed loop, eq. 127){}", headline("closed_loop"));
-        let _ = writeln!(s, "  L2 before {:.4e} {u}   after {:.4e} {u}   after/before {:.3}", self.gap.holdout_l2_before, self.gap.holdout_l2_after, self.gap.ratio, u = all.position);
+        let _ =
+            writeln!(s, "  L2 before {:.4e} {u}   after {:.4e} {u}   after/before {:.3}", self.gap.holdout_l2_before, self.gap.holdout_l2_after, self.gap.ratio, u = all.position);
         for (b, a) in self.gap.runs_before.iter().zip(&self.gap.runs_after) {
             if b.status != "completed" || a.status != "completed" {
                 let _ = writeln!(s, "  run {}: nominal {}, selected {}", b.log, b.status, a.status);

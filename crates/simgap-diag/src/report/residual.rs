@@ -188,7 +188,12 @@ pub(crate) fn test(p: &Problem, data: &[FitData], r: &Column, joints: &[String],
             ResidualTest {
                 joint: joints.get(j).cloned().unwrap_or_else(|| format!("joint {j}")),
                 rms: total,
-                unit: simgap_sim::Quantity::Effort.unit(kinds.get(j).copied().unwrap_or(simgap_core::JointKind::Revolute)).to_string(), share_of_torque, phase_rms, explained_by, kind: kind.into() }
+                unit: simgap_sim::Quantity::Effort.unit(kinds.get(j).copied().unwrap_or(simgap_core::JointKind::Revolute)).to_string(),
+                share_of_torque,
+                phase_rms,
+                explained_by,
+                kind: kind.into(),
+            }
         })
         .collect()
 }

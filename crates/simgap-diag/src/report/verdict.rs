@@ -67,7 +67,7 @@ pub(crate) fn residual_notes(k: &KStep, fit_cv: &[f64], fit_nominal: &[f64], hor
 
 /// The one-sentence conclusion; never says "explained" when the held-out figure got worse or
 /// the nominal simulation diverged.
-pub(crate) fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, before: f64, after: f64, before_runs: &[resim::RunGap], units: &Units) -> String {
+pub(crate) fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k: &KStep, (before, after): (f64, f64), before_runs: &[resim::RunGap], units: &Units) -> String {
     let (u, v) = (units.position.as_str(), units.velocity.as_str());
     if !moving {
         return format!("cannot tell: the fit logs show no motion (all velocities below 1e-3 {v}), so no effect can be told apart");
@@ -307,7 +307,7 @@ mod tests {
     #[test]
     fn a_corrected_model_that_beats_the_floor_clearly_explains_the_gap() {
         let k = kstep([1.0, 2.0], [0.1, 0.2], [0.5, 1.0]);
-        let v = verdict(true, &one_effect(), "k_step", &k, f64::NAN, f64::NAN, &[], &Units::of(&[]));
+        let v = verdict(true, &one_effect(), "k_step", &k, (f64::NAN, f64::NAN), &[], &Units::of(&[]));
         assert!(v.starts_with("the gap is explained"), "{v}");
     }
 
@@ -315,14 +315,14 @@ mod tests {
     fn a_corrected_model_no_better_than_constant_velocity_explains_nothing() {
         // the 7-DOF arm's case: 6 % of the gap left, but only 8–9 % better than the floor
         let k = kstep([1.0, 2.0], [0.06, 0.12], [0.066, 0.13]);
-        let v = verdict(true, &one_effect(), "k_step", &k, f64::NAN, f64::NAN, &[], &Units::of(&[]));
+        let v = verdict(true, &one_effect(), "k_step", &k, (f64::NAN, f64::NAN), &[], &Units::of(&[]));
         assert!(v.starts_with("partly explained") && v.contains("constant-velocity"), "{v}");
     }
 
     #[test]
     fn more_than_half_left_at_one_horizon_is_not_explained() {
         let k = kstep([1.0, 2.0], [0.6, 0.2], [5.0, 10.0]);
-        let v = verdict(true, &one_effect(), "k_step", &k, f64::NAN, f64::NAN, &[], &Units::of(&[]));
+        let v = verdict(true, &one_effect(), "k_step", &k, (f64::NAN, f64::NAN), &[], &Units::of(&[]));
         assert!(v.starts_with("partly explained") && v.contains("0.1 s"), "{v}");
     }
 }

@@ -117,7 +117,9 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         let ties = s <= score * (1.0 + TIE_TOLERANCE);
         let why = match (&nested.unresolved, ties) {
             (Some(u), _) => Some(format!("{u} (cross-validated k-step score {s:.4} with the simpler effect against {score:.4})")),
-            (None, true) => Some(format!("the simpler effect predicts the fit runs as well (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %)", 100.0 * TIE_TOLERANCE)),
+            (None, true) => {
+                Some(format!("the simpler effect predicts the fit runs as well (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %)", 100.0 * TIE_TOLERANCE))
+            }
             (None, false) => None,
         };
         let Some(why) = why else {
@@ -127,7 +129,12 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         let simpler_names: Vec<String> = nested.terms.iter().map(|t| t.effect_name().to_string()).collect();
         log.push(Step { term: richer.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by the simpler {} nested in it: {why}", simpler_names.join(" + ")) });
         for t in with.iter().filter(|t| !terms.contains(t)) {
-            log.push(Step { term: t.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of {}, which it is with its extra parameters neutral: {why}", richer.describe(joints)) });
+            log.push(Step {
+                term: t.clone(),
+                cv_mse: f64::NAN,
+                accepted: true,
+                reason: format!("in place of {}, which it is with its extra parameters neutral: {why}", richer.describe(joints)),
+            });
         }
         replacements.push((richer.clone(), nested.terms.clone(), why));
         *terms = with;

@@ -43,7 +43,10 @@ pub(super) fn simpler(term: &Term, data: &[FitData]) -> Option<super::Nested> {
     let (slower, total) = data.iter().fold((0usize, 0usize), |(s, n), d| (s + (0..d.len()).filter(|&i| d.qd[i * d.dof + joint].abs() < vs).count(), n + d.len()));
     let share = if total > 0 { slower as f64 / total as f64 } else { 0.0 };
     let unresolved = if vs <= 2.0 * w {
-        Some(format!("its Stribeck velocity vs is {} times the width w over which the sign of the velocity is smoothed (the runs cannot resolve a hump within twice that width)", sig3(vs / w)))
+        Some(format!(
+            "its Stribeck velocity vs is {} times the width w over which the sign of the velocity is smoothed (the runs cannot resolve a hump within twice that width)",
+            sig3(vs / w)
+        ))
     } else if share < RESOLVED_SHARE {
         Some(format!("only {:.1} % of the fit samples move slower than its Stribeck velocity vs: the runs do not resolve its hump", 100.0 * share))
     } else {
