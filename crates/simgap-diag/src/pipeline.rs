@@ -211,11 +211,10 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                     changed = true;
                     selection.log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: why });
                 }
-                plausible::Judgment::Simpler { terms: simpler, why } => {
+                plausible::Judgment::Simpler { terms: simpler, extra, why } => {
                     changed = true;
                     replacements.push((t.clone(), simpler.clone(), why.clone()));
                     selection.log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by the simpler effect nested in it: {why}") });
-                    let extra = crate::vocabulary::simpler(t, data).map(|n| n.extra).unwrap_or_default();
                     let shared: Vec<usize> = (0..k).filter(|i| !extra.contains(i)).collect();
                     for s in simpler {
                         if !next.contains(&s) {

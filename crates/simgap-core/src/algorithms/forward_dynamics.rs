@@ -61,6 +61,14 @@ pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &
 /// As [`forward_dynamics`].
 pub fn forward_dynamics_crba_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
     check_len(model, "tau", tau);
+    assert!(crba_solve(model, ws, q, qd, tau, &[], formulation, out), "matrix is not positive definite");
+}
+
+/// `q̈ = (H + diag(ia))⁻¹ (τ − C q̇ − g)` by bias torques, the mass matrix (sharing one
+/// kinematics pass) and a Cholesky solve; `armature` empty for none. False when the matrix is
+/// not positive definite.
+#[allow(clippy::too_many_arguments)]
+fn crba_solve(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], armature: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
     let n = model.dof();
     // bias torques; kinematics and world inertias stay in the workspace for H
     bias_torques_into(model, ws, q, qd, formulation, out);
@@ -70,8 +78,12 @@ pub fn forward_dynamics_crba_into(model: &Model, ws: &mut Workspace, q: &[f64], 
     composite_inertias(model, ws);
     let mut h = std::mem::take(&mut ws.scratch_matrix);
     fill_mass_matrix(model, ws, &mut h);
-    solve_spd_in_place(&mut h, out);
+    for (i, ia) in armature.iter().enumerate() {
+        h[(i, i)] += ia;
+    }
+    let ok = try_solve_spd_in_place(&mut h, out);
     ws.scratch_matrix = h;
+    ok
 }
 
 /// Joint accelerations with rotor inertia: `q̈ = (H + diag(ia))⁻¹ (τ − C q̇ − g)`. Returns
@@ -98,21 +110,7 @@ pub fn forward_dynamics_armature_into(model: &Model, ws: &mut Workspace, q: &[f6
     if n >= ABA_MIN_DOF {
         return crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, armature, formulation, out);
     }
-    // bias torques; kinematics and world inertias stay in the workspace for H
-    bias_torques_into(model, ws, q, qd, formulation, out);
-    for i in 0..n {
-        out[i] = tau[i] - out[i];
-    }
-    // mass matrix plus rotor inertia, then Cholesky solve
-    composite_inertias(model, ws);
-    let mut h = std::mem::take(&mut ws.scratch_matrix);
-    fill_mass_matrix(model, ws, &mut h);
-    for i in 0..n {
-        h[(i, i)] += armature[i];
-    }
-    let ok = try_solve_spd_in_place(&mut h, out);
-    ws.scratch_matrix = h;
-    ok
+    crba_solve(model, ws, q, qd, tau, armature, formulation, out)
 }
 
 /// Solves `A x = b` for symmetric positive definite `A` by Cholesky, overwriting `A` with its

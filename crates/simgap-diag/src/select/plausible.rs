@@ -28,6 +28,8 @@ pub(crate) enum Judgment {
     Simpler {
         /// The replacing terms.
         terms: Vec<Term>,
+        /// The richer term's columns they lack (see [`crate::vocabulary::Nested::extra`]).
+        extra: Vec<usize>,
         /// Why, in words.
         why: String,
     },
@@ -87,7 +89,7 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
             None => None,
         };
         if let Some(why) = why {
-            return Judgment::Simpler { terms: nested.terms, why };
+            return Judgment::Simpler { terms: nested.terms, extra: nested.extra, why };
         }
     }
     Judgment::Finding
