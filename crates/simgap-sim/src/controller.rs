@@ -22,6 +22,17 @@ pub trait Controller {
         true
     }
 
+    /// The drives over the sample the last [`Controller::torque`] commanded, into `enabled`
+    /// and `emf` (length `dof`, overwritten): whether each drive is enabled (1) or its bridge
+    /// open (0: no torque at all), and the back-EMF coefficient of the controller's own motor
+    /// law [N·m·s/rad or N·s/m], which the simulator applies as `−emf q̇` continuously over the
+    /// interval (it is physics, not a sampled command). The default is a torque-controlled
+    /// drive: enabled, no back-EMF.
+    fn drive(&self, enabled: &mut [f64], emf: &mut [f64]) {
+        enabled.fill(1.0);
+        emf.fill(0.0);
+    }
+
     /// The `simgap.experiment` metadata describing this controller, for the sink.
     ///
     /// The default describes a replay (no gains).
@@ -151,6 +162,261 @@ impl Controller for Replay {
     }
 }
 
+/// Metadata keys of a servo experiment (see [`Servo`]).
+pub mod servo_keys {
+    /// Duty per radian of position error [1/rad], per joint.
+    pub const DUTY_GAIN: &str = "duty_gain";
+    /// Largest duty magnitude, per joint (default 1).
+    pub const MAX_DUTY: &str = "max_duty";
+    /// Supply voltage [V] where the log has none.
+    pub const SUPPLY_VOLTAGE: &str = "supply_voltage";
+    /// Motor torque constant through the gearbox [N·m/A], per joint.
+    pub const KT: &str = "kt";
+    /// Motor winding resistance [Ω], per joint.
+    pub const R: &str = "R";
+    /// Largest rate of the goal [rad/s or m/s] (absent: none).
+    pub const GOAL_RATE_LIMIT: &str = "goal_rate_limit";
+}
+
+/// The constants of a position-controlled servo, per joint in the order of the experiment's
+/// `joints` (see [`Servo`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServoParams {
+    /// Duty per unit of position error [1/rad or 1/m].
+    pub duty_gain: Vec<f64>,
+    /// Largest duty magnitude in (0, 1].
+    pub max_duty: Vec<f64>,
+    /// Supply voltage [V] used where the log has none.
+    pub supply_voltage: f64,
+    /// Torque constant [N·m/A or N/A] (`None`: not given).
+    pub kt: Option<Vec<f64>>,
+    /// Winding resistance [Ω] (`None`: not given).
+    pub r: Option<Vec<f64>>,
+    /// Largest goal rate [rad/s or m/s] (`None`: none).
+    pub goal_rate_limit: Option<f64>,
+}
+
+impl ServoParams {
+    /// The servo constants of a `servo` experiment's metadata.
+    ///
+    /// # Errors
+    /// A message naming the missing or malformed key (the caller adds the file).
+    pub fn from_experiment(exp: &Experiment) -> std::result::Result<ServoParams, String> {
+        use servo_keys::*;
+        let n = exp.joints.len();
+        let numbers = |k: &str| -> std::result::Result<Option<Vec<f64>>, String> {
+            let Some(s) = exp.extra.get(k) else { return Ok(None) };
+            let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim()))).collect::<std::result::Result<_, _>>()?;
+            match v.len() {
+                1 => Ok(Some(vec![v[0]; n])),
+                m if m == n => Ok(Some(v)),
+                m => Err(format!("key '{k}' has {m} values for {n} joints ({}); expected one per joint or one for all", exp.joints.join(","))),
+            }
+        };
+        let positive = |k: &str, v: &[f64], upper: f64| -> std::result::Result<(), String> {
+            match v.iter().find(|x| !(x.is_finite() && **x > 0.0 && **x <= upper)) {
+                Some(x) if upper.is_finite() => Err(format!("key '{k}' has {x}; expected a number in (0, {upper}]")),
+                Some(x) => Err(format!("key '{k}' has {x}; expected a positive number")),
+                None => Ok(()),
+            }
+        };
+        let duty_gain = numbers(DUTY_GAIN)?.ok_or_else(|| format!("a servo experiment needs '{DUTY_GAIN}' (duty per radian of position error, one per joint)"))?;
+        positive(DUTY_GAIN, &duty_gain, f64::INFINITY)?;
+        let max_duty = numbers(MAX_DUTY)?.unwrap_or_else(|| vec![1.0; n]);
+        positive(MAX_DUTY, &max_duty, 1.0)?;
+        let supply_voltage = match exp.extra.get(SUPPLY_VOLTAGE) {
+            Some(s) => s.trim().parse::<f64>().map_err(|_| format!("key '{SUPPLY_VOLTAGE}': '{s}' is not a number of volts"))?,
+            None => f64::NAN,
+        };
+        if exp.extra.contains_key(SUPPLY_VOLTAGE) {
+            positive(SUPPLY_VOLTAGE, &[supply_voltage], f64::INFINITY)?;
+        }
+        let kt = numbers(KT)?;
+        let r = numbers(R)?;
+        if kt.is_some() != r.is_some() {
+            return Err(format!("key '{}' is given without '{}'; expected both motor constants or neither", if kt.is_some() { KT } else { R }, if kt.is_some() { R } else { KT }));
+        }
+        for (k, v) in [(KT, &kt), (R, &r)] {
+            if let Some(v) = v {
+                positive(k, v, f64::INFINITY)?;
+            }
+        }
+        let goal_rate_limit = match exp.extra.get(GOAL_RATE_LIMIT) {
+            Some(s) => {
+                let x = s.trim().parse::<f64>().map_err(|_| format!("key '{GOAL_RATE_LIMIT}': '{s}' is not a number"))?;
+                positive(GOAL_RATE_LIMIT, &[x], f64::INFINITY)?;
+                Some(x)
+            }
+            None => None,
+        };
+        Ok(ServoParams { duty_gain, max_duty, supply_voltage, kt, r, goal_rate_limit })
+    }
+
+    /// Writes the constants into an experiment's metadata (`kt`, `R` only when known).
+    pub fn write_to(&self, exp: &mut Experiment) {
+        use servo_keys::*;
+        let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
+        exp.extra.insert(DUTY_GAIN.into(), join(&self.duty_gain));
+        exp.extra.insert(MAX_DUTY.into(), join(&self.max_duty));
+        if self.supply_voltage.is_finite() {
+            exp.extra.insert(SUPPLY_VOLTAGE.into(), format!("{}", self.supply_voltage));
+        }
+        if let (Some(kt), Some(r)) = (&self.kt, &self.r) {
+            exp.extra.insert(KT.into(), join(kt));
+            exp.extra.insert(R.into(), join(r));
+        }
+        if let Some(g) = self.goal_rate_limit {
+            exp.extra.insert(GOAL_RATE_LIMIT.into(), format!("{g}"));
+        }
+    }
+}
+
+/// A position-controlled servo (Dynamixel, Feetech): the firmware closes a P loop on the goal
+/// position and drives a PWM duty; the motor's torque follows the DC-motor law with back-EMF:
+///
+/// ```text
+/// duty = clip(duty_gain · (goal − q), ±max_duty)
+/// τ    = en · (kt / R) · (V · duty − kt · q̇)
+/// ```
+///
+/// with `V` the logged supply voltage (else `supply_voltage`), `en` the logged torque enable
+/// (1 when absent; 0 opens the bridge: no torque, no back-EMF) and `goal` the reference,
+/// moved at most `goal_rate_limit · Δt` per sample when a limit is given. The command is the
+/// voltage part `en (kt/R) V duty`, held over the sample; the back-EMF `en kt²/R` is reported
+/// through [`Controller::drive`] and applied continuously in q̇ by the simulator. All vectors in
+/// model joint order.
+#[derive(Clone, Debug)]
+pub struct Servo {
+    /// Duty per unit of position error [1/rad or 1/m].
+    pub duty_gain: Vec<f64>,
+    /// Largest duty magnitude.
+    pub max_duty: Vec<f64>,
+    /// Supply voltage [V] where the log has none.
+    pub supply_voltage: f64,
+    /// Torque constant [N·m/A].
+    pub kt: Vec<f64>,
+    /// Winding resistance [Ω].
+    pub r: Vec<f64>,
+    /// Largest goal rate (`None`: none).
+    pub goal_rate_limit: Option<f64>,
+    /// Logged sample times, supply voltage (one per sample) and torque enable (row-major, model
+    /// order) held between samples; empty: none logged.
+    log_t: Vec<f64>,
+    log_voltage: Vec<f64>,
+    log_enable: Vec<f64>,
+    cursor: usize,
+    tol: f64,
+    goal: Vec<f64>,
+    last_t: Option<f64>,
+    enabled: Vec<f64>,
+}
+
+impl Servo {
+    /// A servo controller with constants in model order, without logged voltage or enable.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for vectors of different lengths or a supply voltage that is not a
+    /// positive number.
+    pub fn new(duty_gain: Vec<f64>, max_duty: Vec<f64>, supply_voltage: f64, kt: Vec<f64>, r: Vec<f64>, goal_rate_limit: Option<f64>) -> Result<Servo> {
+        let n = duty_gain.len();
+        if [max_duty.len(), kt.len(), r.len()].iter().any(|&m| m != n) {
+            return Err(Error::Invalid { what: "servo".into(), message: format!("{n} duty gains, {} max duties, {} kt, {} R; expected one of each per joint", max_duty.len(), kt.len(), r.len()) });
+        }
+        if let Some(x) = kt.iter().chain(&r).find(|x| !(x.is_finite() && **x > 0.0)) {
+            return Err(Error::Invalid { what: "servo".into(), message: format!("motor constant {x}; expected kt and R positive") });
+        }
+        Ok(Servo {
+            duty_gain,
+            max_duty,
+            supply_voltage,
+            kt,
+            r,
+            goal_rate_limit,
+            log_t: Vec::new(),
+            log_voltage: Vec::new(),
+            log_enable: Vec::new(),
+            cursor: 0,
+            tol: 0.0,
+            goal: vec![0.0; n],
+            last_t: None,
+            enabled: vec![1.0; n],
+        })
+    }
+
+    /// The same servo reading the supply voltage and torque enable a run logged (model order),
+    /// held from each sample to the next.
+    pub fn with_log(mut self, run: &Run, map: &[usize]) -> Servo {
+        let (n, m) = (run.dof(), map.len());
+        self.log_t = run.t.clone();
+        self.log_voltage = if run.drive.voltage.len() == run.len() { run.drive.voltage.clone() } else { Vec::new() };
+        self.log_enable = if run.drive.torque_enable.len() == run.len() * n {
+            (0..run.len()).flat_map(|k| map.iter().map(move |&j| (k, j))).map(|(k, j)| run.drive.torque_enable[k * n + j]).collect()
+        } else {
+            Vec::new()
+        };
+        debug_assert!(self.log_enable.is_empty() || self.log_enable.len() == run.len() * m);
+        self.tol = if run.len() > 1 { (0.5 * run.duration() / (run.len() - 1) as f64).max(1e-9) } else { 1e-9 };
+        self
+    }
+
+    /// The logged sample in force at `t` (the last at or before `t`, within jitter).
+    fn logged_sample(&mut self, t: f64) -> usize {
+        let tol = self.tol;
+        if self.cursor >= self.log_t.len() || self.log_t[self.cursor] > t + tol {
+            self.cursor = self.log_t.partition_point(|&tk| tk <= t + tol).saturating_sub(1);
+        }
+        while self.cursor + 1 < self.log_t.len() && self.log_t[self.cursor + 1] <= t + tol {
+            self.cursor += 1;
+        }
+        self.cursor
+    }
+}
+
+impl Controller for Servo {
+    fn adds_feed_forward(&self) -> bool {
+        false
+    }
+
+    fn torque(&mut self, t: f64, q: &[f64], _qd: &[f64], q_ref: &[f64], _qd_ref: &[f64], out: &mut [f64]) {
+        let n = out.len();
+        let k = if self.log_t.is_empty() { 0 } else { self.logged_sample(t) };
+        let v = self.log_voltage.get(k).copied().unwrap_or(self.supply_voltage);
+        // the goal, rate-limited from the last sample's (a restart in time starts it afresh)
+        let dt = self.last_t.map(|t0| t - t0).filter(|d| *d > 0.0);
+        for i in 0..n {
+            self.goal[i] = match (self.goal_rate_limit, dt) {
+                (Some(rate), Some(dt)) => self.goal[i] + (q_ref[i] - self.goal[i]).clamp(-rate * dt, rate * dt),
+                _ => q_ref[i],
+            };
+            self.enabled[i] = self.log_enable.get(k * n + i).map_or(1.0, |e| if *e > 0.5 { 1.0 } else { 0.0 });
+            let duty = (self.duty_gain[i] * (self.goal[i] - q[i])).clamp(-self.max_duty[i], self.max_duty[i]);
+            out[i] = self.enabled[i] * self.kt[i] / self.r[i] * v * duty;
+        }
+        self.last_t = Some(t);
+    }
+
+    fn drive(&self, enabled: &mut [f64], emf: &mut [f64]) {
+        for i in 0..enabled.len() {
+            enabled[i] = self.enabled[i];
+            emf[i] = self.enabled[i] * self.kt[i] * self.kt[i] / self.r[i];
+        }
+    }
+
+    fn experiment(&self, joints: &[String], sample_period: f64) -> Experiment {
+        let mut e = Experiment { controller: ControllerKind::Servo, joints: joints.to_vec(), kp: Vec::new(), kv: Vec::new(), sample_period, extra: BTreeMap::new() };
+        let params = ServoParams {
+            duty_gain: self.duty_gain.clone(),
+            max_duty: self.max_duty.clone(),
+            supply_voltage: self.supply_voltage,
+            kt: Some(self.kt.clone()),
+            r: Some(self.r.clone()),
+            goal_rate_limit: self.goal_rate_limit,
+        };
+        params.write_to(&mut e);
+        e
+    }
+}
+
 /// Positions of the model's joints among `names`.
 ///
 /// # Errors
@@ -170,12 +436,17 @@ pub fn joint_map(model: &Model, names: &[String], source_name: &str) -> Result<V
 }
 
 /// The controller of an experiment, with gains (and replayed efforts) mapped to the model's
-/// joints by name. `PdGravity` compensates gravity with `model`.
+/// joints by name. `PdGravity` compensates gravity with `model`. `log` is the logged run: the
+/// efforts a replay applies, or the supply voltage and torque enable a servo reads (a servo
+/// without it uses `supply_voltage` and stays enabled).
 ///
 /// # Errors
 /// [`Error::JointMismatch`] when a model joint has no gain (or no replayed effort);
-/// [`Error::Invalid`] for gains of the wrong length or a replay without a run.
-pub fn controller_from_experiment(exp: &Experiment, model: &Model, replay: Option<&Run>) -> Result<Box<dyn Controller>> {
+/// [`Error::Invalid`] for gains of the wrong length, a replay without a run, or a servo
+/// experiment without its keys (`duty_gain`, the motor constants `kt` and `R`, a supply
+/// voltage or a logged one).
+pub fn controller_from_experiment(exp: &Experiment, model: &Model, log: Option<&Run>) -> Result<Box<dyn Controller>> {
+    let replay = log;
     match exp.controller {
         ControllerKind::Pd | ControllerKind::PdGravity => {
             if exp.kp.len() != exp.joints.len() || exp.kv.len() != exp.joints.len() {
@@ -200,6 +471,27 @@ pub fn controller_from_experiment(exp: &Experiment, model: &Model, replay: Optio
                 }
             }
             Ok(Box::new(Replay::new(run.t.clone(), tau)?))
+        }
+        ControllerKind::Servo => {
+            let invalid = |message: String| Error::Invalid { what: "servo experiment".into(), message };
+            let p = ServoParams::from_experiment(exp).map_err(invalid)?;
+            let (Some(kt), Some(r)) = (&p.kt, &p.r) else {
+                return Err(invalid("no motor constants 'kt' and 'R'; expected both (priors from the datasheet, or the diagnosis's fitted values)".into()));
+            };
+            let logged_voltage = log.is_some_and(|run| run.drive.voltage.len() == run.len() && !run.is_empty());
+            if !p.supply_voltage.is_finite() && !logged_voltage {
+                return Err(invalid("no 'supply_voltage' and no logged voltage; expected one of them".into()));
+            }
+            let map = joint_map(model, &exp.joints, "experiment")?;
+            let pick = |v: &[f64]| map.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+            let servo = Servo::new(pick(&p.duty_gain), pick(&p.max_duty), p.supply_voltage, pick(kt), pick(r), p.goal_rate_limit)?;
+            Ok(Box::new(match log {
+                Some(run) => {
+                    let run_map = joint_map(model, &run.joints, &run.source)?;
+                    servo.with_log(run, &run_map)
+                }
+                None => servo,
+            }))
         }
     }
 }

@@ -71,6 +71,10 @@ pub fn friction_slope_bound(effects: &[Effect], out: &mut [f64]) {
                 Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, w } => {
                     b_pos[i].abs().max(b_neg[i].abs()) + over(0.5 * (fc_pos[i].abs() + fc_neg[i].abs()), w[i]) + 0.25 * (b_pos[i] - b_neg[i]).abs()
                 }
+                Effect::BackEmf { kb } => kb[i].abs(),
+                // the load-independent level; the load part is bounded by the simulator from
+                // the effort limits (it scales with the drive's torque)
+                Effect::LoadFriction { fc, w, .. } => over(fc[i].abs(), w[i]),
                 _ => 0.0,
             };
         }
@@ -188,6 +192,27 @@ pub enum Effect {
         /// Widths of the smoothed sign.
         w: Vec<f64>,
     },
+    /// Dry friction that grows with the torque the drive applies through its gearbox:
+    /// `τ += −(fc + mu |τ_drive|) tanh(q̇ / w)`, `τ_drive` the applied torque (after gain,
+    /// offset and back-EMF; 0 while the drive is disabled); `fc` [N·m or N], `mu` [–], `w`
+    /// [rad/s or m/s] (`w = 0`: the exact sign, integrated as stick–slip), all `>= 0`.
+    /// Applied by the [`Stepper`](crate::step::Stepper), which knows the drive torque.
+    LoadFriction {
+        /// Load-independent levels.
+        fc: Vec<f64>,
+        /// Friction per unit of drive torque.
+        mu: Vec<f64>,
+        /// Widths of the smoothed sign.
+        w: Vec<f64>,
+    },
+    /// Back-EMF: `τ += −kb q̇` while the drive is enabled (absent with torque off, which tells
+    /// it from viscous friction); `kb` [N·m·s/rad or N·s/m] (a motor's `kt²/R` through its
+    /// gearbox) may be negative as a correction of a servo's own back-EMF. Applied by the
+    /// [`Stepper`](crate::step::Stepper), which knows whether the drive is enabled.
+    BackEmf {
+        /// Back-EMF coefficients.
+        kb: Vec<f64>,
+    },
 }
 
 impl Effect {
@@ -208,6 +233,8 @@ impl Effect {
             Effect::CoriolisStructure => EffectKind::CoriolisStructure,
             Effect::JointSpring { .. } => EffectKind::JointSpring,
             Effect::DirectionalFriction { .. } => EffectKind::DirectionalFriction,
+            Effect::LoadFriction { .. } => EffectKind::LoadFriction,
+            Effect::BackEmf { .. } => EffectKind::BackEmf,
         }
     }
 
@@ -229,6 +256,8 @@ impl Effect {
             Effect::TorqueOffset { offset } => nonzero(offset),
             Effect::Cogging { amplitude, .. } => nonzero(amplitude),
             Effect::JointSpring { k, .. } => nonzero(k),
+            Effect::BackEmf { kb } => nonzero(kb),
+            Effect::LoadFriction { fc, mu, .. } => (0..fc.len()).filter(|&i| fc[i] != 0.0 || mu.get(i).is_some_and(|x| *x != 0.0)).collect(),
             Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, .. } => {
                 (0..fc_pos.len()).filter(|&i| [fc_pos, fc_neg, b_pos, b_neg].iter().any(|v| v.get(i).is_some_and(|x| *x != 0.0))).collect()
             }
@@ -318,6 +347,12 @@ impl Effect {
                 check("b_neg", b_neg, true, false)?;
                 check("w", w, true, false)
             }
+            Effect::LoadFriction { fc, mu, w } => {
+                check("fc", fc, true, false)?;
+                check("mu", mu, true, false)?;
+                check("w", w, true, false)
+            }
+            Effect::BackEmf { kb } => check("kb", kb, false, false),
         }
     }
 
@@ -430,6 +465,8 @@ impl Effect {
             EffectKind::DirectionalFriction => {
                 Effect::DirectionalFriction { fc_pos: per_joint("fc_pos")?, fc_neg: per_joint("fc_neg")?, b_pos: per_joint("b_pos")?, b_neg: per_joint("b_neg")?, w: width("w")? }
             }
+            EffectKind::LoadFriction => Effect::LoadFriction { fc: per_joint("fc")?, mu: per_joint("mu")?, w: width("w")? },
+            EffectKind::BackEmf => Effect::BackEmf { kb: per_joint("kb")? },
         };
         effect.validate(dof)?;
         Ok(effect)
@@ -473,15 +510,126 @@ pub fn smooth_sign(qd: f64, width: f64) -> f64 {
 /// [N·m or N]: `out = −b q̇ − fc s − (fc + (fs − fc) e^{−(q̇/vs)²}) s − A sin(N q) − k (q − q0)`
 /// with `s = tanh(q̇ / w)` (and the directional friction of [`Effect::DirectionalFriction`]),
 /// `w` each dry friction's own width [rad/s or m/s] (the exact sign where `w = 0`). Negative
-/// for dissipation. Overwrites `out`; never allocates.
+/// for dissipation. Overwrites `out`; never allocates. Load friction and back-EMF depend on the
+/// drive and are not in it (see [`drive_torque`]).
 ///
 /// `q`, `qd`, `out`: length `dof` (model order).
 ///
 /// # Panics
 /// If the lengths differ or an effect's vector is shorter than `out`.
 pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64]) {
+    friction_torque_parts(effects, q, qd, true, out);
+}
+
+/// [`friction_torque`] without the dry frictions of width `w = 0` (the exact sign), which the
+/// simulator integrates as stick–slip from their levels ([`exact_dry_levels`]). Load friction
+/// and back-EMF are not in either: they need the drive's torque and enable state, which the
+/// [`Stepper`](crate::step::Stepper) applies.
+///
+/// # Panics
+/// As [`friction_torque`].
+pub fn friction_torque_smooth(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64]) {
+    friction_torque_parts(effects, q, qd, false, out);
+}
+
+/// The levels [N·m or N] of the dry frictions of width `w = 0` at velocity `qd`, for motion
+/// forward (`pos`) and back (`neg`), into `pos` and `neg` (overwritten): Coulomb `fc`,
+/// Stribeck `fc + (fs − fc) e^{−(q̇/vs)²}`, directional `fc_pos` / `fc_neg`, load friction
+/// `fc + mu |τ_drive|` with `tau_drive` the drive's torque. The simulator holds a joint at rest
+/// while the torque that would move it is below the level (stick–slip).
+///
+/// # Panics
+/// If a length differs from `qd.len()`.
+pub fn exact_dry_levels(effects: &[Effect], qd: &[f64], tau_drive: &[f64], pos: &mut [f64], neg: &mut [f64]) {
+    pos.fill(0.0);
+    neg.fill(0.0);
+    for e in effects {
+        for i in 0..qd.len() {
+            let (p, n) = match e {
+                Effect::CoulombFriction { fc, w } if w[i] <= 0.0 => (fc[i], fc[i]),
+                Effect::StribeckFriction { fc, fs, vs, w } if w[i] <= 0.0 => {
+                    let level = fc[i] + if vs[i] > 0.0 { (fs[i] - fc[i]) * (-(qd[i] / vs[i]).powi(2)).exp() } else { 0.0 };
+                    (level, level)
+                }
+                Effect::DirectionalFriction { fc_pos, fc_neg, w, .. } if w[i] <= 0.0 => (fc_pos[i], fc_neg[i]),
+                Effect::LoadFriction { fc, mu, w } if w[i] <= 0.0 => {
+                    let level = fc[i] + mu[i] * tau_drive[i].abs();
+                    (level, level)
+                }
+                _ => (0.0, 0.0),
+            };
+            pos[i] += p;
+            neg[i] += n;
+        }
+    }
+}
+
+/// Whether any dry friction of the effects has width `w = 0` on a joint where it acts (the
+/// simulator then integrates stick–slip).
+pub fn has_exact_dry_friction(effects: &[Effect]) -> bool {
+    effects.iter().any(|e| match e {
+        Effect::CoulombFriction { fc, w } => fc.iter().zip(w).any(|(f, w)| *f != 0.0 && *w <= 0.0),
+        Effect::StribeckFriction { fc, fs, w, .. } => (0..fc.len()).any(|i| (fc[i] != 0.0 || fs[i] != 0.0) && w[i] <= 0.0),
+        Effect::DirectionalFriction { fc_pos, fc_neg, w, .. } => (0..w.len()).any(|i| (fc_pos[i] != 0.0 || fc_neg[i] != 0.0) && w[i] <= 0.0),
+        Effect::LoadFriction { fc, mu, w } => (0..w.len()).any(|i| (fc[i] != 0.0 || mu[i] != 0.0) && w[i] <= 0.0),
+        _ => false,
+    })
+}
+
+/// Whether the effects hold a term the drive's torque or enable state changes (back-EMF,
+/// load friction): the simulator then evaluates the drive torque at every stage.
+pub fn has_drive_effects(effects: &[Effect]) -> bool {
+    effects.iter().any(|e| matches!(e, Effect::BackEmf { .. } | Effect::LoadFriction { .. }))
+}
+
+/// The torque of the drive and the load friction at velocity `qd` [N·m or N], into `out`:
+/// `τ_drive = en (applied(τ_cmd − emf q̇) − kb q̇)` (the command's voltage part `tau_cmd` less the
+/// controller's own back-EMF `emf`, through [`applied_torque`] and the effort `limits`, then
+/// the [`Effect::BackEmf`] `kb`, all times the enable `en`), plus the smooth (`w > 0`) load
+/// friction `−(fc + mu |τ_drive|) tanh(q̇/w)`. `drive` receives `τ_drive` alone (for the levels
+/// of an exact load friction). `scratch`, `drive`, `out`: length `dof`. Never allocates.
+///
+/// # Panics
+/// If a length differs.
+#[allow(clippy::too_many_arguments)]
+pub fn drive_torque(effects: &[Effect], limits: Option<&[f64]>, tau_cmd: &[f64], emf: &[f64], enabled: &[f64], qd: &[f64], scratch: &mut [f64], drive: &mut [f64], out: &mut [f64]) {
+    let n = out.len();
+    for i in 0..n {
+        scratch[i] = tau_cmd[i] - emf[i] * qd[i];
+    }
+    applied_torque(effects, scratch, drive);
+    if let Some(l) = limits {
+        for i in 0..n {
+            drive[i] = drive[i].clamp(-l[i], l[i]);
+        }
+    }
+    for e in effects {
+        if let Effect::BackEmf { kb } = e {
+            for i in 0..n {
+                drive[i] -= kb[i] * qd[i];
+            }
+        }
+    }
+    for i in 0..n {
+        drive[i] *= enabled[i];
+        out[i] = drive[i];
+    }
+    for e in effects {
+        if let Effect::LoadFriction { fc, mu, w } = e {
+            for i in 0..n {
+                if w[i] > 0.0 && (fc[i] != 0.0 || mu[i] != 0.0) {
+                    out[i] -= (fc[i] + mu[i] * drive[i].abs()) * smooth_sign(qd[i], w[i]);
+                }
+            }
+        }
+    }
+}
+
+/// The friction torque, with (`exact`) or without the dry frictions of width 0.
+fn friction_torque_parts(effects: &[Effect], q: &[f64], qd: &[f64], exact: bool, out: &mut [f64]) {
     assert!(q.len() == out.len() && qd.len() == out.len(), "friction_torque: q, qd and out must have the same length");
     out.fill(0.0);
+    let dry = |w: f64| exact || w > 0.0;
     for e in effects {
         match e {
             Effect::ViscousFriction { b } => {
@@ -491,14 +639,14 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64
             }
             Effect::CoulombFriction { fc, w } => {
                 for i in 0..out.len() {
-                    if fc[i] != 0.0 {
+                    if fc[i] != 0.0 && dry(w[i]) {
                         out[i] -= fc[i] * smooth_sign(qd[i], w[i]);
                     }
                 }
             }
             Effect::StribeckFriction { fc, fs, vs, w } => {
                 for i in 0..out.len() {
-                    if fc[i] == 0.0 && fs[i] == 0.0 {
+                    if (fc[i] == 0.0 && fs[i] == 0.0) || !dry(w[i]) {
                         continue;
                     }
                     let stribeck = if vs[i] > 0.0 { (fs[i] - fc[i]) * (-(qd[i] / vs[i]).powi(2)).exp() } else { 0.0 };
@@ -521,7 +669,9 @@ pub fn friction_torque(effects: &[Effect], q: &[f64], qd: &[f64], out: &mut [f64
                 for i in 0..out.len() {
                     let s = smooth_sign(qd[i], w[i]);
                     let (pos, neg) = (0.5 * (1.0 + s), 0.5 * (1.0 - s));
-                    out[i] += -pos * (fc_pos[i] + b_pos[i] * qd[i]) + neg * (fc_neg[i] - b_neg[i] * qd[i]);
+                    // at w = 0 without `exact` only the viscous parts (continuous at rest)
+                    let (fp, fn_) = if dry(w[i]) { (fc_pos[i], fc_neg[i]) } else { (0.0, 0.0) };
+                    out[i] += -pos * (fp + b_pos[i] * qd[i]) + neg * (fn_ - b_neg[i] * qd[i]);
                 }
             }
             _ => {}

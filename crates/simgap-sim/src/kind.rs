@@ -43,6 +43,10 @@ pub enum EffectKind {
     JointSpring,
     /// `directional_friction`: −(fc_pos + b_pos q̇) for q̇ > 0, fc_neg − b_neg q̇ for q̇ < 0.
     DirectionalFriction,
+    /// `load_friction`: dry friction growing with the drive's torque through the gearbox.
+    LoadFriction,
+    /// `back_emf`: `−kb q̇` while the drive is enabled.
+    BackEmf,
 }
 
 /// The physical quantity of a parameter, which gives its unit on a joint of either type.
@@ -166,11 +170,13 @@ const DIRECTIONAL: &[ParamSpec] = &[
     p("b_neg", Damping, Some(0.0), true),
     p("w", Width, None, false),
 ];
+const LOAD: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("mu", Ratio, Some(0.0), true), p("w", Width, None, false)];
+const BACK_EMF: &[ParamSpec] = &[p("kb", Damping, Some(0.0), true)];
 const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.
-    pub const ALL: [EffectKind; 14] = [
+    pub const ALL: [EffectKind; 16] = [
         EffectKind::ViscousFriction,
         EffectKind::CoulombFriction,
         EffectKind::StribeckFriction,
@@ -185,6 +191,8 @@ impl EffectKind {
         EffectKind::CoriolisStructure,
         EffectKind::JointSpring,
         EffectKind::DirectionalFriction,
+        EffectKind::LoadFriction,
+        EffectKind::BackEmf,
     ];
 
     /// The contract name (`viscous_friction`, …, `coriolis_structure`).
@@ -204,6 +212,8 @@ impl EffectKind {
             EffectKind::CoriolisStructure => "coriolis_structure",
             EffectKind::JointSpring => "joint_spring",
             EffectKind::DirectionalFriction => "directional_friction",
+            EffectKind::LoadFriction => "load_friction",
+            EffectKind::BackEmf => "back_emf",
         }
     }
 
@@ -224,6 +234,8 @@ impl EffectKind {
             EffectKind::CoriolisStructure => &[],
             EffectKind::JointSpring => SPRING,
             EffectKind::DirectionalFriction => DIRECTIONAL,
+            EffectKind::LoadFriction => LOAD,
+            EffectKind::BackEmf => BACK_EMF,
         }
     }
 

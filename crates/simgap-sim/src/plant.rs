@@ -1,8 +1,9 @@
 //! The plant: the nominal model plus unmodelled [`Effect`]s, as the simulator integrates it.
 
-use simgap_core::{forward_dynamics_armature_into, forward_dynamics_into, mass_matrix, Formulation, Model, Workspace};
+use nalgebra::DMatrix;
+use simgap_core::{forward_dynamics_armature_into, forward_dynamics_into, mass_matrix, mass_matrix_into, Formulation, Model, Workspace};
 
-use crate::effects::{apply_inertial_effects, armature, friction_torque, total_delay, Effect};
+use crate::effects::{apply_inertial_effects, armature, friction_torque, friction_torque_smooth, total_delay, Effect};
 use crate::error::Result;
 
 /// What the simulator integrates:
@@ -33,6 +34,7 @@ pub struct PlantWorkspace {
     /// The dynamics workspace.
     pub ws: Workspace,
     friction: Vec<f64>,
+    h: DMatrix<f64>,
 }
 
 impl Plant {
@@ -97,7 +99,7 @@ impl Plant {
     /// Scratch space for [`Plant::acceleration`].
     pub fn workspace(&self) -> PlantWorkspace {
         let n = self.dof();
-        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n] }
+        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n], h: DMatrix::zeros(n, n) }
     }
 
     /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation; each
@@ -109,6 +111,32 @@ impl Plant {
     /// # Panics
     /// If a length does not match the model.
     pub fn acceleration(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], out: &mut [f64]) {
+        self.acceleration_parts(pws, q, qd, tau_applied, true, out);
+    }
+
+    /// [`Plant::acceleration`] without the dry frictions of width `w = 0`, which the caller
+    /// applies (as the stick–slip of [`crate::step::Stepper`]) inside `tau_applied`.
+    ///
+    /// # Panics
+    /// As [`Plant::acceleration`].
+    pub fn acceleration_smooth(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], out: &mut [f64]) {
+        self.acceleration_parts(pws, q, qd, tau_applied, false, out);
+    }
+
+    /// The diagonal of `H(q) + diag(ia)` [kg·m² or kg] into `out`: the inertia each joint
+    /// moves alone.
+    ///
+    /// # Panics
+    /// If a length does not match the model.
+    pub fn inertia_diagonal(&self, pws: &mut PlantWorkspace, q: &[f64], out: &mut [f64]) {
+        mass_matrix_into(&self.model, &mut pws.ws, q, &mut pws.h);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = pws.h[(i, i)] + self.armature[i];
+        }
+    }
+
+    fn acceleration_parts(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], exact: bool, out: &mut [f64]) {
+        let friction = if exact { friction_torque } else { friction_torque_smooth };
         let n = self.dof();
         assert!(q.len() == n && qd.len() == n && tau_applied.len() == n && out.len() == n, "Plant::acceleration: lengths must be model.dof()");
         if q.iter().chain(qd).any(|x| !x.is_finite()) {
@@ -117,7 +145,7 @@ impl Plant {
         }
         // fast path: one kinematics pass, q̈ = H⁻¹ (τ + friction − C q̇ − g)
         if self.fast_path {
-            friction_torque(&self.effects, q, qd, &mut pws.friction);
+            friction(&self.effects, q, qd, &mut pws.friction);
             for i in 0..n {
                 pws.friction[i] += tau_applied[i];
             }
@@ -126,7 +154,7 @@ impl Plant {
         }
         // τ + friction, then q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics
         // pass for the bias torques and H
-        friction_torque(&self.effects, q, qd, &mut pws.friction);
+        friction(&self.effects, q, qd, &mut pws.friction);
         for i in 0..n {
             pws.friction[i] += tau_applied[i];
         }

@@ -25,6 +25,9 @@ pub enum ControllerKind {
     PdGravity,
     /// The logged effort applied open-loop.
     Replay,
+    /// A position-controlled servo: the firmware's P loop drives a PWM duty
+    /// (see [`crate::controller::Servo`]); the log holds no torque.
+    Servo,
 }
 
 impl ControllerKind {
@@ -34,6 +37,7 @@ impl ControllerKind {
             ControllerKind::Pd => "pd",
             ControllerKind::PdGravity => "pd_gravity",
             ControllerKind::Replay => "replay",
+            ControllerKind::Servo => "servo",
         }
     }
 }
@@ -45,7 +49,8 @@ impl std::str::FromStr for ControllerKind {
             "pd" => Ok(ControllerKind::Pd),
             "pd_gravity" => Ok(ControllerKind::PdGravity),
             "replay" => Ok(ControllerKind::Replay),
-            other => Err(format!("unknown controller '{other}'; expected pd, pd_gravity or replay")),
+            "servo" => Ok(ControllerKind::Servo),
+            other => Err(format!("unknown controller '{other}'; expected pd, pd_gravity, replay or servo")),
         }
     }
 }
@@ -91,6 +96,9 @@ pub struct Run {
     /// Torque the drives report delivering [N·m or N] (`/joint_effort_measured`; empty when
     /// the log has none).
     pub tau_measured: Vec<f64>,
+    /// What a position-controlled servo logs beside its states (duty, torque enable, voltage,
+    /// temperature); empty for other drives.
+    pub drive: DriveSignals,
     /// Absolute time of the log's first sample [ns since the Unix epoch] when the log had
     /// absolute stamps; `t` is then time since that start (`t[0]` = 0).
     pub start_ns: Option<i64>,
@@ -98,6 +106,33 @@ pub struct Run {
     pub experiment: Option<Experiment>,
     /// Where the run came from (file name, or `simulation`).
     pub source: String,
+}
+
+/// What a position-controlled servo logs beside its states. Every vector may be empty (the
+/// signal is absent); per-joint signals are row-major `len() × dof()` like the run's matrices.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DriveSignals {
+    /// Measured PWM duty in [−1, 1] (the servo's *present PWM*; empty: not logged).
+    pub duty: Vec<f64>,
+    /// Torque enable, 0 (bridge open: no torque, no back-EMF) or 1 (empty: enabled throughout).
+    pub torque_enable: Vec<f64>,
+    /// Supply voltage [V], one value per sample (empty: the experiment's `supply_voltage`).
+    pub voltage: Vec<f64>,
+    /// Winding or case temperature [°C] (reported, not modelled; empty: not logged).
+    pub temperature: Vec<f64>,
+}
+
+impl DriveSignals {
+    /// True when no drive signal is logged.
+    pub fn is_empty(&self) -> bool {
+        self.duty.is_empty() && self.torque_enable.is_empty() && self.voltage.is_empty() && self.temperature.is_empty()
+    }
+
+    /// Whether the drive of joint `j` is enabled at sample `k` (`dof` joints; enabled when the
+    /// log has no torque-enable signal).
+    pub fn enabled(&self, k: usize, j: usize, dof: usize) -> bool {
+        self.torque_enable.get(k * dof + j).is_none_or(|e| *e > 0.5)
+    }
 }
 
 impl Run {
@@ -113,6 +148,7 @@ impl Run {
             qd_ref: Vec::new(),
             tau_ff: Vec::new(),
             tau_measured: Vec::new(),
+            drive: DriveSignals::default(),
             start_ns: None,
             experiment: None,
             source: String::new(),
@@ -174,6 +210,12 @@ impl Run {
             qd_ref: rows(&self.qd_ref),
             tau_ff: rows(&self.tau_ff),
             tau_measured: rows(&self.tau_measured),
+            drive: DriveSignals {
+                duty: rows(&self.drive.duty),
+                torque_enable: rows(&self.drive.torque_enable),
+                voltage: if self.drive.voltage.len() >= b { self.drive.voltage[a..b].to_vec() } else { Vec::new() },
+                temperature: rows(&self.drive.temperature),
+            },
             start_ns: self.start_ns,
             experiment: self.experiment.clone(),
             source: self.source.clone(),
@@ -232,7 +274,7 @@ pub fn validate_run(run: &Run) -> Result<()> {
         }
     }
     // matrix sizes and finite values
-    let matrices: [(&str, &[f64], bool); 7] = [
+    let matrices: [(&str, &[f64], bool); 10] = [
         ("q", &run.q, false),
         ("qd", &run.qd, false),
         ("tau", &run.tau, true),
@@ -240,6 +282,9 @@ pub fn validate_run(run: &Run) -> Result<()> {
         ("qd_ref", &run.qd_ref, true),
         ("tau_ff", &run.tau_ff, true),
         ("tau_measured", &run.tau_measured, true),
+        ("duty", &run.drive.duty, true),
+        ("torque_enable", &run.drive.torque_enable, true),
+        ("temperature", &run.drive.temperature, true),
     ];
     for (name, m, may_be_empty) in matrices {
         if m.is_empty() && (may_be_empty || n == 0) {
@@ -254,6 +299,28 @@ pub fn validate_run(run: &Run) -> Result<()> {
     }
     if !run.qd_ref.is_empty() && run.q_ref.is_empty() {
         return Err(err("qd_ref is given without q_ref".into()));
+    }
+    // servo signals: a duty is a fraction of the supply, an enable is 0 or 1, a voltage one
+    // positive number per sample
+    if let Some(i) = run.drive.duty.iter().position(|d| d.abs() > 1.0 + 1e-9) {
+        return Err(err(format!(
+            "duty of joint '{}' is {} at t = {} s (sample {}); expected a PWM duty in [-1, 1]",
+            run.joints[i % dof],
+            run.drive.duty[i],
+            run.t[i / dof],
+            i / dof
+        )));
+    }
+    if let Some(i) = run.drive.torque_enable.iter().position(|e| *e != 0.0 && *e != 1.0) {
+        return Err(err(format!("torque_enable of joint '{}' is {} at sample {}; expected 0 or 1", run.joints[i % dof], run.drive.torque_enable[i], i / dof)));
+    }
+    if !run.drive.voltage.is_empty() {
+        if run.drive.voltage.len() != n {
+            return Err(err(format!("voltage has {} values, expected one per sample ({n})", run.drive.voltage.len())));
+        }
+        if let Some(k) = run.drive.voltage.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(err(format!("voltage is {} V at t = {} s (sample {k}); expected a finite number >= 0", run.drive.voltage[k], run.t[k])));
+        }
     }
     // experiment
     if let Some(e) = &run.experiment {
@@ -308,6 +375,12 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
         qd_ref: pick(&run.qd_ref),
         tau_ff: pick(&run.tau_ff),
         tau_measured: pick(&run.tau_measured),
+        drive: DriveSignals {
+            duty: pick(&run.drive.duty),
+            torque_enable: pick(&run.drive.torque_enable),
+            voltage: run.drive.voltage.clone(),
+            temperature: pick(&run.drive.temperature),
+        },
         start_ns: run.start_ns,
         experiment: run.experiment.clone(),
         source: run.source.clone(),
@@ -345,17 +418,23 @@ pub fn experiment_from_map(map: &BTreeMap<String, String>) -> std::result::Resul
     let controller: ControllerKind = get(KEY_CONTROLLER)?.parse().map_err(|m| format!("key '{KEY_CONTROLLER}': {m}"))?;
     let joints_s = get(KEY_JOINTS)?;
     let joints: Vec<String> = if joints_s.trim().is_empty() { Vec::new() } else { joints_s.split(',').map(|s| s.trim().to_string()).collect() };
-    let kp = numbers(KEY_KP)?;
-    let kv = numbers(KEY_KV)?;
-    let sp = get(KEY_SAMPLE_PERIOD)?;
-    let sample_period = sp.trim().parse::<f64>().map_err(|_| format!("key '{KEY_SAMPLE_PERIOD}': '{sp}' is not a number"))?;
+    // a replay or a servo has no PD gains; a sample period left out is the log's median
+    // spacing (filled in by the reader, which knows the stamps)
+    let gainless = matches!(controller, ControllerKind::Replay | ControllerKind::Servo);
+    let kp = if gainless && !map.contains_key(KEY_KP) { Vec::new() } else { numbers(KEY_KP)? };
+    let kv = if gainless && !map.contains_key(KEY_KV) { Vec::new() } else { numbers(KEY_KV)? };
+    let sample_period = match map.get(KEY_SAMPLE_PERIOD) {
+        Some(sp) => sp.trim().parse::<f64>().map_err(|_| format!("key '{KEY_SAMPLE_PERIOD}': '{sp}' is not a number"))?,
+        None => f64::NAN,
+    };
     let extra = map.iter().filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
     let e = Experiment { controller, joints, kp, kv, sample_period, extra };
-    check_experiment(&e)?;
+    check_experiment(&Experiment { sample_period: if sample_period.is_nan() { 1.0 } else { sample_period }, ..e.clone() })?;
     Ok(e)
 }
 
-/// Checks an experiment on its own: gains aligned with joints, finite, positive sample period.
+/// Checks an experiment on its own: gains aligned with joints (none for a replay or a servo),
+/// finite, positive sample period, a servo's keys (see [`crate::controller::ServoParams`]).
 fn check_experiment(e: &Experiment) -> std::result::Result<(), String> {
     if e.joints.iter().any(|j| j.is_empty()) {
         return Err(format!("'{KEY_JOINTS}' has an empty joint name ('{}')", e.joints.join(",")));
@@ -363,8 +442,9 @@ fn check_experiment(e: &Experiment) -> std::result::Result<(), String> {
     if let Some(j) = e.joints.iter().find(|j| j.contains(',')) {
         return Err(format!("joint name '{j}' contains a comma"));
     }
+    let gainless = matches!(e.controller, ControllerKind::Replay | ControllerKind::Servo);
     for (k, v) in [(KEY_KP, &e.kp), (KEY_KV, &e.kv)] {
-        if v.len() != e.joints.len() {
+        if v.len() != e.joints.len() && !(gainless && v.is_empty()) {
             return Err(format!("'{k}' has {} gains for {} joints ({})", v.len(), e.joints.len(), e.joints.join(",")));
         }
         if let Some(x) = v.iter().find(|x| !x.is_finite()) {
@@ -374,7 +454,22 @@ fn check_experiment(e: &Experiment) -> std::result::Result<(), String> {
     if !(e.sample_period.is_finite() && e.sample_period > 0.0) {
         return Err(format!("'{KEY_SAMPLE_PERIOD}' must be a positive number of seconds, got {}", e.sample_period));
     }
+    if e.controller == ControllerKind::Servo {
+        crate::controller::ServoParams::from_experiment(e)?;
+    }
     Ok(())
+}
+
+/// Gives an experiment without a sample period (read as NaN) the median spacing of the run's
+/// stamps, as the metadata convention says.
+pub fn fill_sample_period(run: &mut Run) {
+    let Some(e) = run.experiment.as_mut() else { return };
+    if !e.sample_period.is_nan() || run.t.len() < 2 {
+        return;
+    }
+    let mut d: Vec<f64> = run.t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(f64::total_cmp);
+    e.sample_period = d[d.len() / 2];
 }
 
 /// Velocities by central differences of positions (one-sided at the ends), for logs without

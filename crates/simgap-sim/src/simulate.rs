@@ -317,6 +317,17 @@ pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
     let n = plant.dof();
     let mut slope = vec![0.0; n];
     friction_slope_bound(plant.effects(), &mut slope);
+    // a load friction's slope grows with the drive's torque: bounded by the effort limits
+    for e in plant.effects() {
+        if let crate::effects::Effect::LoadFriction { mu, w, .. } = e {
+            for i in 0..n {
+                let limit = plant.effort_limits()[i];
+                if w[i] > 0.0 && limit.is_finite() {
+                    slope[i] += mu[i] * limit / w[i];
+                }
+            }
+        }
+    }
     if slope.iter().all(|s| *s == 0.0) || !matches!(params.integrator, Integrator::Rk4) {
         return params.substeps;
     }

@@ -13,12 +13,22 @@
 //! 4. integrates the plant over that interval: `substeps` RK4 steps of `Δt / substeps` (for an
 //!    interval of the sample period), or the adaptive integrator ([`Stepper::advance`]).
 //!
+//! Drives whose torque depends on the motion within the interval are evaluated at every stage
+//! instead of held ([`drive_torque`]): a servo's back-EMF (`−en kt²/R q̇`, reported by
+//! [`Controller::drive`]), [`Effect::BackEmf`](crate::Effect::BackEmf), the load friction of
+//! [`Effect::LoadFriction`](crate::Effect::LoadFriction), and a drive disabled (`en = 0`: no
+//! torque at all). Dry frictions of width `w = 0` are integrated as stick–slip: at the start of
+//! each RK4 step the friction is the torque that would stop the joint within the step,
+//! `τ_stop = M_ii (q̇_i / h + q̈_i)` (`M_ii` the joint's own inertia, `q̈_i` without that friction),
+//! clipped to the friction level and held over the step, so a joint whose driving torque is
+//! below the level stays at rest (the scheme of Rhoban BAM's servo simulator).
+//!
 //! A state diverged when it is not finite or `|q̇|` exceeds [`SimParams::divergence_bound`]
 //! ([`Stepper::diverged`]). The step never allocates.
 
 use crate::controller::Controller;
 use crate::delay::DelayLine;
-use crate::effects::applied_torque;
+use crate::effects::{applied_torque, drive_torque, exact_dry_levels, has_drive_effects, has_exact_dry_friction};
 use crate::error::Result;
 use crate::integrate::{Dopri5, Integrator, Rk4};
 use crate::plant::{Plant, PlantWorkspace};
@@ -48,6 +58,15 @@ pub struct Stepper<'p> {
     delayed: Vec<f64>,
     applied: Vec<f64>,
     limits: Option<Vec<f64>>,
+    /// The drives of the current sample ([`Controller::drive`]): enable and back-EMF.
+    enabled: Vec<f64>,
+    emf: Vec<f64>,
+    /// The plant has back-EMF or load friction; it has dry friction of width 0.
+    drive_effects: bool,
+    exact_dry: bool,
+    /// Scratch of the drive path: command less back-EMF, drive torque, stick–slip friction,
+    /// levels, inertia diagonal, acceleration.
+    scratch: [Vec<f64>; 7],
     adds_ff: bool,
     period: f64,
     substeps: usize,
@@ -89,6 +108,11 @@ impl<'p> Stepper<'p> {
             delayed: vec![0.0; n],
             applied: vec![0.0; n],
             limits: params.torque_limits_from_model.then(|| plant.effort_limits().to_vec()),
+            enabled: vec![1.0; n],
+            emf: vec![0.0; n],
+            drive_effects: has_drive_effects(plant.effects()),
+            exact_dry: has_exact_dry_friction(plant.effects()),
+            scratch: std::array::from_fn(|_| vec![0.0; n]),
             adds_ff: true,
             period: params.sample_period,
             substeps,
@@ -145,6 +169,7 @@ impl<'p> Stepper<'p> {
         let (q, qd) = y.split_at(n);
         self.sensor.measure(q, qd, &mut self.q_meas, &mut self.qd_meas);
         controller.torque(t, &self.q_meas, &self.qd_meas, q_ref, qd_ref, &mut self.cmd);
+        controller.drive(&mut self.enabled, &mut self.emf);
         self.adds_ff = controller.adds_feed_forward();
         if self.adds_ff && !tau_ff.is_empty() {
             for i in 0..n {
@@ -161,6 +186,8 @@ impl<'p> Stepper<'p> {
     /// If `tau.len()` is not the number of joints.
     pub fn set_command(&mut self, tau: &[f64]) {
         self.cmd.copy_from_slice(tau);
+        self.enabled.fill(1.0);
+        self.emf.fill(0.0);
     }
 
     /// The positions and velocities the sensors measured at the last [`Stepper::command`].
@@ -201,29 +228,92 @@ impl<'p> Stepper<'p> {
             let history = &*history;
             self.line.delayed_row(k, |i| &history[(i % depth) * n..(i % depth + 1) * n], &mut self.delayed);
         }
-        // actuators: saturation, gain, offset, then the model's effort limits
-        applied_torque(self.plant.effects(), &self.delayed, &mut self.applied);
-        if let Some(limits) = &self.limits {
-            for i in 0..n {
-                self.applied[i] = self.applied[i].clamp(-limits[i], limits[i]);
+        let steps = if dt == self.period { self.substeps } else { ((dt / self.h_max * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000) };
+        let drive = self.drive_effects || self.exact_dry || self.emf.iter().any(|e| *e != 0.0) || self.enabled.iter().any(|e| *e != 1.0);
+        if !drive {
+            // actuators: saturation, gain, offset, then the model's effort limits, held
+            applied_torque(self.plant.effects(), &self.delayed, &mut self.applied);
+            if let Some(limits) = &self.limits {
+                for i in 0..n {
+                    self.applied[i] = self.applied[i].clamp(-limits[i], limits[i]);
+                }
             }
+            // integrate the plant over the interval with the held torque
+            let (plant, pws, applied) = (self.plant, &mut self.pws, &self.applied);
+            let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
+                let (q, qd) = y.split_at(n);
+                let (dq, ddq) = dy.split_at_mut(n);
+                dq.copy_from_slice(qd);
+                plant.acceleration(pws, q, qd, applied, ddq);
+            };
+            match self.dopri.as_mut() {
+                Some(d) => {
+                    d.integrate(&mut f, t, t + dt, y);
+                }
+                None => {
+                    let h = dt / steps as f64;
+                    for s in 0..steps {
+                        self.rk4.step(&mut f, t + s as f64 * h, h, y);
+                    }
+                }
+            }
+            return;
         }
-        // integrate the plant over the interval with the held torque
-        let (plant, pws, applied) = (self.plant, &mut self.pws, &self.applied);
-        let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
-            let (q, qd) = y.split_at(n);
-            let (dq, ddq) = dy.split_at_mut(n);
-            dq.copy_from_slice(qd);
-            plant.acceleration(pws, q, qd, applied, ddq);
+        // drives evaluated at every stage (back-EMF, load friction, enable), dry frictions of
+        // width 0 as stick–slip held over each RK4 step
+        let (plant, limits) = (self.plant, self.limits.as_deref());
+        let (delayed, emf, enabled) = (&self.delayed, &self.emf, &self.enabled);
+        let [minus_emf, tau_drive, stick, pos, neg, m_diag, acc] = &mut self.scratch;
+        let pws = &mut self.pws;
+        let torque = |qd: &[f64], minus_emf: &mut [f64], tau_drive: &mut [f64], out: &mut [f64]| {
+            drive_torque(plant.effects(), limits, delayed, emf, enabled, qd, minus_emf, tau_drive, out);
         };
         match self.dopri.as_mut() {
             Some(d) => {
+                let applied = &mut self.applied;
+                let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
+                    let (q, qd) = y.split_at(n);
+                    let (dq, ddq) = dy.split_at_mut(n);
+                    dq.copy_from_slice(qd);
+                    torque(qd, minus_emf, tau_drive, applied);
+                    plant.acceleration(pws, q, qd, applied, ddq);
+                };
                 d.integrate(&mut f, t, t + dt, y);
             }
             None => {
-                let steps = if dt == self.period { self.substeps } else { ((dt / self.h_max * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000) };
                 let h = dt / steps as f64;
+                let exact = self.exact_dry;
+                stick.fill(0.0);
                 for s in 0..steps {
+                    if exact {
+                        // the friction that stops each joint within the step, clipped to its level
+                        let (q, qd) = y.split_at(n);
+                        torque(qd, minus_emf, tau_drive, &mut self.applied);
+                        plant.acceleration_smooth(pws, q, qd, &self.applied, acc);
+                        plant.inertia_diagonal(pws, q, m_diag);
+                        exact_dry_levels(plant.effects(), qd, tau_drive, pos, neg);
+                        for i in 0..n {
+                            let stop = m_diag[i] * (qd[i] / h + acc[i]);
+                            let level = if stop > 0.0 { pos[i] } else { neg[i] };
+                            stick[i] = if stop.is_finite() { -stop.signum() * stop.abs().min(level) } else { 0.0 };
+                        }
+                    }
+                    let applied = &mut self.applied;
+                    let stick = &*stick;
+                    let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
+                        let (q, qd) = y.split_at(n);
+                        let (dq, ddq) = dy.split_at_mut(n);
+                        dq.copy_from_slice(qd);
+                        torque(qd, minus_emf, tau_drive, applied);
+                        if exact {
+                            for i in 0..n {
+                                applied[i] += stick[i];
+                            }
+                            plant.acceleration_smooth(pws, q, qd, applied, ddq);
+                        } else {
+                            plant.acceleration(pws, q, qd, applied, ddq);
+                        }
+                    };
                     self.rk4.step(&mut f, t + s as f64 * h, h, y);
                 }
             }
