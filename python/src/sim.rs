@@ -110,6 +110,7 @@ impl PyRun {
             qd_ref: opt("qd_ref", &qd_ref)?,
             tau_ff: opt("tau_ff", &tau_ff)?,
             tau_measured: opt("tau_measured", &tau_measured)?,
+            drive: Default::default(),
             start_ns,
             experiment: experiment.map(self::experiment).transpose()?,
             source: source.to_owned(),

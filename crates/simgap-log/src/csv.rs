@@ -52,6 +52,14 @@ pub struct CsvMapping {
     pub effort_ff: Vec<(String, String)>,
     /// Torques the drives report (empty: none).
     pub effort_measured: Vec<(String, String)>,
+    /// A servo's measured PWM duty in [−1, 1] (empty: none).
+    pub duty: Vec<(String, String)>,
+    /// A servo's torque enable, 0 or 1 (empty: enabled throughout).
+    pub torque_enable: Vec<(String, String)>,
+    /// A servo's temperature [°C] (empty: none; reported, not modelled).
+    pub temperature: Vec<(String, String)>,
+    /// The supply voltage [V], one column for the robot (`None`: none).
+    pub voltage: Option<String>,
     /// When true, a file without the reference columns reads without a reference instead of
     /// failing (the DFKI presets: system-identification runs have no reference).
     pub optional_reference: bool,
@@ -69,6 +77,10 @@ impl CsvMapping {
             velocity_ref: Vec::new(),
             effort_ff: Vec::new(),
             effort_measured: Vec::new(),
+            duty: Vec::new(),
+            torque_enable: Vec::new(),
+            temperature: Vec::new(),
+            voltage: None,
             optional_reference: false,
         }
     }
@@ -162,6 +174,10 @@ impl CsvMapping {
             velocity_ref: cols(velocity_ref),
             effort_ff: Vec::new(),
             effort_measured: Vec::new(),
+            duty: Vec::new(),
+            torque_enable: Vec::new(),
+            temperature: Vec::new(),
+            voltage: None,
             optional_reference: false,
         }
     }
@@ -235,7 +251,18 @@ impl CsvMapping {
         let old = self.joints();
         assert_eq!(old.len(), names.len(), "one new name per joint");
         let rename: HashMap<String, String> = old.into_iter().zip(names.iter().map(|s| s.to_string())).collect();
-        for list in [&mut self.position, &mut self.velocity, &mut self.effort, &mut self.position_ref, &mut self.velocity_ref, &mut self.effort_ff, &mut self.effort_measured] {
+        for list in [
+            &mut self.position,
+            &mut self.velocity,
+            &mut self.effort,
+            &mut self.position_ref,
+            &mut self.velocity_ref,
+            &mut self.effort_ff,
+            &mut self.effort_measured,
+            &mut self.duty,
+            &mut self.torque_enable,
+            &mut self.temperature,
+        ] {
             for (j, _) in list.iter_mut() {
                 if let Some(n) = rename.get(j) {
                     *j = n.clone();
@@ -289,6 +316,15 @@ pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
         if any("tau_measured_") {
             mapping = mapping.effort_measured(j, &format!("tau_measured_{j}"));
         }
+        // a position-controlled servo's signals
+        for (prefix, list) in [("duty_", &mut mapping.duty), ("torque_enable_", &mut mapping.torque_enable), ("temperature_", &mut mapping.temperature)] {
+            if any(prefix) {
+                list.push((j.to_string(), format!("{prefix}{j}")));
+            }
+        }
+    }
+    if has("voltage") {
+        mapping.voltage = Some("voltage".into());
     }
     Some(mapping)
 }
@@ -361,7 +397,21 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
     };
     let ff_cols = columns_of(&mapping.effort_ff, "feed-forward effort")?;
     let measured_cols = columns_of(&mapping.effort_measured, "measured effort")?;
-    for list in [&mapping.velocity, &mapping.effort, &mapping.position_ref, &mapping.velocity_ref, &mapping.effort_ff, &mapping.effort_measured] {
+    let duty_cols = columns_of(&mapping.duty, "duty")?;
+    let enable_cols = columns_of(&mapping.torque_enable, "torque enable")?;
+    let temperature_cols = columns_of(&mapping.temperature, "temperature")?;
+    let voltage_col = mapping.voltage.as_deref().map(|c| column(c, "supply voltage")).transpose()?;
+    for list in [
+        &mapping.velocity,
+        &mapping.effort,
+        &mapping.position_ref,
+        &mapping.velocity_ref,
+        &mapping.effort_ff,
+        &mapping.effort_measured,
+        &mapping.duty,
+        &mapping.torque_enable,
+        &mapping.temperature,
+    ] {
         if let Some((j, _)) = list.iter().find(|(j, _)| !joints.contains(j)) {
             return Err(err(format!("the column mapping names joint '{j}', which has no position column")));
         }
@@ -394,10 +444,16 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
             (&qdr_cols, &mut run.qd_ref),
             (&ff_cols, &mut run.tau_ff),
             (&measured_cols, &mut run.tau_measured),
+            (&duty_cols, &mut run.drive.duty),
+            (&enable_cols, &mut run.drive.torque_enable),
+            (&temperature_cols, &mut run.drive.temperature),
         ] {
             for &c in cols.iter() {
                 out.push(value(c)?);
             }
+        }
+        if let Some(c) = voltage_col {
+            run.drive.voltage.push(value(c)?);
         }
     }
     if run.is_empty() {

@@ -190,6 +190,7 @@ fn read_any(path: &Path, options: &LogOptions) -> Result<LogRead> {
             };
             if run.experiment.is_none() {
                 run.experiment = fallback.cloned();
+                simgap_sim::fill_sample_period(&mut run);
                 check_run(&run, path)?;
             }
             Ok(LogRead { run, warnings: Vec::new() })

@@ -244,7 +244,8 @@ pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect
     let exp = run.experiment.as_ref();
     let feedback = exp.is_some_and(|e| e.controller != ControllerKind::Replay);
     let mut controller = match (feedback, exp) {
-        (true, Some(e)) => Some(controller_from_experiment(e, model, None)?),
+        // a servo reads the voltage and torque enable its run logged
+        (true, Some(e)) => Some(controller_from_experiment(e, model, (e.controller == ControllerKind::Servo).then_some(run))?),
         _ => None,
     };
     // the simulator's step (sensors, delay line, held torque, substeps), restarted every window

@@ -121,7 +121,8 @@ pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Eff
         qd0: if run.qd.len() >= n { run.qd[..n].to_vec() } else { vec![0.0; n] },
         ..SimParams::default()
     };
-    let replay = if exp.controller == simgap_sim::ControllerKind::Replay { Some(run) } else { None };
+    // a replay applies the run's efforts; a servo reads its logged voltage and torque enable
+    let replay = if matches!(exp.controller, simgap_sim::ControllerKind::Replay | simgap_sim::ControllerKind::Servo) { Some(run) } else { None };
     Ok(simulate_experiment_with_end(model, formulation, effects, exp, reference.as_ref(), &params, replay)?)
 }
 

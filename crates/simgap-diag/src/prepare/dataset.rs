@@ -31,45 +31,20 @@ impl Default for PrepareOptions {
 /// [`Error::Log`] when a model joint is missing from the log, when the log is too short, or
 /// when its time or values are not finite and increasing.
 pub(crate) fn align_run(model: &Model, run: &Run) -> Result<Run> {
-    let names = model.joint_names();
+    let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     let log = if run.source.is_empty() { "<run>".to_string() } else { run.source.clone() };
-    let idx: Vec<usize> = names
-        .iter()
-        .map(|n| {
-            run.joints.iter().position(|j| j == n).ok_or_else(|| Error::Log {
-                log: log.clone(),
-                message: format!("joint '{n}' of model '{}' is not in the log (log joints: {:?}); expected every model joint", model.name(), run.joints),
-            })
-        })
-        .collect::<Result<_>>()?;
-    let n = run.dof();
-    let take = |m: &[f64]| -> Vec<f64> {
-        if m.is_empty() {
-            return Vec::new();
-        }
-        let rows = m.len() / n;
-        let mut out = Vec::with_capacity(rows * idx.len());
-        for k in 0..rows {
-            for &i in &idx {
-                out.push(m[k * n + i]);
-            }
-        }
-        out
-    };
-    let mut out = Run::new(names.iter().map(|s| s.to_string()).collect());
-    out.t = run.t.clone();
-    out.q = take(&run.q);
-    out.qd = take(&run.qd);
-    out.tau = take(&run.tau);
-    out.q_ref = take(&run.q_ref);
-    out.qd_ref = take(&run.qd_ref);
-    out.tau_ff = take(&run.tau_ff);
-    out.tau_measured = take(&run.tau_measured);
-    out.start_ns = run.start_ns;
-    out.experiment = run.experiment.clone();
+    let mut out = simgap_sim::reorder_joints(run, &names, true).map_err(|e| match e {
+        simgap_sim::Error::JointMismatch { joint, .. } => Error::Log {
+            log: log.clone(),
+            message: format!("joint '{joint}' of model '{}' is not in the log (log joints: {:?}); expected every model joint", model.name(), run.joints),
+        },
+        other => Error::Log { log: log.clone(), message: other.to_string() },
+    })?;
     out.source = log.clone();
     let samples = out.t.len();
-    if out.q.len() != samples * out.dof() || out.tau.len() != samples * out.dof() {
+    // a servo logs no torque: its drive command is formed from its duty or goal later
+    let servo = crate::prepare::servo::is_servo(&out);
+    if out.q.len() != samples * out.dof() || (!servo && out.tau.len() != samples * out.dof()) {
         return Err(Error::Log { log, message: "positions and efforts must be logged for every sample".into() });
     }
     if let Some(k) = out.t.windows(2).position(|w| !(w[1] > w[0])) {
@@ -96,8 +71,14 @@ pub struct FitData {
     pub qd: Vec<f64>,
     /// Smoothed accelerations.
     pub qdd: Vec<f64>,
-    /// Commanded torque filtered like the accelerations (see [`Smoother::apply_zoh`]).
+    /// Commanded torque filtered like the accelerations (see [`Smoother::apply_zoh`]); for a
+    /// servo the drive torque `τ_V − en (kt²/R) q̇` of its nominal motor law.
     pub tau: Vec<f64>,
+    /// Whether each joint's drive is enabled (1) or its bridge open (0), filtered likewise (1
+    /// throughout for a drive that logs no torque enable).
+    pub enabled: Vec<f64>,
+    /// A servo's nominal back-EMF `kt²/R` per joint [N·m·s/rad] (0 for other drives).
+    pub back_emf: Vec<f64>,
     /// Delivered (measured) torque filtered likewise; empty when the log has none.
     pub tau_measured: Vec<f64>,
     /// Nominal residual `τ − (H q̈ + C q̇ + g)` with the model's formulation.
@@ -148,7 +129,21 @@ impl FitData {
         let taus = smoother.apply_zoh(&run.tau, n);
         let taus_measured = if run.tau_measured.len() == run.tau.len() { smoother.apply_zoh(&run.tau_measured, n) } else { Vec::new() };
         let pick = |m: &[f64]| -> Vec<f64> { kept.iter().flat_map(|&k| m[k * n..(k + 1) * n].iter().copied()).collect() };
-        let (q, qd, qdd, tau) = (pick(&qs), pick(&qds), pick(&qdds), pick(&taus));
+        let (q, qd, qdd, mut tau) = (pick(&qs), pick(&qds), pick(&qdds), pick(&taus));
+        let enabled = if run.drive.torque_enable.len() == run.len() * n { pick(&smoother.apply_zoh(&run.drive.torque_enable, n)) } else { vec![1.0; tau.len()] };
+        // a servo's own back-EMF, en kt²/R q̇, is part of its nominal drive torque
+        let mut back_emf = vec![0.0; n];
+        if let Some(p) = run.experiment.as_ref().filter(|_| crate::prepare::servo::is_servo(&run)).and_then(|e| simgap_sim::ServoParams::from_experiment(e).ok()) {
+            if let (Some(kt), Some(r)) = (&p.kt, &p.r) {
+                for (j, b) in back_emf.iter_mut().enumerate() {
+                    *b = kt[j] * kt[j] / r[j];
+                }
+                for i in 0..tau.len() {
+                    let j = i % n;
+                    tau[i] -= enabled[i] * kt[j] * kt[j] / r[j] * qd[i];
+                }
+            }
+        }
         let tau_measured = if taus_measured.is_empty() { Vec::new() } else { pick(&taus_measured) };
         let t: Vec<f64> = kept.iter().map(|&k| run.t[k]).collect();
         let mut ws = Workspace::new(model);
@@ -192,6 +187,8 @@ impl FitData {
             qd,
             qdd,
             tau,
+            enabled,
+            back_emf,
             tau_measured,
             residual,
             coriolis_delta,

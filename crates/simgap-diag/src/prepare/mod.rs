@@ -5,6 +5,7 @@
 pub(crate) mod dataset;
 pub(crate) mod differentiate;
 pub(crate) mod robust;
+pub(crate) mod servo;
 pub(crate) mod width;
 
 use simgap_core::{Formulation, Model};
@@ -28,6 +29,8 @@ pub(crate) struct Prepared {
     pub(crate) notes: Vec<String>,
     pub(crate) sensors: Vec<resim::InferredSensors>,
     pub(crate) passive: Vec<bool>,
+    /// The motor constants of servo runs (none without servo runs).
+    pub(crate) servo: Option<servo::Constants>,
 }
 
 /// The controller sample period of the fit runs [s].
@@ -88,6 +91,9 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
             ));
         }
     }
+    // servo runs: the drive's torque from the duty (or the firmware's law on the goal), with
+    // the motor constants the experiments give or the fit runs show
+    let servo = servo_commands(model, &mut fit_runs, &mut hold_runs, options, &mut notes)?;
     // a held-out run must be one the fit never saw (a robot at rest logs the same samples twice:
     // that is no copy, and the answer will be that nothing can be told)
     for h in hold_runs.iter().filter(|h| h.q.chunks(h.dof().max(1)).any(|row| row != &h.q[..h.dof()])) {
@@ -146,7 +152,59 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
             message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]),
         });
     }
-    Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive })
+    Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive, servo })
+}
+
+/// Writes every servo run's drive command `en (kt/R) V duty` as its effort (see
+/// [`servo`]), and the motor constants into its experiment: the experiment's priors, else
+/// fitted on the fit runs (the same constants for every run of a diagnosis).
+fn servo_commands(model: &Model, fit_runs: &mut [Run], hold_runs: &mut [Run], options: &PrepareOptions, notes: &mut Vec<String>) -> Result<Option<servo::Constants>> {
+    if !fit_runs.iter().chain(hold_runs.iter()).any(servo::is_servo) {
+        return Ok(None);
+    }
+    let n = model.dof();
+    let mut params = Vec::new();
+    let mut volts = Vec::new();
+    for r in fit_runs.iter().chain(hold_runs.iter()) {
+        if servo::is_servo(r) {
+            let p = servo::params(model, r)?;
+            volts.push(servo::volts(r, &p)?);
+            params.push(Some(p));
+        } else {
+            volts.push(Vec::new());
+            params.push(None);
+        }
+    }
+    // the priors of the first servo run that gives them, else the fit runs' constants
+    let prior = params.iter().flatten().find_map(|p| p.kt.clone().zip(p.r.clone()));
+    let constants = match prior {
+        Some((kt, r)) => servo::Constants { kt, r, source: "prior", notes: Vec::new() },
+        None => {
+            let fit: Vec<(&Run, Vec<f64>)> = fit_runs.iter().zip(&volts).filter(|(r, _)| servo::is_servo(r)).map(|(r, v)| (r, v.clone())).collect();
+            if fit.is_empty() {
+                return Err(Error::Input("held-out servo logs without motor constants ('kt', 'R') and no servo fit log to fit them on; expected the priors or a servo fit log".into()));
+            }
+            let c = servo::fit_constants(model, &fit, options.window);
+            notes.push(format!(
+                "servo motor constants fitted on the fit logs (no kt, R priors given): {}",
+                model.joint_names().iter().enumerate().map(|(j, name)| format!("{name}: kt = {:.4} N·m/A, R = {:.4} Ω", c.kt[j], c.r[j])).collect::<Vec<_>>().join("; ")
+            ));
+            notes.extend(c.notes.iter().cloned());
+            c
+        }
+    };
+    for ((r, v), p) in fit_runs.iter_mut().chain(hold_runs.iter_mut()).zip(&volts).zip(params) {
+        let Some(mut p) = p else { continue };
+        r.tau = (0..v.len()).map(|i| constants.kt[i % n] / constants.r[i % n] * v[i]).collect();
+        p.kt = Some(constants.kt.clone());
+        p.r = Some(constants.r.clone());
+        let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
+        if let Some(e) = r.experiment.as_mut() {
+            e.joints = names;
+            p.write_to(e);
+        }
+    }
+    Ok(Some(constants))
 }
 
 /// Without held-out logs, the share of each fit log (from its start) that fits; the rest is

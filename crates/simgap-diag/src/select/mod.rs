@@ -65,6 +65,8 @@ pub(crate) enum Family {
     Coulomb(usize),
     /// Stribeck velocity searched, and its width `w` within the joint's [`DryWidth`].
     Stribeck(usize),
+    /// Load-dependent friction, its width `w` searched like Coulomb friction's.
+    LoadFriction(usize),
     /// Saturation limit searched.
     Saturation(usize),
     /// Cogging periods searched.
@@ -82,6 +84,7 @@ impl Family {
             Family::Fixed(ref t) => t.clone(),
             Family::Coulomb(joint) => Term::Coulomb { joint, w: 1.0 },
             Family::Stribeck(joint) => Term::Stribeck { joint, vs: 1.0, w: 1.0 },
+            Family::LoadFriction(joint) => Term::LoadFriction { joint, w: 1.0 },
             Family::Saturation(joint) => Term::Saturation { joint, limit: 1.0 },
             Family::Cogging(joint) => Term::Cogging { joint, periods: 1.0 },
             Family::Delay => Term::Delay { delay: 0.0 },
@@ -90,13 +93,19 @@ impl Family {
     }
 }
 
-/// All candidate families for a model with `dof` joints.
-pub(crate) fn families(dof: usize) -> Vec<Family> {
+/// All candidate families for the fit runs `data` (back-EMF only on joints whose drive some
+/// run disables: elsewhere it is viscous friction).
+pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
+    let dof = data.first().map_or(0, |d| d.dof);
     let mut f = Vec::new();
     for j in 0..dof {
         f.push(Family::Fixed(Term::Viscous(j)));
         f.push(Family::Coulomb(j));
         f.push(Family::Stribeck(j));
+        f.push(Family::LoadFriction(j));
+        if crate::vocabulary::back_emf::separable(j, data) {
+            f.push(Family::Fixed(Term::BackEmf(j)));
+        }
         f.push(Family::Fixed(Term::Armature(j)));
         f.push(Family::Fixed(Term::Gain(j)));
         f.push(Family::Fixed(Term::Offset(j)));
@@ -228,6 +237,7 @@ impl<'a> Context<'a> {
         match *family {
             Family::Fixed(ref t) => vec![t.clone()],
             Family::Coulomb(j) => self.dry_width[j].grid(DRY_WIDTH_GRID).into_iter().map(|w| Term::Coulomb { joint: j, w }).collect(),
+            Family::LoadFriction(j) => self.dry_width[j].grid(DRY_WIDTH_GRID).into_iter().map(|w| Term::LoadFriction { joint: j, w }).collect(),
             Family::Stribeck(j) => {
                 let widths = self.dry_width[j].grid(STRIBECK_WIDTH_GRID);
                 (0..12).flat_map(|i| widths.iter().map(move |&w| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i), w })).collect()
@@ -275,6 +285,12 @@ impl<'a> Context<'a> {
             }
             Term::Stribeck { joint, vs, w } => {
                 let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i), w }).collect();
+                screen_best(self, &cands, resid).0
+            }
+            Term::LoadFriction { joint, w } => {
+                let range = self.dry_width[joint];
+                let mut cands: Vec<Term> = (-5..=5).map(|i| Term::LoadFriction { joint, w: range.clamp(w * 1.1f64.powi(i)) }).collect();
+                cands.dedup();
                 screen_best(self, &cands, resid).0
             }
             Term::Payload { .. } => self.payload_search(resid, &[]),

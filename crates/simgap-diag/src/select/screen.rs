@@ -19,7 +19,7 @@ pub(crate) fn select_nothing(ctx: &Context<'_>) -> Selection {
 /// grid member per joint against the nominal residual), whole-robot ones once.
 pub(crate) fn candidate_groups(ctx: &Context<'_>, resid: &Column) -> Vec<(&'static str, Vec<Term>)> {
     let mut groups: Vec<(&'static str, Vec<Term>)> = Vec::new();
-    let fams = families(ctx.problem.dof);
+    let fams = families(ctx.data);
     for f in &fams {
         let t = ctx.best_of(f, resid);
         let name = t.effect_name();

@@ -124,7 +124,7 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     let mut current = nominal.clone();
     let mut designs: Vec<TermDesign> = Vec::new();
     let mut log = Vec::new();
-    let fams = families(p.dof);
+    let fams = families(ctx.data);
     while terms.len() < opts.max_terms {
         let resid = residual_after(p, &designs, &current.theta);
         // best member of every family, then the inertial error, evaluated jointly with the set

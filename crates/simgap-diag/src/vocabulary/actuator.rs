@@ -25,7 +25,8 @@ pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
         Term::Offset(j) => {
             let tau_max = data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(dof)).fold(0.0f64, |m, t| m.max(t.abs()));
             let bound = if tau_max > 0.0 { tau_max } else { f64::INFINITY };
-            TermDesign { cols: vec![per_joint(data, j, |_, _| -1.0)], lo: vec![-bound], hi: vec![bound], ..Default::default() }
+            // an offset acts while the drive is enabled (a servo with torque off applies nothing)
+            TermDesign { cols: vec![per_joint(data, j, |d, i| -d.enabled[i])], lo: vec![-bound], hi: vec![bound], ..Default::default() }
         }
         Term::Saturation { joint, limit } => {
             let mut v = Vec::new();

@@ -13,17 +13,21 @@
 //! time_delay     r   ∋  τ(t) − τ(t − d)                 (fixed coefficient, d searched)
 //! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
 //! joint_spring   r_j ∋  k_j q_j − k_j q0_j              (k ≥ 0, k q0 free)
+//! load_friction  r_j ∋  (fc + mu |τ_j|) tanh(q̇_j / w)   (fc ≥ 0, 0 ≤ mu ≤ 1)
+//! back_emf       r_j ∋  kb_j en_j q̇_j                   (en the drive's enable)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
 
 mod actuator;
+pub(crate) mod back_emf;
 mod cogging;
 mod coriolis;
 mod delay;
 pub(crate) mod effects;
 mod friction;
 mod inertial;
+mod load_friction;
 mod payload;
 mod rotor;
 mod spring;
@@ -67,6 +71,15 @@ pub(crate) enum Term {
         /// Width of the smoothed sign [rad/s or m/s] ([`FitData::dry_width`]).
         w: f64,
     },
+    /// Load-dependent dry friction on a joint, its sign smoothed as tanh(q̇ / w).
+    LoadFriction {
+        /// Joint index.
+        joint: usize,
+        /// Width of the smoothed sign [rad/s or m/s] ([`FitData::dry_width`]).
+        w: f64,
+    },
+    /// Back-EMF on a joint while its drive is enabled.
+    BackEmf(usize),
     /// Rotor inertia on a joint.
     Armature(usize),
     /// Torque gain on a joint.
@@ -120,6 +133,8 @@ impl Term {
             Term::Viscous(_) => EffectKind::ViscousFriction,
             Term::Coulomb { .. } => EffectKind::CoulombFriction,
             Term::Stribeck { .. } => EffectKind::StribeckFriction,
+            Term::LoadFriction { .. } => EffectKind::LoadFriction,
+            Term::BackEmf(_) => EffectKind::BackEmf,
             Term::Armature(_) => EffectKind::Armature,
             Term::Gain(_) => EffectKind::TorqueGain,
             Term::Offset(_) => EffectKind::TorqueOffset,
@@ -141,8 +156,8 @@ impl Term {
     /// The joint of a per-joint term.
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
-            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) => Some(j),
-            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
+            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) | Term::BackEmf(j) => Some(j),
+            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::LoadFriction { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
             _ => None,
         }
     }
@@ -163,7 +178,7 @@ impl Term {
     /// [`Term::shares_slot`]).
     pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
         let slot = match self {
-            Term::Coulomb { .. } | Term::Stribeck { .. } => Slot::DryFriction,
+            Term::Coulomb { .. } | Term::Stribeck { .. } | Term::LoadFriction { .. } => Slot::DryFriction,
             Term::Payload { .. } | Term::InertialError { .. } => Slot::Inertia,
             other => Slot::Effect(other.kind()),
         };
@@ -190,7 +205,9 @@ impl Term {
         let joint = self.joint().unwrap_or(usize::MAX);
         let k = self.kind();
         match self {
-            Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } | Term::Coulomb { w: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
+            Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } | Term::Coulomb { w: x, .. } | Term::LoadFriction { w: x, .. } => {
+                TermKey(k, joint, x.to_bits(), [0; 3])
+            }
             Term::Stribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
             Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
             Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
@@ -204,7 +221,7 @@ impl Term {
 pub(crate) enum Slot {
     /// Its own effect.
     Effect(EffectKind),
-    /// Dry friction: Coulomb or Stribeck.
+    /// Dry friction: Coulomb, Stribeck or load-dependent.
     DryFriction,
     /// The rigid-body parameters: a payload or an inertial error.
     Inertia,
@@ -225,6 +242,8 @@ pub(crate) fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) 
 pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     match term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::design(term, data),
+        Term::LoadFriction { joint, w } => load_friction::design(*joint, *w, data),
+        Term::BackEmf(j) => back_emf::design(*j, data),
         Term::Armature(j) => rotor::design(*j, data),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::design(term, data),
         Term::Cogging { joint, periods } => cogging::design(*joint, *periods, data),
@@ -245,12 +264,13 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
 pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
     match term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::physical(term, theta),
+        Term::LoadFriction { .. } => load_friction::physical(theta),
         Term::Armature(_) => rotor::physical(theta),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
         Term::Payload { .. } => payload::physical(theta),
         Term::Spring(_) => spring::physical(theta),
         Term::InertialError { prior } => prior.is_physical(theta),
-        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure => true,
+        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure | Term::BackEmf(_) => true,
     }
 }
 
@@ -269,6 +289,8 @@ fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
     let n = model.dof();
     match &f.term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::apply(f, n, out),
+        Term::LoadFriction { .. } => load_friction::apply(f, n, out),
+        Term::BackEmf(j) => back_emf::apply(*j, &f.theta, n, out),
         Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::apply(f, n, out),
         Term::Cogging { joint, periods } => cogging::apply(*joint, *periods, &f.theta, n, out),
@@ -286,6 +308,8 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
     let (th, sd) = (&f.theta, &f.std);
     match &f.term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::report(f, entry),
+        Term::LoadFriction { .. } => load_friction::report(f, entry),
+        Term::BackEmf(_) => entry.push("kb", th[0], ci(sd[0])),
         Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::report(f, entry),
         Term::Cogging { periods, .. } => cogging::report(*periods, th, sd, entry),
@@ -301,6 +325,8 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
 fn describe(model: &Model, e: &EffectReport) -> String {
     match e.effect.parse::<EffectKind>() {
         Ok(EffectKind::ViscousFriction | EffectKind::CoulombFriction | EffectKind::StribeckFriction) => friction::describe(e),
+        Ok(EffectKind::LoadFriction) => load_friction::describe(e),
+        Ok(EffectKind::BackEmf) => back_emf::describe(e),
         Ok(EffectKind::Armature) => rotor::describe(e),
         Ok(EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation) => actuator::describe(e),
         Ok(EffectKind::Cogging) => cogging::describe(e),
@@ -332,6 +358,7 @@ pub(crate) struct Nested {
 pub(crate) fn simpler(term: &Term, data: &[FitData]) -> Option<Nested> {
     match term {
         Term::Stribeck { .. } => friction::simpler(term, data),
+        Term::LoadFriction { joint, w } => Some(load_friction::simpler(*joint, *w)),
         _ => None,
     }
 }

@@ -1,0 +1,183 @@
+//! Servo runs: the torque a position-controlled servo applied, which its log does not hold.
+//!
+//! A `servo` experiment's drive is the DC-motor law `τ = en (kt/R) (V duty − kt q̇)` (see
+//! [`simgap_sim::Servo`]). Its command is the voltage part `τ_V = en (kt/R) V duty`, with the
+//! duty the log holds (the servo's *present PWM*) or, without one, the firmware's
+//! `clip(duty_gain (goal − q), ±max_duty)`, and `V` the logged supply voltage or the
+//! experiment's `supply_voltage`. The prepare stage writes `τ_V` as the run's commanded effort,
+//! so that every later stage (residual, actuator columns, delay line) reads a servo like any
+//! drive; the back-EMF `en kt²/R q̇` is subtracted from the residual's torque by the fit data
+//! ([`FitData::new`](super::FitData::new)).
+//!
+//! The motor constants are the experiment's priors `kt` and `R` when it gives them. Without
+//! them they are fitted here, per joint, by least squares of the model's inverse dynamics on
+//! the drive's two signals over every fit run:
+//!
+//! ```text
+//! (H q̈ + C q̇ + g)_j ≈ a (en V duty)_j − b (en q̇)_j − c q̇_j − f sign(q̇_j) − ia q̈_j
+//! ```
+//!
+//! with `a = kt/R`, `b = kt²/R` (so `kt = b/a`, `R = kt/a`), all five ≥ 0; the friction and
+//! rotor-inertia columns keep those effects out of the constants, and are left for the
+//! diagnosis to find. Runs with the drive disabled (a drop with torque off) tell the back-EMF
+//! `b` from viscous friction `c`; without any, `b` and `c` are one column and the report says
+//! the constants could not be separated.
+
+use simgap_core::{inverse_dynamics_into, Model, Workspace};
+use simgap_sim::{ControllerKind, Run, ServoParams};
+
+use crate::error::{Error, Result};
+use crate::lsq::bounded::solve_bounded;
+use crate::prepare::differentiate::Smoother;
+use nalgebra::{DMatrix, DVector};
+
+/// Whether a run is logged by a position-controlled servo.
+pub(crate) fn is_servo(run: &Run) -> bool {
+    run.experiment.as_ref().is_some_and(|e| e.controller == ControllerKind::Servo)
+}
+
+/// The servo constants of a (model-aligned) servo run, in model joint order.
+///
+/// # Errors
+/// [`Error::Log`] naming the run and the missing or malformed key.
+pub(crate) fn params(model: &Model, run: &Run) -> Result<ServoParams> {
+    let exp = run.experiment.as_ref().ok_or_else(|| Error::Log { log: run.source.clone(), message: "no experiment".into() })?;
+    let p = ServoParams::from_experiment(exp).map_err(|m| Error::Log { log: run.source.clone(), message: format!("servo experiment: {m}") })?;
+    let map: Vec<usize> = model
+        .joint_names()
+        .iter()
+        .map(|j| {
+            exp.joints.iter().position(|e| e == j).ok_or_else(|| Error::Log {
+                log: run.source.clone(),
+                message: format!("servo experiment names joints {}; expected every model joint (missing '{j}')", exp.joints.join(",")),
+            })
+        })
+        .collect::<Result<_>>()?;
+    let pick = |v: &[f64]| map.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+    Ok(ServoParams {
+        duty_gain: pick(&p.duty_gain),
+        max_duty: pick(&p.max_duty),
+        supply_voltage: p.supply_voltage,
+        kt: p.kt.as_deref().map(pick),
+        r: p.r.as_deref().map(pick),
+        goal_rate_limit: p.goal_rate_limit,
+    })
+}
+
+/// The drive's voltage signal `en V duty` [V] of every sample (row-major, model order): the
+/// logged duty, else the firmware's P law on the logged goal.
+///
+/// # Errors
+/// [`Error::Log`] for a servo log without goal positions, without a voltage (logged or
+/// `supply_voltage`), or with its drive disabled throughout and no motion.
+pub(crate) fn volts(run: &Run, p: &ServoParams) -> Result<Vec<f64>> {
+    let (n, len) = (run.dof(), run.len());
+    let fail = |message: String| Error::Log { log: run.source.clone(), message };
+    let logged_duty = run.drive.duty.len() == len * n && len > 0;
+    if !logged_duty && run.q_ref.len() != len * n {
+        return Err(fail("a servo log without goal positions (q_ref_<joint> columns or the reference topic) and without a logged duty; expected the goal the firmware tracked".into()));
+    }
+    let logged_v = run.drive.voltage.len() == len && len > 0;
+    if !logged_v && !p.supply_voltage.is_finite() {
+        return Err(fail("a servo log without a voltage column and an experiment without 'supply_voltage'; expected one of them".into()));
+    }
+    let enabled_anywhere = (0..len).any(|k| (0..n).any(|j| run.drive.enabled(k, j, n)));
+    let moves = run.q.chunks(n.max(1)).any(|row| row.iter().zip(&run.q[..n]).any(|(a, b)| (a - b).abs() > 1e-9));
+    if !enabled_anywhere && !moves {
+        return Err(fail("the servo's torque is off throughout and the joint never moves: nothing in this log tells the drive or the mechanics; expected motion or an enabled drive".into()));
+    }
+    let mut out = vec![0.0; len * n];
+    for k in 0..len {
+        let v = if logged_v { run.drive.voltage[k] } else { p.supply_voltage };
+        for j in 0..n {
+            if !run.drive.enabled(k, j, n) {
+                continue;
+            }
+            let duty = if logged_duty {
+                run.drive.duty[k * n + j]
+            } else {
+                (p.duty_gain[j] * (run.q_ref[k * n + j] - run.q[k * n + j])).clamp(-p.max_duty[j], p.max_duty[j])
+            };
+            out[k * n + j] = v * duty;
+        }
+    }
+    Ok(out)
+}
+
+/// Where the motor constants of a diagnosis of servo runs came from.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Constants {
+    /// Torque constants [N·m/A], model order.
+    pub kt: Vec<f64>,
+    /// Winding resistances [Ω], model order.
+    pub r: Vec<f64>,
+    /// `prior` (the experiment's) or `fitted` (by [`fit_constants`]).
+    pub source: &'static str,
+    /// What could not be separated, per joint (empty when everything could).
+    pub notes: Vec<String>,
+}
+
+/// Fits `kt` and `R` per joint (see the [module docs](self)) from servo runs (model-aligned,
+/// with `volts` their [`volts`] signals), smoothing with a window of `window` seconds.
+pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f64) -> Constants {
+    let n = model.dof();
+    let names = model.joint_names();
+    // per joint: the Gram matrix and right-hand side of the five columns
+    let mut g = vec![DMatrix::<f64>::zeros(5, 5); n];
+    let mut c = vec![DVector::<f64>::zeros(5); n];
+    let mut disabled = vec![0usize; n];
+    let mut ws = Workspace::new(model);
+    let mut id = vec![0.0; n];
+    for (run, volts) in runs {
+        let smoother = Smoother::new(&run.t, window);
+        let valid = smoother.valid();
+        if valid.len() < 20 {
+            continue;
+        }
+        let q = smoother.apply(&run.q, n, 0);
+        let qd = smoother.apply(&run.q, n, 1);
+        let qdd = smoother.apply(&run.q, n, 2);
+        let vs = smoother.apply_zoh(volts, n);
+        let en: Vec<f64> = (0..run.len()).flat_map(|k| (0..n).map(move |j| (k, j))).map(|(k, j)| if run.drive.enabled(k, j, n) { 1.0 } else { 0.0 }).collect();
+        let ens = smoother.apply_zoh(&en, n);
+        for k in valid {
+            let row = k * n..(k + 1) * n;
+            inverse_dynamics_into(model, &mut ws, &q[row.clone()], &qd[row.clone()], &qdd[row.clone()], &mut id);
+            for j in 0..n {
+                let (v, e, w, a) = (vs[k * n + j], ens[k * n + j], qd[k * n + j], qdd[k * n + j]);
+                let x = [v, -e * w, -w, -w.signum(), -a];
+                for r in 0..5 {
+                    c[j][r] += x[r] * id[j];
+                    for s in 0..5 {
+                        g[j][(r, s)] += x[r] * x[s];
+                    }
+                }
+                if e < 0.5 {
+                    disabled[j] += 1;
+                }
+            }
+        }
+    }
+    let (mut kt, mut r, mut notes) = (vec![f64::NAN; n], vec![f64::NAN; n], Vec::new());
+    for j in 0..n {
+        let lo = [1e-9, 0.0, 0.0, 0.0, 0.0];
+        let (theta, _) = solve_bounded(&g[j], &c[j], &lo, &[f64::INFINITY; 5]);
+        let (a, b) = (theta[0], theta[1]);
+        if disabled[j] == 0 {
+            notes.push(format!(
+                "{}: the drive is never disabled in the fit logs, so its back-EMF kt²/R and viscous friction act alike; the fitted kt and R split them as the least-squares fit does, not as the data decide",
+                names[j]
+            ));
+        }
+        if a > 1e-9 && b > 1e-12 {
+            kt[j] = b / a;
+            r[j] = kt[j] / a;
+        } else {
+            // no back-EMF seen: a unit torque constant carries the fitted kt/R
+            notes.push(format!("{}: no back-EMF is seen in the fit logs; kt = 1 N·m/A is assumed and R = kt / (kt/R) carries the fitted drive gain", names[j]));
+            kt[j] = 1.0;
+            r[j] = 1.0 / a.max(1e-9);
+        }
+    }
+    Constants { kt, r, source: "fitted", notes }
+}

@@ -1,0 +1,38 @@
+//! `back_emf`: the voltage a spinning motor induces, `−kb q̇` while the drive is enabled
+//! (absent with torque off: the bridge is open). A servo's own motor law holds `kt²/R` of it;
+//! this term is what the logs show beyond (or short of) that.
+//!
+//! The residual holds `kb en_j q̇_j` (column `en q̇`, `en` the drive's enable); with the drive
+//! never disabled it is viscous friction's column, so the term is a candidate only on joints
+//! whose drive some fit run disables. Physical range: the total back-EMF stays ≥ 0, so `kb ≥
+//! −kt²/R` of the servo's nominal law (≥ 0 on another drive).
+
+use simgap_sim::Effect;
+
+use super::effects::list_per_joint;
+use super::{per_joint, EffectReport, TermDesign};
+use crate::prepare::dataset::FitData;
+
+/// The column of a back-EMF on joint `j`: `en q̇`, bounded below by minus the nominal back-EMF.
+pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
+    let nominal = data.iter().map(|d| d.back_emf[j]).fold(0.0f64, f64::max);
+    TermDesign { cols: vec![per_joint(data, j, |d, i| d.enabled[i] * d.qd[i])], lo: vec![-nominal], hi: vec![f64::INFINITY], ..Default::default() }
+}
+
+/// Whether some fit run disables the drive of joint `j` (back-EMF is then told from viscous
+/// friction).
+pub(crate) fn separable(j: usize, data: &[FitData]) -> bool {
+    data.iter().any(|d| (0..d.len()).any(|s| d.enabled[s * d.dof + j] < 0.5))
+}
+
+/// Adds the back-EMF of joint `j` to the simulator's.
+pub(super) fn apply(j: usize, theta: &[f64], n: usize, out: &mut Vec<Effect>) {
+    if let Effect::BackEmf { kb } = super::effects::slot(out, Effect::BackEmf { kb: vec![0.0; n] }) {
+        kb[j] = theta[0];
+    }
+}
+
+/// The back-EMF in words.
+pub(super) fn describe(e: &EffectReport) -> String {
+    format!("back-EMF while the drive is enabled {}", list_per_joint(e, "kb"))
+}
