@@ -185,6 +185,7 @@ def markdown(res: dict) -> str:
         "# BAM's XL330 models on the Rhoban pendulum logs",
         "",
         f"All figures in mrad. Voltage: {res['vin']}. Held-out (pooled) runs: {', '.join(pooled['runs'])}.",
+        f"Windows: {res.get('windows', 'as given')}. Error gain per file: " + ", ".join(f"{l} {g:.6g}" for l, g in res["error_gain"].items()) + ".",
         f"BAM's best model by its own measure (pooled mean MAE): published {res['best_by_bam_mae']['published']}, all files {res['best_by_bam_mae']['all']}.",
         "",
         "## Whole-run MAE (BAM's measure: 5 ms resample, simulated control, from the first sample)",
