@@ -238,7 +238,8 @@ def main():
         with open(xml + ".effects.json") as f:
             left_out = [e["effect"] for e in json.load(f)["selected_effects"]]
         r = {"held": f"trajectory_0{i}", "horizons": horizons, "windows": len(wins), "report_windows": run["windows"],
-             "glitches": len(glitches), "floor_py": fl, "floor": run["floor"], "before": run["before"], "after": run["after"],
+             "glitches": len(glitches), "gaps": int(np.sum(np.diff(t) > 1.5 * period)), "longest_interval": float(np.diff(t).max()),
+             "median_interval": float(np.median(np.diff(t))), "floor_py": fl, "floor": run["floor"], "before": run["before"], "after": run["after"],
              "mujoco_as_written": mj[False], "mujoco_log_stamps": mj[True], "mujoco_log_stamps_stiff_friction": mj_stiff,
              "friction_solref_default": [float(x) for x in m.dof_solref[0]], "mjcf_sidecar": left_out}
         if args.bin:
@@ -276,7 +277,8 @@ def main():
     print("\nWindows (script against the report) and checks, all horizons " + ", ".join(f"{h} s" for h in summary[0]["horizons"]) + ":")
     for r in summary:
         rel = max(abs(a - b) / b for a, b in zip(r["floor_py"], r["floor"]))
-        line = (f"- {r['held']}: {r['windows']} windows ({r['report_windows']} in the report), {r['glitches']} glitch samples repaired; "
+        line = (f"- {r['held']}: {r['windows']} windows ({r['report_windows']} in the report), {r['glitches']} glitch samples repaired, "
+                f"median interval {r['median_interval'] * 1e3:.7f} ms, {r['gaps']} intervals over 1.5 periods (longest {r['longest_interval'] * 1e3:.1f} ms); "
                 f"floor {', '.join(f'{x:.6f}' for x in r['floor_py'])} (report {', '.join(f'{x:.6f}' for x in r['floor'])}, largest rel. difference {rel:.1e}); "
                 f"MJCF sidecar: {', '.join(r['mjcf_sidecar']) or 'nothing left out'}; "
                 f"MuJoCo (log stamps) with friction solref {r['friction_solref_default'][0]:g} s (the file's): "
