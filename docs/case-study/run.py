@@ -7,7 +7,9 @@ Run from the repository root:
     python3 docs/case-study/run.py --data ../shared/data --bin target/release/simgap --out /tmp/cs
 
 Python 3 standard library only. Everything the script writes (split logs, sidecars, corrected
-URDFs, JSON reports) goes to --out; nothing is written into the repository. The data files are
+URDFs, JSON reports) goes to --out; nothing is written into the repository. Each C.0 diagnosis
+also exports its corrected model (`c0_hold{i}.urdf`, `c0_hold{i}.xml`, each with its
+`.effects.json` sidecar), which `mujoco_kstep.py` then predicts in MuJoCo. The data files are
 read where they are (they are not part of this repository).
 
 Data sets:
@@ -165,7 +167,9 @@ def run(cmd, out_txt):
     return dt
 
 
-def diagnose(args, urdf, fit, held, experiment, tag):
+def diagnose(args, urdf, fit, held, experiment, tag, export=False):
+    """`simgap diagnose`; with `export`, also the corrected model as `TAG.urdf` and `TAG.xml`
+    (MJCF) in --out, each with its `.effects.json` sidecar (docs/export.md)."""
     js = os.path.join(args.out, f"{tag}.json")
     cmd = [args.bin, "diagnose", "--urdf", urdf]
     for l in fit:
@@ -175,6 +179,8 @@ def diagnose(args, urdf, fit, held, experiment, tag):
     if experiment:
         cmd += ["--experiment", experiment]
     cmd += ["--json", js]
+    if export:
+        cmd += ["--export-urdf", os.path.join(args.out, f"{tag}.urdf"), "--export-mjcf", os.path.join(args.out, f"{tag}.xml")]
     if args.reuse and os.path.exists(js):
         with open(js) as f:
             rep = json.load(f)
@@ -371,7 +377,7 @@ def double_c0(args):
     rows = []
     for i in range(5):
         fit = [r for j, r in enumerate(runs) if j != i]
-        rep, secs = diagnose(args, urdf, fit, [runs[i]], exp, f"c0_hold{i}")
+        rep, secs = diagnose(args, urdf, fit, [runs[i]], exp, f"c0_hold{i}", export=True)
         dp = predict(args, dfki_urdf, [runs[i]], dfki_eff, exp, f"c0_hold{i}_dfki")
         rows.append(row(rep, runs[i], dp, ", ".join(f"0{j}" for j in range(5) if j != i), f"trajectory_0{i}", secs, urdf))
     table("Double pendulum C.0 (open loop, leave one run out)", rows, notes)
