@@ -36,7 +36,12 @@ column                 meaning
 ``q_ref_servo``        [rad] goal position just written (``goal_position``)
 ``duty_servo``         [–] measured PWM duty = int16(``load``)/885, in [−1, 1]
 ``torque_enable_servo`` 0/1 (``torque_enable``); with 0 the H-bridge is open and τ = 0
-``voltage``            [V] measured input voltage (``input_volts``, 0.1 V steps, noisy)
+``voltage``            [V] measured input voltage (``input_volts``, 0.1 V steps, noisy);
+                       written only with ``--voltage logged``: by default the column is
+                       left out and simgap drives the servo with the nominal
+                       ``supply_voltage``, as BAM's model does (the register is read once
+                       per 5 ms sample while the PWM switches much faster, so one reading
+                       is not the voltage the motor saw over the sample)
 ``temperature_servo``  [°C] winding/board temperature (``temp``), reported, not modelled
 =====================  ====================================================================
 
@@ -135,12 +140,15 @@ def _num(x: float) -> str:
     return str(int(x)) if x.is_integer() and abs(x) < 1e15 else repr(x)
 
 
-def write_csv(log: dict, out: Path) -> None:
+def write_csv(log: dict, out: Path, logged_voltage: bool = False) -> None:
     t0 = log["t"][0]
+    columns = COLUMNS if logged_voltage else [c for c in COLUMNS if c != "voltage"]
     with open(out, "w") as f:
-        f.write(",".join(COLUMNS) + "\n")
+        f.write(",".join(columns) + "\n")
         for i in range(len(log["t"])):
-            row = [repr(log["t"][i] - t0), repr(log["q"][i]), repr(log["qd"][i]), repr(log["goal"][i]), repr(log["duty"][i]), str(log["torque_enable"][i]), _num(log["voltage"][i]), _num(log["temp"][i])]
+            row = [repr(log["t"][i] - t0), repr(log["q"][i]), repr(log["qd"][i]), repr(log["goal"][i]), repr(log["duty"][i]), str(log["torque_enable"][i])]
+            row += [_num(log["voltage"][i])] if logged_voltage else []
+            row += [_num(log["temp"][i])]
             f.write(",".join(row) + "\n")
 
 
@@ -195,8 +203,9 @@ def pendulum_urdf(mass: float, length: float) -> str:
 """
 
 
-def convert(data: Path, out: Path, priors_file: Path | None = None) -> list[Path]:
-    """Convert every raw log under ``data``; returns the CSV files written."""
+def convert(data: Path, out: Path, priors_file: Path | None = None, logged_voltage: bool = False) -> list[Path]:
+    """Convert every raw log under ``data``; returns the CSV files written (with the logged
+    input voltage as the ``voltage`` column when ``logged_voltage``)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     priors = None
@@ -214,7 +223,7 @@ def convert(data: Path, out: Path, priors_file: Path | None = None) -> list[Path
         elif bench != (meta["mass"], meta["length"]):
             raise ValueError(f"{path.name}: bench {meta['mass']} kg at {meta['length']} m differs from the first log's {bench}; one URDF cannot hold both")
         csv = out / f"{log['name']}.csv"
-        write_csv(log, csv)
+        write_csv(log, csv, logged_voltage)
         with open(out / f"{log['name']}.experiment.json", "w") as f:
             json.dump(experiment(log, priors), f, indent=2)
             f.write("\n")
@@ -228,8 +237,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", type=Path, default=default_data_dir(), help="the rhoban-bam-xl330 folder (default: ../shared/data/rhoban-bam-xl330 beside the repository)")
     ap.add_argument("--out", type=Path, required=True, help="output folder (created); never inside the data folder")
     ap.add_argument("--priors", type=Path, default=None, help="a BAM params JSON whose kt and R go into the sidecars as priors")
+    ap.add_argument("--voltage", choices=["nominal", "logged"], default="nominal", help="drive the servo with the nominal supply (default, as BAM) or the logged input voltage (a 'voltage' column)")
     args = ap.parse_args(argv)
-    written = convert(args.data, args.out, args.priors)
+    written = convert(args.data, args.out, args.priors, args.voltage == "logged")
     print(f"wrote {len(written)} logs (+ sidecars, pendulum.urdf) to {args.out}")
     return 0
 

@@ -77,6 +77,12 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     for (i, h) in k.horizons_s.iter().enumerate() {
         println!("  {:>9.3}s {:>14.4e} {:>14.4e} {:>14.4e}", h, k.before[i], k.after[i], k.floor[i]);
     }
+    // the whole-run measure of feedback runs (servo identification tools report it)
+    let maes: Vec<(f64, f64)> = k.runs.iter().filter_map(|r| r.whole_run_mae).collect();
+    if !maes.is_empty() {
+        let mean = |f: &dyn Fn(&(f64, f64)) -> f64| maes.iter().map(f).sum::<f64>() / maes.len() as f64;
+        println!("  whole-run closed-loop mean absolute error, mean over {} log(s) [{u}]: model {:.4e}, +effects {:.4e}", maes.len(), mean(&|m| m.0), mean(&|m| m.1));
+    }
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&k)? + "\n").with_context(|| format!("{}: cannot write", path.display()))?;
         println!("wrote {}", path.display());

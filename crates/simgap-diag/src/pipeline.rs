@@ -14,7 +14,7 @@ use crate::prediction::{kstep, resim};
 use crate::prepare::{prepare, sample_period, Prepared};
 use crate::report::units::Units;
 use crate::report::verdict::{headline, residual_notes, verdict};
-use crate::report::{pitfalls, residual, Candidate, Decision, Diagnosis, Gap, KStep, Report, RunKStep};
+use crate::report::{pitfalls, residual, Candidate, Decision, Diagnosis, Gap, KStep, Report, RunKStep, WindowStart};
 use crate::select::alternatives::alternatives;
 use crate::select::prediction::{fits_in, prune_and_complete, rank_selected, ADD_GAIN};
 use crate::select::refine::refine_by_shooting;
@@ -437,6 +437,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         location,
         selection_log,
         nominal_cv_mse: selection.nominal_cv_mse,
+        servo: prep.servo.as_ref().map(|c| crate::report::ServoReport::new(&joints, &c.kt, &c.r, c.source, &sel_effects)),
     };
     let Prepared { hold_runs, data, .. } = prep;
     Ok(Diagnosis {
@@ -469,7 +470,15 @@ fn kstep_figures(
         runs: runs
             .iter()
             .enumerate()
-            .map(|(i, pr)| RunKStep { log: pr.run.source.clone(), windows: pr.windows(), before: before.1[i].rms(), after: after.1[i].rms(), floor: floor.1[i].rms() })
+            .map(|(i, pr)| RunKStep {
+                log: pr.run.source.clone(),
+                windows: pr.windows(),
+                before: before.1[i].rms(),
+                after: after.1[i].rms(),
+                floor: floor.1[i].rms(),
+                window_starts: Vec::new(),
+                whole_run_mae: None,
+            })
             .collect(),
     }
 }
@@ -491,5 +500,29 @@ pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], runs
     let (floor_all, floor_runs) = kstep::floor_all(&prepared, &horizons, model.dof());
     let (before, before_runs) = kstep::predict_all(model, formulation, &[], &prepared, &horizons)?;
     let (after, after_runs) = if effects.is_empty() { (before.clone(), before_runs.clone()) } else { kstep::predict_all(model, formulation, effects, &prepared, &horizons)? };
-    Ok(kstep_figures(&horizons, &prepared, (&floor_all, &floor_runs), (&before, &before_runs), (&after, &after_runs)))
+    let mut k = kstep_figures(&horizons, &prepared, (&floor_all, &floor_runs), (&before, &before_runs), (&after, &after_runs));
+    let n = model.dof();
+    for (r, pr) in k.runs.iter_mut().zip(&prepared) {
+        r.window_starts =
+            pr.starts.iter().map(|&k0| WindowStart { t0: pr.run.t[k0], q0: pr.q_hat[k0 * n..(k0 + 1) * n].to_vec(), qd0: pr.qd_hat[k0 * n..(k0 + 1) * n].to_vec() }).collect();
+        let feedback = pr.run.experiment.as_ref().is_some_and(|e| e.controller != simgap_sim::ControllerKind::Replay);
+        if feedback {
+            let mae = |effects: &[Effect]| whole_run_mae(model, formulation, effects, &pr.run);
+            r.whole_run_mae = Some((mae(&[]), mae(effects)));
+        }
+    }
+    Ok(k)
+}
+
+/// Mean absolute position error [rad or m] of a closed-loop re-simulation of `run` from its
+/// first sample, over every sample and joint (infinity when the simulation fails or diverges).
+fn whole_run_mae(model: &Model, formulation: Formulation, effects: &[Effect], run: &Run) -> f64 {
+    let n = run.dof();
+    match crate::prediction::resim::resimulate(model, formulation, effects, run) {
+        Ok((sim, simgap_sim::RunEnd::Completed)) if !sim.is_empty() => {
+            let q = simgap_sim::interpolate_rows(&sim.t, &sim.q, n, &run.t);
+            q.iter().zip(&run.q).map(|(a, b)| (a - b).abs()).sum::<f64>() / run.q.len().max(1) as f64
+        }
+        _ => f64::INFINITY,
+    }
 }

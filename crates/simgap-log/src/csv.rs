@@ -555,6 +555,7 @@ pub fn read_csv_auto(path: &Path) -> Result<Run> {
     let mut run = read_csv(path, &mapping)?;
     if let Some(e) = crate::experiment::read_sidecar(path)? {
         run.experiment = Some(e);
+        simgap_sim::fill_sample_period(&mut run);
         check_run(&run, path)?;
     }
     Ok(run)

@@ -206,7 +206,10 @@ impl ServoParams {
         let n = exp.joints.len();
         let numbers = |k: &str| -> std::result::Result<Option<Vec<f64>>, String> {
             let Some(s) = exp.extra.get(k) else { return Ok(None) };
-            let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim()))).collect::<std::result::Result<_, _>>()?;
+            let v: Vec<f64> = s
+                .split(',')
+                .map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim())))
+                .collect::<std::result::Result<_, _>>()?;
             match v.len() {
                 1 => Ok(Some(vec![v[0]; n])),
                 m if m == n => Ok(Some(v)),
@@ -320,7 +323,10 @@ impl Servo {
     pub fn new(duty_gain: Vec<f64>, max_duty: Vec<f64>, supply_voltage: f64, kt: Vec<f64>, r: Vec<f64>, goal_rate_limit: Option<f64>) -> Result<Servo> {
         let n = duty_gain.len();
         if [max_duty.len(), kt.len(), r.len()].iter().any(|&m| m != n) {
-            return Err(Error::Invalid { what: "servo".into(), message: format!("{n} duty gains, {} max duties, {} kt, {} R; expected one of each per joint", max_duty.len(), kt.len(), r.len()) });
+            return Err(Error::Invalid {
+                what: "servo".into(),
+                message: format!("{n} duty gains, {} max duties, {} kt, {} R; expected one of each per joint", max_duty.len(), kt.len(), r.len()),
+            });
         }
         if let Some(x) = kt.iter().chain(&r).find(|x| !(x.is_finite() && **x > 0.0)) {
             return Err(Error::Invalid { what: "servo".into(), message: format!("motor constant {x}; expected kt and R positive") });

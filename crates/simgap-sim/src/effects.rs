@@ -592,7 +592,17 @@ pub fn has_drive_effects(effects: &[Effect]) -> bool {
 /// # Panics
 /// If a length differs.
 #[allow(clippy::too_many_arguments)]
-pub fn drive_torque(effects: &[Effect], limits: Option<&[f64]>, tau_cmd: &[f64], emf: &[f64], enabled: &[f64], qd: &[f64], scratch: &mut [f64], drive: &mut [f64], out: &mut [f64]) {
+pub fn drive_torque(
+    effects: &[Effect],
+    limits: Option<&[f64]>,
+    tau_cmd: &[f64],
+    emf: &[f64],
+    enabled: &[f64],
+    qd: &[f64],
+    scratch: &mut [f64],
+    drive: &mut [f64],
+    out: &mut [f64],
+) {
     let n = out.len();
     for i in 0..n {
         scratch[i] = tau_cmd[i] - emf[i] * qd[i];

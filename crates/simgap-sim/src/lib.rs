@@ -19,7 +19,10 @@ pub mod sink;
 pub mod step;
 
 pub use error::{Error, Result};
-pub use run::{central_difference, experiment_from_map, experiment_to_map, fill_sample_period, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind, DriveSignals, Experiment, Run, Sample};
+pub use run::{
+    central_difference, experiment_from_map, experiment_to_map, fill_sample_period, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind, DriveSignals,
+    Experiment, Run, Sample,
+};
 pub use sink::{MemorySink, RunEnd, Sink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, Servo, ServoParams, ZeroTorque};

@@ -182,7 +182,9 @@ fn servo_commands(model: &Model, fit_runs: &mut [Run], hold_runs: &mut [Run], op
         None => {
             let fit: Vec<(&Run, Vec<f64>)> = fit_runs.iter().zip(&volts).filter(|(r, _)| servo::is_servo(r)).map(|(r, v)| (r, v.clone())).collect();
             if fit.is_empty() {
-                return Err(Error::Input("held-out servo logs without motor constants ('kt', 'R') and no servo fit log to fit them on; expected the priors or a servo fit log".into()));
+                return Err(Error::Input(
+                    "held-out servo logs without motor constants ('kt', 'R') and no servo fit log to fit them on; expected the priors or a servo fit log".into(),
+                ));
             }
             let c = servo::fit_constants(model, &fit, options.window);
             notes.push(format!(

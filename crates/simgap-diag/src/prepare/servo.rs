@@ -75,7 +75,9 @@ pub(crate) fn volts(run: &Run, p: &ServoParams) -> Result<Vec<f64>> {
     let fail = |message: String| Error::Log { log: run.source.clone(), message };
     let logged_duty = run.drive.duty.len() == len * n && len > 0;
     if !logged_duty && run.q_ref.len() != len * n {
-        return Err(fail("a servo log without goal positions (q_ref_<joint> columns or the reference topic) and without a logged duty; expected the goal the firmware tracked".into()));
+        return Err(fail(
+            "a servo log without goal positions (q_ref_<joint> columns or the reference topic) and without a logged duty; expected the goal the firmware tracked".into(),
+        ));
     }
     let logged_v = run.drive.voltage.len() == len && len > 0;
     if !logged_v && !p.supply_voltage.is_finite() {
@@ -84,7 +86,9 @@ pub(crate) fn volts(run: &Run, p: &ServoParams) -> Result<Vec<f64>> {
     let enabled_anywhere = (0..len).any(|k| (0..n).any(|j| run.drive.enabled(k, j, n)));
     let moves = run.q.chunks(n.max(1)).any(|row| row.iter().zip(&run.q[..n]).any(|(a, b)| (a - b).abs() > 1e-9));
     if !enabled_anywhere && !moves {
-        return Err(fail("the servo's torque is off throughout and the joint never moves: nothing in this log tells the drive or the mechanics; expected motion or an enabled drive".into()));
+        return Err(fail(
+            "the servo's torque is off throughout and the joint never moves: nothing in this log tells the drive or the mechanics; expected motion or an enabled drive".into(),
+        ));
     }
     let mut out = vec![0.0; len * n];
     for k in 0..len {
@@ -93,16 +97,16 @@ pub(crate) fn volts(run: &Run, p: &ServoParams) -> Result<Vec<f64>> {
             if !run.drive.enabled(k, j, n) {
                 continue;
             }
-            let duty = if logged_duty {
-                run.drive.duty[k * n + j]
-            } else {
-                (p.duty_gain[j] * (run.q_ref[k * n + j] - run.q[k * n + j])).clamp(-p.max_duty[j], p.max_duty[j])
-            };
+            let duty = if logged_duty { run.drive.duty[k * n + j] } else { (p.duty_gain[j] * (run.q_ref[k * n + j] - run.q[k * n + j])).clamp(-p.max_duty[j], p.max_duty[j]) };
             out[k * n + j] = v * duty;
         }
     }
     Ok(out)
 }
+
+/// The torque constant [N·m/A] of a servo whose fit logs show no back-EMF: small enough that
+/// `kt²/R` is nothing, so that `kt/R` alone is the drive.
+const NO_BACK_EMF_KT: f64 = 1e-6;
 
 /// Where the motor constants of a diagnosis of servo runs came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -173,10 +177,14 @@ pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f6
             kt[j] = b / a;
             r[j] = kt[j] / a;
         } else {
-            // no back-EMF seen: a unit torque constant carries the fitted kt/R
-            notes.push(format!("{}: no back-EMF is seen in the fit logs; kt = 1 N·m/A is assumed and R = kt / (kt/R) carries the fitted drive gain", names[j]));
-            kt[j] = 1.0;
-            r[j] = 1.0 / a.max(1e-9);
+            // no back-EMF seen: a torque constant near 0 leaves the law without one, and R
+            // carries the fitted drive gain kt/R
+            notes.push(format!(
+                "{}: no back-EMF is seen in the fit logs; kt is set to {NO_BACK_EMF_KT:e} N·m/A (no back-EMF) and R = kt / (kt/R) carries the fitted drive gain",
+                names[j]
+            ));
+            kt[j] = NO_BACK_EMF_KT;
+            r[j] = NO_BACK_EMF_KT / a.max(1e-9);
         }
     }
     Constants { kt, r, source: "fitted", notes }

@@ -84,6 +84,27 @@ pub struct RunKStep {
     pub after: Vec<f64>,
     /// Constant-velocity floor, per horizon [rad].
     pub floor: Vec<f64>,
+    /// Where each window starts and the measured (smoothed) state it restarts from: filled by
+    /// [`crate::predict`] (so that another simulator can be scored on the same windows), empty
+    /// in a diagnosis report.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub window_starts: Vec<WindowStart>,
+    /// Whole-run mean absolute position error of a closed-loop re-simulation from the first
+    /// sample, driven by the logged reference (the measure servo identification tools report),
+    /// nominal and with the effects [rad]: filled by [`crate::predict`] for feedback runs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub whole_run_mae: Option<(f64, f64)>,
+}
+
+/// The start of one k-step window: time [s] and the state the model restarts from.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WindowStart {
+    /// Time of the start sample [s].
+    pub t0: f64,
+    /// Positions [rad or m], model order.
+    pub q0: Vec<f64>,
+    /// Velocities [rad/s or m/s], model order.
+    pub qd0: Vec<f64>,
 }
 
 /// Effect sets that explain the fit runs as well as the selected set: what these data cannot
@@ -190,6 +211,61 @@ pub struct Report {
     pub selection_log: Vec<Decision>,
     /// Cross-validated weighted MSE of the nominal torque residual.
     pub nominal_cv_mse: f64,
+    /// The motor constants of servo runs (absent for other drives).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub servo: Option<ServoReport>,
+}
+
+/// The motor constants a diagnosis of servo runs simulates with (its `servo` key).
+///
+/// The corrected model is the servo law `τ = en (kt/R) (V duty − kt q̇)` with `kt` and `R`
+/// (the experiment's priors, or fitted by the prepare stage) and the selected effects; a
+/// selected `torque_gain` k and `back_emf` kb change the drive to
+/// `en (k (kt/R) (V duty − kt q̇) − kb q̇)`, i.e. to the `effective` constants
+/// `kt' = (k kt²/R + kb) / (k kt/R)` and `R' = kt' / (k kt/R)`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ServoReport {
+    /// Joint names, model order.
+    pub joints: Vec<String>,
+    /// Torque constants [N·m/A] the corrected model's servo law uses.
+    pub kt: Vec<f64>,
+    /// Winding resistances [Ω] the corrected model's servo law uses.
+    #[serde(rename = "R")]
+    pub r: Vec<f64>,
+    /// `prior` (the experiment's) or `fitted` (from the fit logs).
+    pub source: String,
+    /// The constants with the selected torque gain and back-EMF folded in.
+    pub effective: EffectiveConstants,
+}
+
+/// Motor constants with the selected drive effects folded in (see [`ServoReport`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct EffectiveConstants {
+    /// Torque constants [N·m/A].
+    pub kt: Vec<f64>,
+    /// Winding resistances [Ω].
+    #[serde(rename = "R")]
+    pub r: Vec<f64>,
+}
+
+impl ServoReport {
+    /// The servo key of a diagnosis whose servo law has `kt`, `r` and whose selected effects
+    /// are `effects`.
+    pub(crate) fn new(joints: &[String], kt: &[f64], r: &[f64], source: &str, effects: &[simgap_sim::Effect]) -> ServoReport {
+        let n = kt.len();
+        let (mut k, mut kb) = (vec![1.0; n], vec![0.0; n]);
+        for e in effects {
+            match e {
+                simgap_sim::Effect::TorqueGain { k: g } => k.iter_mut().zip(g).for_each(|(a, b)| *a *= b),
+                simgap_sim::Effect::BackEmf { kb: b } => kb.iter_mut().zip(b).for_each(|(a, b)| *a += b),
+                _ => {}
+            }
+        }
+        let a: Vec<f64> = (0..n).map(|j| k[j] * kt[j] / r[j]).collect();
+        let kt_eff: Vec<f64> = (0..n).map(|j| (k[j] * kt[j] * kt[j] / r[j] + kb[j]) / a[j]).collect();
+        let r_eff: Vec<f64> = (0..n).map(|j| kt_eff[j] / a[j]).collect();
+        ServoReport { joints: joints.to_vec(), kt: kt.to_vec(), r: r.to_vec(), source: source.into(), effective: EffectiveConstants { kt: kt_eff, r: r_eff } }
+    }
 }
 
 impl Report {
@@ -289,6 +365,16 @@ impl Report {
         }
         if !self.gap.headline_reason.is_empty() {
             let _ = writeln!(s, "  ({})", self.gap.headline_reason);
+        }
+        if let Some(sv) = &self.servo {
+            let _ = writeln!(s, "\nSERVO (motor constants the corrected model simulates with, {})", sv.source);
+            for (j, name) in sv.joints.iter().enumerate() {
+                let _ = writeln!(
+                    s,
+                    "  {name:<14} kt = {:.4} N·m/A, R = {:.4} Ω; with the selected drive effects: kt = {:.4} N·m/A, R = {:.4} Ω",
+                    sv.kt[j], sv.r[j], sv.effective.kt[j], sv.effective.r[j]
+                );
+            }
         }
         if !self.notes.is_empty() {
             let _ = writeln!(s, "\nNOTES");

@@ -73,10 +73,13 @@ pub(crate) fn refine_by_shooting(
     let (model, formulation, ctx, prep) = (scorer.model, scorer.formulation, scorer.ctx, scorer.prep);
     let n = model.dof();
     let has_inertial = ctx.inertial_basis.ncols() > 0;
-    let open_loop = prep.fit_runs.iter().all(|r| r.experiment.as_ref().is_none_or(|e| e.controller == ControllerKind::Replay));
+    // open-loop replays, and servos (their firmware loop is known exactly: its prediction
+    // restarted from the measured state is the drive's, not a tracking controller's)
+    let open_loop = prep.fit_runs.iter().all(|r| r.experiment.as_ref().is_none_or(|e| matches!(e.controller, ControllerKind::Replay | ControllerKind::Servo)));
     if !open_loop {
         return Ok((None, Vec::new()));
     }
+    let servo = prep.servo.is_some();
     let mut sets: Vec<(String, Vec<Term>)> = Vec::new();
     let fitted_columns = |terms: &[Term]| terms.iter().any(|t| !matches!(t, Term::Saturation { .. } | Term::Delay { .. } | Term::CoriolisStructure));
     if fitted_columns(selected) {
@@ -97,6 +100,22 @@ pub(crate) fn refine_by_shooting(
             }
         }
         sets.push(("an inertial correction of every link with Coulomb and viscous friction and rotor inertia on every joint".into(), natural));
+    }
+    if servo {
+        // a servo's own structure: its motor constants (drive gain kt/R, back-EMF kt²/R where a
+        // drop with torque off tells it from viscous friction), rotor inertia, load-dependent and
+        // viscous friction
+        let mut drive = Vec::new();
+        for j in (0..n).filter(|&j| !prep.passive[j]) {
+            drive.push(Term::Gain(j));
+            if crate::vocabulary::back_emf::separable(j, ctx.data) {
+                drive.push(Term::BackEmf(j));
+            }
+            drive.push(Term::Armature(j));
+            drive.push(Term::LoadFriction { joint: j, w: ctx.dry_width[j].mid() });
+            drive.push(Term::Viscous(j));
+        }
+        sets.push(("the servo's motor constants with rotor inertia, load-dependent and viscous friction".into(), drive));
     }
     if sets.is_empty() {
         return Ok((None, Vec::new()));

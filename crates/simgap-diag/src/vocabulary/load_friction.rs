@@ -55,6 +55,7 @@ pub(super) fn report(f: &FittedTerm, entry: &mut Entry<'_>) {
 /// The load friction in words.
 pub(super) fn describe(e: &EffectReport) -> String {
     let uf = unit_of(e, "fc");
-    let parts: Vec<String> = reported(e, "fc").iter().zip(reported(e, "mu")).map(|((j, fc), (_, mu))| format!("on {j}: fc = {} {uf} + {} × |drive torque|", sig3(*fc), sig3(mu))).collect();
+    let parts: Vec<String> =
+        reported(e, "fc").iter().zip(reported(e, "mu")).map(|((j, fc), (_, mu))| format!("on {j}: fc = {} {uf} + {} × |drive torque|", sig3(*fc), sig3(mu))).collect();
     format!("load-dependent friction {}", parts.join("; "))
 }

@@ -157,7 +157,9 @@ impl Term {
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
             Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) | Term::BackEmf(j) => Some(j),
-            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::LoadFriction { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => Some(joint),
+            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::LoadFriction { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => {
+                Some(joint)
+            }
             _ => None,
         }
     }
