@@ -8,4 +8,5 @@ mod physical;
 mod pitfalls;
 mod rebuild;
 mod shooting;
+mod servo;
 mod spring;

@@ -1,0 +1,93 @@
+//! A position-controlled servo on the hand-checkable pendulum, blind: logs without torque (the
+//! goal, the measured duty, the torque enable), fitted without motor-constant priors. The
+//! diagnosis must recover kt and R, the rotor inertia and the friction that holds the joint,
+//! and predict held-out runs far better than the URDF with its fitted servo law.
+
+use std::collections::BTreeMap;
+
+use crate::{diagnose, DiagnoseOptions, Param};
+use simgap_core::{Formulation, Model, PENDULUM_URDF};
+use simgap_sim::controller::servo_keys;
+use simgap_sim::reference::Fourier;
+use simgap_sim::{simulate, ControllerKind, Effect, Experiment, MemorySink, Plant, Run, RunEnd, SensorParams, Servo, SimParams};
+
+/// The servo: 12 N·m per unit duty, back-EMF 1 N·m·s/rad.
+const KT: f64 = 1.0;
+const R: f64 = 1.0;
+const VOLTS: f64 = 12.0;
+const DUTY_GAIN: f64 = 2.0;
+const PERIOD: f64 = 0.005;
+
+/// One servo log: the goal `reference`, the torque switched off from `off_at` seconds on (a
+/// drop), logged as a servo logs (no torque; duty, torque enable, goal).
+fn servo_log(model: &Model, effects: &[Effect], reference: &Fourier, duration: f64, off_at: f64, name: &str) -> Run {
+    let n = samples(duration);
+    let mut log = Run::new(vec!["hinge".into()]);
+    log.t = (0..n).map(|k| k as f64 * PERIOD).collect();
+    log.drive.torque_enable = log.t.iter().map(|t| if *t < off_at { 1.0 } else { 0.0 }).collect();
+    let servo = Servo::new(vec![DUTY_GAIN], vec![1.0], VOLTS, vec![KT], vec![R], None).unwrap().with_log(&log, &[0]);
+    let plant = Plant::new(model, Formulation::EulerLagrange, effects).unwrap();
+    let params = SimParams { duration, sample_period: PERIOD, sensor: SensorParams::exact(), q0: vec![0.0], qd0: vec![0.0], substeps: 4, ..SimParams::default() };
+    let mut sink = MemorySink::new();
+    let mut controller = servo;
+    assert_eq!(simulate(&plant, &mut controller, reference, &params, &mut sink, None).unwrap(), RunEnd::Completed);
+    let mut run = sink.into_run();
+    assert_eq!(run.len(), n);
+    // what the servo logs: its duty (the command over kt/R V), its enable, no torque
+    run.drive.duty = run.tau.iter().map(|tau| tau * R / (KT * VOLTS)).collect();
+    run.drive.torque_enable = log.drive.torque_enable;
+    run.tau.clear();
+    let mut extra = BTreeMap::new();
+    extra.insert(servo_keys::DUTY_GAIN.to_string(), format!("{DUTY_GAIN}"));
+    extra.insert(servo_keys::SUPPLY_VOLTAGE.to_string(), format!("{VOLTS}"));
+    run.experiment = Some(Experiment { controller: ControllerKind::Servo, joints: vec!["hinge".into()], kp: vec![], kv: vec![], sample_period: PERIOD, extra });
+    run.source = name.into();
+    run
+}
+
+fn samples(duration: f64) -> usize {
+    (duration / PERIOD).round() as usize + 1
+}
+
+/// A goal of three sines at `f0`, `2 f0` and `3.3 f0` [Hz] about 0.2 rad.
+fn goal(amplitude: &[f64], f0: f64) -> Fourier {
+    Fourier { offset: vec![0.2], amplitudes: vec![amplitude.to_vec()], frequencies: vec![vec![f0, 2.0 * f0, 3.3 * f0]], phases: vec![vec![0.0, 1.0, 2.0]] }
+}
+
+#[test]
+fn a_servo_is_diagnosed_from_its_goal_and_duty_with_its_motor_constants_rotor_inertia_and_friction() {
+    let model = Model::from_urdf_str(PENDULUM_URDF).unwrap();
+    let truth = [Effect::Armature { ia: vec![0.2] }, Effect::CoulombFriction { fc: vec![0.4], w: vec![0.01] }, Effect::ViscousFriction { b: vec![0.3] }];
+    let fit = [
+        servo_log(&model, &truth, &goal(&[0.5, 0.2, 0.1], 0.2), 8.0, 6.0, "fit-a"),
+        servo_log(&model, &truth, &goal(&[0.3, 0.3, 0.15], 0.15), 8.0, 5.0, "fit-b"),
+    ];
+    let hold = [servo_log(&model, &truth, &goal(&[0.4, 0.25, 0.05], 0.17), 8.0, 6.5, "held-out")];
+    let d = diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &DiagnoseOptions::default(), &mut |_| {}).unwrap();
+    let r = &d.report;
+    if std::env::var_os("SIMGAP_SHOW").is_some() {
+        println!("{}", r.summary());
+    }
+    let servo = r.servo.as_ref().expect("a servo key");
+    assert_eq!(servo.source, "fitted");
+    // the motor constants the corrected model drives with: kt/R and kt²/R within 10 %
+    let (kt, res) = (servo.effective.kt[0], servo.effective.r[0]);
+    assert!(((kt / res) / (KT / R) - 1.0).abs() < 0.1 && ((kt * kt / res) / (KT * KT / R) - 1.0).abs() < 0.1, "kt = {kt}, R = {res}\n{}", r.summary());
+    let found = |name: &str| r.selected_effects.iter().find(|e| e.effect == name);
+    let value = |name: &str, key: &str| match found(name).map(|e| &e.parameters[key]) {
+        Some(Param::PerJoint(v)) => v[0],
+        other => panic!("{name}.{key}: {other:?}\n{}", r.summary()),
+    };
+    let ia = value("armature", "ia");
+    assert!((ia - 0.2).abs() < 0.04, "ia = {ia}\n{}", r.summary());
+    let fc = found("coulomb_friction").or(found("load_friction")).map(|e| match &e.parameters["fc"] {
+        Param::PerJoint(v) => v[0],
+        _ => f64::NAN,
+    });
+    assert!(fc.is_some_and(|fc| (fc - 0.4).abs() < 0.1), "dry friction {fc:?}\n{}", r.summary());
+    // far better than the URDF with its fitted servo law, and than constant velocity
+    let k = &r.gap.kstep;
+    for i in 0..k.horizons_s.len() {
+        assert!(k.after[i] < 0.5 * k.before[i] && k.after[i] < 0.5 * k.floor[i], "{k:?}\n{}", r.summary());
+    }
+}

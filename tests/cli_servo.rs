@@ -1,0 +1,140 @@
+//! `simgap diagnose` on position-controlled servo logs (CSV with the servo columns and a
+//! `servo` sidecar): bad input gets a clear error naming the file and what was expected, and
+//! the real Rhoban BAM XL330 logs are diagnosed end to end.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+mod common;
+use common::bin;
+
+const PENDULUM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/simgap-core/models/pendulum.urdf");
+
+fn simgap(args: &[&str]) -> Output {
+    Command::new(bin()).args(args).output().expect("simgap runs")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("simgap-servo-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+const SIDECAR: &str = r#"{"controller": "servo", "joints": "hinge", "duty_gain": "2", "supply_voltage": "12"}"#;
+
+/// A servo log of the pendulum: 4 s at 200 Hz, the goal a slow sine, the measured position
+/// lagging it; `columns` picks the optional columns, `row` may change a sample.
+fn write_log(dir: &Path, name: &str, sidecar: &str, goal: bool, duty: impl Fn(usize, f64) -> f64, enable: impl Fn(usize) -> u8, moving: bool) -> PathBuf {
+    let csv = dir.join(format!("{name}.csv"));
+    let mut text = String::from("time,q_hinge,qd_hinge");
+    if goal {
+        text.push_str(",q_ref_hinge");
+    }
+    text.push_str(",duty_hinge,torque_enable_hinge\n");
+    for k in 0..800 {
+        let t = k as f64 * 0.005;
+        let (q, qd) = if moving { (0.3 * (t - 0.1).sin(), 0.3 * (t - 0.1).cos()) } else { (0.1, 0.0) };
+        let q_ref = 0.3 * t.sin();
+        text.push_str(&format!("{t},{q},{qd}"));
+        if goal {
+            text.push_str(&format!(",{q_ref}"));
+        }
+        text.push_str(&format!(",{},{}\n", duty(k, 2.0 * (q_ref - q)), enable(k)));
+    }
+    std::fs::write(&csv, text).unwrap();
+    std::fs::write(dir.join(format!("{name}.experiment.json")), sidecar).unwrap();
+    csv
+}
+
+fn refused(fit: &Path, hold: &Path) -> String {
+    let o = simgap(&["diagnose", "--urdf", PENDULUM, "--log", fit.to_str().unwrap(), "--holdout", hold.to_str().unwrap()]);
+    assert!(!o.status.success(), "accepted:\n{}", text(&o));
+    text(&o)
+}
+
+#[test]
+fn a_servo_log_without_goal_positions_is_refused_naming_it() {
+    let d = scratch("no-goal");
+    let good = write_log(&d, "good", SIDECAR, true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    // neither a goal nor a duty: nothing says what the servo drove
+    let csv = d.join("no-goal.csv");
+    let text_in: String = std::fs::read_to_string(&good).unwrap().lines().map(|l| l.split(',').take(3).collect::<Vec<_>>().join(",") + "\n").collect();
+    std::fs::write(&csv, text_in).unwrap();
+    std::fs::write(d.join("no-goal.experiment.json"), SIDECAR).unwrap();
+    let e = refused(&csv, &good);
+    assert!(e.contains("no-goal.csv") && e.contains("without goal positions"), "{e}");
+}
+
+#[test]
+fn a_duty_outside_the_unit_interval_is_refused_naming_the_sample() {
+    let d = scratch("duty");
+    let good = write_log(&d, "good", SIDECAR, true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    let bad = write_log(&d, "bad-duty", SIDECAR, true, |k, x| if k == 123 { 1.5 } else { x.clamp(-1.0, 1.0) }, |_| 1, true);
+    let e = refused(&bad, &good);
+    assert!(e.contains("bad-duty.csv") && e.contains("duty of joint 'hinge' is 1.5") && e.contains("sample 123") && e.contains("[-1, 1]"), "{e}");
+}
+
+#[test]
+fn a_torque_off_log_without_motion_is_refused_as_telling_nothing() {
+    let d = scratch("off");
+    let good = write_log(&d, "good", SIDECAR, true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    let still = write_log(&d, "still", SIDECAR, true, |_, _| 0.0, |_| 0, false);
+    let e = refused(&still, &good);
+    assert!(e.contains("still.csv") && e.contains("torque is off throughout") && e.contains("never moves"), "{e}");
+}
+
+#[test]
+fn a_servo_sidecar_without_its_duty_gain_is_refused_naming_the_key() {
+    let d = scratch("gain");
+    let good = write_log(&d, "good", SIDECAR, true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    let bad = write_log(&d, "no-gain", r#"{"controller": "servo", "joints": "hinge", "supply_voltage": "12"}"#, true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    let e = refused(&bad, &good);
+    assert!(e.contains("no-gain.experiment.json") && e.contains("duty_gain"), "{e}");
+}
+
+/// The shared BAM data folder beside the repository.
+fn bam_data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/rhoban-bam-xl330")
+}
+
+#[test]
+fn the_rhoban_servo_logs_are_diagnosed_and_the_held_out_trajectory_predicted_better() {
+    let data = bam_data();
+    if !data.is_dir() {
+        assert!(std::env::var_os("CI").is_none(), "the Rhoban BAM data is not at {} (CI is set: a test without its data fails)", data.display());
+        println!("SKIPPED: the Rhoban BAM data is not at {}", data.display());
+        return;
+    }
+    // the documented converter (Python standard library only)
+    let out = scratch("bam");
+    let converter = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/case-study-servo/bam_to_simgap.py");
+    let o = Command::new("python3").args([converter.to_str().unwrap(), "--data", data.to_str().unwrap(), "--out", out.to_str().unwrap()]).output().expect("python3 runs");
+    assert!(o.status.success(), "converter failed:\n{}", text(&o));
+    // hold out one trajectory kind (sin_time_square, all three gains), fit on the others
+    let hold = ["2026-01-15_10h28m32", "2026-01-15_10h29m04", "2026-01-15_10h30m10"];
+    let mut args = vec!["diagnose".to_string(), "--urdf".into(), out.join("pendulum.urdf").display().to_string()];
+    for entry in std::fs::read_dir(&out).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "csv") {
+            let stem = p.file_stem().unwrap().to_string_lossy().to_string();
+            args.push(if hold.contains(&stem.as_str()) { "--holdout".into() } else { "--log".into() });
+            args.push(p.display().to_string());
+        }
+    }
+    let json = out.join("report.json");
+    args.extend(["--json".into(), json.display().to_string()]);
+    let o = Command::new(bin()).args(&args).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(r["servo"]["source"], "fitted", "{}", r["servo"]);
+    let k = &r["gap"]["kstep"];
+    let at = |key: &str, i: usize| k[key][i].as_f64().unwrap();
+    for i in 0..k["horizons_s"].as_array().unwrap().len() {
+        assert!(at("after", i) < 0.8 * at("before", i) && at("after", i) < 0.8 * at("floor", i), "horizon {i}: {k}\n{}", text(&o));
+    }
+}
