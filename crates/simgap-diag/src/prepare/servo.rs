@@ -76,7 +76,8 @@ pub(crate) fn volts(run: &Run, p: &ServoParams) -> Result<Vec<f64>> {
     let logged_duty = run.drive.duty.len() == len * n && len > 0;
     if run.q_ref.len() != len * n {
         return Err(fail(
-            "a servo log without goal positions (q_ref_<joint> columns or the reference topic); expected the goal the firmware tracked (the servo's prediction is driven by it)".into(),
+            "a servo log without goal positions (q_ref_<joint> columns or the reference topic); expected the goal the firmware tracked (the servo's prediction is driven by it)"
+                .into(),
         ));
     }
     let logged_v = run.drive.voltage.len() == len && len > 0;

@@ -4,6 +4,7 @@
 pub mod html;
 pub(crate) mod pitfalls;
 pub(crate) mod residual;
+pub(crate) mod servo;
 pub(crate) mod units;
 pub(crate) mod verdict;
 

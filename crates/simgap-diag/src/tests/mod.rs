@@ -7,6 +7,6 @@ mod link_side;
 mod physical;
 mod pitfalls;
 mod rebuild;
-mod shooting;
 mod servo;
+mod shooting;
 mod spring;

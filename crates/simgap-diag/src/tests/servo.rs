@@ -58,10 +58,7 @@ fn goal(amplitude: &[f64], f0: f64) -> Fourier {
 fn a_servo_is_diagnosed_from_its_goal_and_duty_with_its_motor_constants_rotor_inertia_and_friction() {
     let model = Model::from_urdf_str(PENDULUM_URDF).unwrap();
     let truth = [Effect::Armature { ia: vec![0.2] }, Effect::CoulombFriction { fc: vec![0.4], w: vec![0.01] }, Effect::ViscousFriction { b: vec![0.3] }];
-    let fit = [
-        servo_log(&model, &truth, &goal(&[0.5, 0.2, 0.1], 0.2), 8.0, 6.0, "fit-a"),
-        servo_log(&model, &truth, &goal(&[0.3, 0.3, 0.15], 0.15), 8.0, 5.0, "fit-b"),
-    ];
+    let fit = [servo_log(&model, &truth, &goal(&[0.5, 0.2, 0.1], 0.2), 8.0, 6.0, "fit-a"), servo_log(&model, &truth, &goal(&[0.3, 0.3, 0.15], 0.15), 8.0, 5.0, "fit-b")];
     let hold = [servo_log(&model, &truth, &goal(&[0.4, 0.25, 0.05], 0.17), 8.0, 6.5, "held-out")];
     let d = diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &DiagnoseOptions::default(), &mut |_| {}).unwrap();
     let r = &d.report;
