@@ -5,7 +5,10 @@ use std::collections::BTreeMap;
 
 use rand::{Rng, SeedableRng};
 use simgap_core::{inverse_dynamics_into, mass_matrix, Formulation, Model, Workspace};
-use simgap_sim::{simulate_experiment, ControllerKind, Effect, Experiment, Fourier, PiecewiseSetpoints, Reference, Run, Sampled, SensorParams, SimParams, Step};
+use simgap_sim::{
+    simulate, simulate_experiment, ControllerKind, Effect, Experiment, Fourier, MemorySink, PiecewiseSetpoints, Plant, Reference, Run, RunEnd, Sampled, SensorParams, Servo,
+    SimParams, Step,
+};
 
 use crate::error::Result;
 
@@ -106,6 +109,69 @@ pub fn generate(model: &Model, formulation: Formulation, effects: &[Effect], spe
         let t0 = run.t.first().copied().unwrap_or(0.0);
         run.tau_ff = computed_torque(model, f, run.t.iter().map(|t| t - t0)).tau_ff;
     }
+    Ok(run)
+}
+
+/// A position-controlled servo on every joint of a bench robot: the firmware's duty gain, the
+/// supply and the motor constants (model order).
+#[derive(Clone, Debug)]
+pub struct ServoSpec {
+    /// Duty per radian of position error [1/rad].
+    pub duty_gain: Vec<f64>,
+    /// Supply voltage [V].
+    pub volts: f64,
+    /// Torque constants [N·m/A].
+    pub kt: Vec<f64>,
+    /// Winding resistances [Ω].
+    pub r: Vec<f64>,
+}
+
+/// A servo log of `model` with hidden `effects`: the servos of `servo` track the goal
+/// `reference` for `duration` seconds at `sample_period`, their torque switched off from
+/// `off_at` seconds on (a drop; `f64::INFINITY`: never). Logged as servos log: no torque; the
+/// goal, the measured duty, the torque enable and the supply in a `servo` experiment without
+/// motor constants (the diagnosis fits them), positions through an encoder of `counts_per_rev`.
+///
+/// # Errors
+/// Simulator errors; [`crate::Error::Input`] when the run diverged.
+#[allow(clippy::too_many_arguments)]
+pub fn generate_servo(
+    model: &Model,
+    effects: &[Effect],
+    servo: &ServoSpec,
+    reference: &Fourier,
+    duration: f64,
+    off_at: f64,
+    sample_period: f64,
+    counts_per_rev: f64,
+    name: &str,
+) -> Result<Run> {
+    let n = model.dof();
+    let samples = (duration / sample_period).round() as usize + 1;
+    let joints: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
+    let mut log = Run::new(joints.clone());
+    log.t = (0..samples).map(|k| k as f64 * sample_period).collect();
+    log.drive.torque_enable = log.t.iter().flat_map(|t| std::iter::repeat_n(if *t < off_at { 1.0 } else { 0.0 }, n)).collect();
+    let map: Vec<usize> = (0..n).collect();
+    let mut controller = Servo::new(servo.duty_gain.clone(), vec![1.0; n], servo.volts, servo.kt.clone(), servo.r.clone(), None)?.with_log(&log, &map);
+    let plant = Plant::new(model, Formulation::EulerLagrange, effects)?;
+    let sensor = SensorParams { counts_per_rev: Some(counts_per_rev), ..SensorParams::default() };
+    let params = SimParams { duration, sample_period, sensor, ..SimParams::default() };
+    let mut sink = MemorySink::new();
+    if simulate(&plant, &mut controller, reference, &params, &mut sink, None)? != RunEnd::Completed {
+        return Err(crate::Error::Input(format!("{name}: the servo run diverged")));
+    }
+    let mut run = sink.into_run();
+    // what a servo logs: its duty (the command over kt/R V) and enable, no torque
+    run.drive.duty = run.tau.iter().enumerate().map(|(i, tau)| (tau * servo.r[i % n] / (servo.kt[i % n] * servo.volts)).clamp(-1.0, 1.0)).collect();
+    run.drive.torque_enable = log.drive.torque_enable;
+    run.tau.clear();
+    let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
+    let mut extra = BTreeMap::new();
+    extra.insert(simgap_sim::controller::servo_keys::DUTY_GAIN.to_string(), join(&servo.duty_gain));
+    extra.insert(simgap_sim::controller::servo_keys::SUPPLY_VOLTAGE.to_string(), format!("{}", servo.volts));
+    run.experiment = Some(Experiment { controller: ControllerKind::Servo, joints, kp: vec![], kv: vec![], sample_period, extra });
+    run.source = name.into();
     Ok(run)
 }
 

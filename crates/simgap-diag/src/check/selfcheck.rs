@@ -46,6 +46,8 @@ pub struct Scenario {
     /// A `glitch` scenario's glitch: (fit log, sample, joint) set to [`GLITCH_VALUE`] when
     /// diagnosed; the logs in `fit` are clean.
     pub glitch: Option<(usize, usize, usize)>,
+    /// A `servo` scenario's servos (their motor constants are the truth the diagnosis fits).
+    pub servo: Option<crate::check::bench::ServoSpec>,
 }
 
 /// Relabels runs as open-loop replays of their commanded torque.
@@ -124,7 +126,7 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
 }
 
 /// The scenario families, in the order the self-check cycles through them (see [`scenario`]).
-pub const FAMILIES: [&str; 11] = [
+pub const FAMILIES: [&str; 12] = [
     "closed_loop",
     "open_loop",
     "double_pendulum_replay",
@@ -136,12 +138,13 @@ pub const FAMILIES: [&str; 11] = [
     "delay",
     "glitch",
     "equivalence",
+    "servo",
 ];
 
 /// Of every [`CYCLE`] consecutive scenarios, the first [`RANDOM_SLOTS`] are random
 /// (`closed_loop` or `open_loop`); the others are the named families from
 /// `double_pendulum_replay` on, one each.
-const CYCLE: usize = 13;
+const CYCLE: usize = 14;
 const RANDOM_SLOTS: usize = 4;
 
 /// The family of scenario `index`.
@@ -249,6 +252,9 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(1_000_003).wrapping_add(index as u64));
     let robots = robots();
     let family = family_of(index);
+    if family == "servo" {
+        return servo_scenario(index, &mut rng);
+    }
     for _attempt in 0..10 {
         let model = match family {
             "random" | "feed_forward" | "friction_shape" | "delay" | "glitch" => robots[[0, 0, 0, 1, 2][rng.random_range(0..5)]].clone(),
@@ -369,10 +375,69 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
                 "random" => "closed_loop",
                 f => f,
             };
-            return Ok(Scenario { index, model, diagnosis_model, effects, truth, fit, holdout, family, glitch });
+            return Ok(Scenario { index, model, diagnosis_model, effects, truth, fit, holdout, family, glitch, servo: None });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every draw diverged")))
+}
+
+/// A `servo` scenario: a pendulum or the double pendulum driven by position-controlled servos
+/// of random motor constants (stall torque 2–4 times the largest gravity torque, a 2 Hz P loop),
+/// one or two hidden mechanical effects (rotor inertia, Coulomb, viscous or load-dependent
+/// friction), three 8 s fit logs (two dropped with torque off at 5 s, as a servo
+/// identification drops the arm to tell friction from the drive) and one held-out log,
+/// logged as servos log (goal, duty, torque enable; no torque, no motor-constant priors).
+fn servo_scenario(index: usize, rng: &mut ChaCha8Rng) -> crate::Result<Scenario> {
+    use crate::check::bench::{generate_servo, random_fourier, ServoSpec};
+    for _attempt in 0..10 {
+        let model = if rng.random_bool(0.5) { Model::from_urdf_str(simgap_core::PENDULUM_URDF)? } else { double_pendulum() };
+        let n = model.dof();
+        let h = simgap_core::mass_matrix(&model, &mut simgap_core::Workspace::new(&model), &vec![0.0; n]);
+        let gravity: Vec<f64> = (0..n).map(|j| (j..n).map(|i| model.joints()[i].inertia.mass).sum::<f64>() * 9.81 * 0.5).collect();
+        let volts = rng.random_range(6.0..14.0);
+        let kt: Vec<f64> = (0..n).map(|_| rng.random_range(0.3..1.5)).collect();
+        let stall: Vec<f64> = (0..n).map(|j| rng.random_range(2.0..4.0) * gravity[j].max(1.0)).collect();
+        let r: Vec<f64> = (0..n).map(|j| kt[j] * volts / stall[j]).collect();
+        let w = std::f64::consts::TAU * 2.0;
+        let duty_gain: Vec<f64> = (0..n).map(|j| w * w * h[(j, j)] / stall[j]).collect();
+        let servo = ServoSpec { duty_gain, volts, kt: kt.clone(), r: r.clone() };
+        // one or two effects, not two dry frictions
+        let joint = rng.random_range(0..n);
+        let kinds = ["armature", "coulomb_friction", "viscous_friction", "load_friction"];
+        let first = kinds[rng.random_range(0..kinds.len())];
+        let mut names = vec![first];
+        if rng.random_bool(0.5) {
+            let dry = |k: &str| matches!(k, "coulomb_friction" | "load_friction");
+            let second = kinds[rng.random_range(0..kinds.len())];
+            if second != first && !(dry(first) && dry(second)) {
+                names.push(second);
+            }
+        }
+        let v = |value: f64| -> Vec<f64> { (0..n).map(|i| if i == joint { value } else { 0.0 }).collect() };
+        let back_emf = kt[joint] * kt[joint] / r[joint];
+        let effects: Vec<Effect> = names
+            .iter()
+            .map(|k| match *k {
+                "armature" => Effect::Armature { ia: v(rng.random_range(0.2..0.6) * h[(joint, joint)]) },
+                "coulomb_friction" => Effect::CoulombFriction { fc: v(rng.random_range(0.03..0.08) * stall[joint]), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] },
+                "viscous_friction" => Effect::ViscousFriction { b: v(rng.random_range(0.5..1.5) * back_emf) },
+                _ => {
+                    Effect::LoadFriction { fc: v(rng.random_range(0.01..0.03) * stall[joint]), mu: v(rng.random_range(0.15..0.35)), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] }
+                }
+            })
+            .collect();
+        let amp = if n > 1 { 0.5 } else { 0.7 };
+        let goal = |rng: &mut ChaCha8Rng| random_fourier(n, amp, rng);
+        let gen =
+            |i: usize, off: f64, rng: &mut ChaCha8Rng, name: String| generate_servo(&model, &effects, &servo, &goal(rng), 8.0, off, 0.005, 1_024_000.0, &name).map_err(|e| (i, e));
+        let fit: std::result::Result<Vec<Run>, _> = (0..3).map(|i| gen(i, if i < 2 { 5.0 } else { f64::INFINITY }, rng, format!("s{index}-fit{i}"))).collect();
+        let hold = gen(3, f64::INFINITY, rng, format!("s{index}-holdout"));
+        if let (Ok(fit), Ok(hold)) = (fit, hold) {
+            let truth = truth_set(&model, &effects);
+            return Ok(Scenario { index, diagnosis_model: model.clone(), model, effects, truth, fit, holdout: vec![hold], family: "servo", glitch: None, servo: Some(servo) });
+        }
+    }
+    Err(crate::Error::Input(format!("scenario {index}: every servo draw diverged")))
 }
 
 /// The (effect, joint) pairs of a set of effects; whole-robot effects have joint `None`.
@@ -607,6 +672,30 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
             let actuator = found.iter().any(|(e, j)| j.as_deref() == Some(passive.as_str()) && matches!(e.as_str(), "torque_gain" | "torque_offset" | "torque_saturation"));
             let flagged = d.report.notes.iter().any(|n| n.contains(&format!("joint {passive} is passive")));
             ((exact || in_alternatives) && !actuator && flagged, format!("no actuator effect on the passive joint {passive} (one found: {actuator}); flagged passive: {flagged}"))
+        }
+        "servo" => {
+            // the motor constants are fitted: a torque gain or back-EMF corrects them, and the
+            // constants the corrected model drives with must be the servo's
+            let mechanical: BTreeSet<(String, Option<String>)> = found.iter().filter(|(e, _)| !matches!(e.as_str(), "torque_gain" | "back_emf")).cloned().collect();
+            let spec = sc.servo.as_ref();
+            let constants = match (spec, &d.report.servo) {
+                (Some(spec), Some(rep)) => (0..spec.kt.len())
+                    .map(|j| {
+                        let (kt, r) = (rep.effective.kt[j], rep.effective.r[j]);
+                        ((kt / r) / (spec.kt[j] / spec.r[j]) - 1.0).abs().max(((kt * kt / r) / (spec.kt[j] * spec.kt[j] / spec.r[j]) - 1.0).abs())
+                    })
+                    .fold(0.0, f64::max),
+                _ => f64::INFINITY,
+            };
+            let ok = (mechanical == truth || in_alternatives) && constants <= 0.15;
+            (
+                ok,
+                format!(
+                    "the mechanical effects {} the hidden ones; motor constants kt/R and kt²/R within {:.1} % (15 % allowed)",
+                    if mechanical == truth { "are" } else { "are not" },
+                    100.0 * constants
+                ),
+            )
         }
         "glitch" => {
             let clean = diagnose(&sc.diagnosis_model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &options, &mut |_| {}).map(|c| found_set(&c));
