@@ -152,6 +152,11 @@ impl JointStateTemplate {
         JointStateTemplate { bytes, data, lens }
     }
 
+    /// Length of every message of this template [bytes].
+    pub(crate) fn len(&self) -> usize {
+        self.bytes.len()
+    }
+
     /// Whether messages with arrays of `lens` values use this template.
     pub(crate) fn fits(&self, lens: [usize; 3]) -> bool {
         self.lens == lens

@@ -14,6 +14,8 @@
 use std::collections::BTreeMap;
 use std::io::Write;
 
+use super::cdr::JointStateTemplate;
+
 /// Record opcodes.
 mod op {
     pub(super) const HEADER: u8 = 0x01;
@@ -77,24 +79,51 @@ impl Fields {
     }
 }
 
-/// Appends one message record (opcode, length, header, `data`) to `records`; returns its offset.
-/// `data` is written by `encode` straight into `records`.
-pub(crate) fn push_message(records: &mut Vec<u8>, channel: u16, sequence: u32, log_time: u64, encode: impl FnOnce(&mut Vec<u8>)) -> u64 {
-    let at = records.len();
-    records.push(op::MESSAGE);
-    records.extend_from_slice(&[0; 8]);
-    records.extend_from_slice(&channel.to_le_bytes());
-    records.extend_from_slice(&sequence.to_le_bytes());
-    records.extend_from_slice(&log_time.to_le_bytes());
-    records.extend_from_slice(&log_time.to_le_bytes());
-    encode(records);
-    let len = (records.len() - at - 9) as u64;
-    records[at + 1..at + 9].copy_from_slice(&len.to_le_bytes());
-    at as u64
+/// A message record of one channel whose data is a `sensor_msgs/msg/JointState` of fixed
+/// layout: appending one is two copies (the record header, the CDR template) and the sequence,
+/// times, stamp and values written in place.
+pub(crate) struct MessageTemplate {
+    /// opcode, record length, channel, and room for sequence, log time and publish time
+    head: [u8; 31],
+    cdr: JointStateTemplate,
 }
 
-/// One chunk as the sink hands it over: its message records, and per message (channel, log
-/// time, offset of its record within `records`).
+impl MessageTemplate {
+    /// The records of `channel` carrying `cdr` messages.
+    pub(crate) fn new(channel: u16, cdr: JointStateTemplate) -> Self {
+        let mut head = [0u8; 31];
+        head[0] = op::MESSAGE;
+        head[1..9].copy_from_slice(&((22 + cdr.len()) as u64).to_le_bytes());
+        head[9..11].copy_from_slice(&channel.to_le_bytes());
+        MessageTemplate { head, cdr }
+    }
+
+    /// Whether messages with arrays of `lens` values use this template.
+    pub(crate) fn fits(&self, lens: [usize; 3]) -> bool {
+        self.cdr.fits(lens)
+    }
+
+    /// The channel of the records.
+    pub(crate) fn channel(&self) -> u16 {
+        u16::from_le_bytes([self.head[9], self.head[10]])
+    }
+
+    /// Appends the message record (log and publish time `time`, stamp `ns`) to `records`;
+    /// returns its offset.
+    pub(crate) fn push(&self, records: &mut Vec<u8>, sequence: u32, time: u64, ns: i64, values: [&[f64]; 3]) -> u64 {
+        let at = records.len();
+        let mut head = self.head;
+        head[11..15].copy_from_slice(&sequence.to_le_bytes());
+        head[15..23].copy_from_slice(&time.to_le_bytes());
+        head[23..31].copy_from_slice(&time.to_le_bytes());
+        records.extend_from_slice(&head);
+        self.cdr.encode_into(records, ns, values);
+        at as u64
+    }
+}
+
+/// One chunk as it is filled: its message records, and per message (channel, log time, offset
+/// of its record within `records`).
 #[derive(Default)]
 pub(crate) struct ChunkBuf {
     pub(crate) records: Vec<u8>,
@@ -136,6 +165,8 @@ pub(crate) struct ChunkedWriter<W: Write> {
     compressed: Vec<u8>,
     zstd: Option<zstd::bulk::Compressor<'static>>,
     record: Fields,
+    /// (log time, offset) of one channel's messages in the chunk being written
+    entries: Vec<(u64, u64)>,
 }
 
 impl<W: Write> ChunkedWriter<W> {
@@ -154,6 +185,7 @@ impl<W: Write> ChunkedWriter<W> {
             compressed: Vec::new(),
             zstd: None,
             record: Fields::default(),
+            entries: Vec::new(),
         };
         w.raw(super::scan::MAGIC)?;
         let mut f = Fields::default();
@@ -269,25 +301,34 @@ impl<W: Write> ChunkedWriter<W> {
         }
         self.pos += 9 + body_len as u64;
         let length = self.pos - offset;
-        // message indexes, one record per channel, in order of log time within the chunk
-        let mut per_channel: BTreeMap<u16, Vec<(u64, u64)>> = BTreeMap::new();
-        for &(c, t, at) in &chunk.index {
-            per_channel.entry(c).or_default().push((t, at));
-            *self.counts.entry(c).or_insert(0) += 1;
+        // message indexes, one record per channel (in order of id), in order of log time
+        let mut channels: Vec<u16> = Vec::with_capacity(4);
+        for &(c, _, _) in &chunk.index {
+            if !channels.contains(&c) {
+                channels.push(c);
+            }
         }
+        channels.sort_unstable();
         let index_start = self.pos;
         let mut index_offsets = BTreeMap::new();
-        for (c, mut entries) in per_channel {
-            entries.sort_by_key(|e| e.0);
+        let mut entries = std::mem::take(&mut self.entries);
+        for c in channels {
+            entries.clear();
+            entries.extend(chunk.index.iter().filter(|m| m.0 == c).map(|m| (m.1, m.2)));
+            if !entries.is_sorted_by_key(|e| e.0) {
+                entries.sort_by_key(|e| e.0);
+            }
+            *self.counts.entry(c).or_insert(0) += entries.len() as u64;
             head.0.clear();
             head.u16(c).u32((entries.len() * 16) as u32);
-            for (t, at) in entries {
+            for &(t, at) in &entries {
                 head.u64(t).u64(at);
             }
             let body = std::mem::take(&mut head.0);
             index_offsets.insert(c, self.write_record(op::MESSAGE_INDEX, &body)?);
             head.0 = body;
         }
+        self.entries = entries;
         self.record = head;
         self.span = Some(self.span.map_or((start, end), |(a, b)| (a.min(start), b.max(end))));
         self.chunks.push(ChunkIndex { start, end, offset, length, index_offsets, index_length: self.pos - index_start, compressed, uncompressed: chunk.records.len() as u64 });
