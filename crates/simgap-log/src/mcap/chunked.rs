@@ -80,22 +80,30 @@ impl Fields {
 }
 
 /// A message record of one channel whose data is a `sensor_msgs/msg/JointState` of fixed
-/// layout: appending one is two copies (the record header, the CDR template) and the sequence,
-/// times, stamp and values written in place.
+/// layout: appending one is one copy of the record's bytes and the sequence, times, stamp and
+/// values written in place (the bytes of the CDR encoder, see the template test in `cdr`).
 pub(crate) struct MessageTemplate {
-    /// opcode, record length, channel, and room for sequence, log time and publish time
-    head: [u8; 31],
+    /// The whole record: opcode, record length, channel, sequence, log time, publish time (31
+    /// bytes), then the CDR message.
+    bytes: Vec<u8>,
+    /// Offset of each array's first value in `bytes`.
+    values: [usize; 3],
     cdr: JointStateTemplate,
 }
+
+/// Offset of the CDR message in a message record.
+const MESSAGE_DATA: usize = 31;
 
 impl MessageTemplate {
     /// The records of `channel` carrying `cdr` messages.
     pub(crate) fn new(channel: u16, cdr: JointStateTemplate) -> Self {
-        let mut head = [0u8; 31];
-        head[0] = op::MESSAGE;
-        head[1..9].copy_from_slice(&((22 + cdr.len()) as u64).to_le_bytes());
-        head[9..11].copy_from_slice(&channel.to_le_bytes());
-        MessageTemplate { head, cdr }
+        let mut bytes = vec![0u8; MESSAGE_DATA];
+        bytes[0] = op::MESSAGE;
+        bytes[1..9].copy_from_slice(&((MESSAGE_DATA - 9 + cdr.bytes().len()) as u64).to_le_bytes());
+        bytes[9..11].copy_from_slice(&channel.to_le_bytes());
+        bytes.extend_from_slice(cdr.bytes());
+        let values = cdr.value_offsets().map(|o| o + MESSAGE_DATA);
+        MessageTemplate { bytes, values, cdr }
     }
 
     /// Whether messages with arrays of `lens` values use this template.
@@ -105,19 +113,28 @@ impl MessageTemplate {
 
     /// The channel of the records.
     pub(crate) fn channel(&self) -> u16 {
-        u16::from_le_bytes([self.head[9], self.head[10]])
+        u16::from_le_bytes([self.bytes[9], self.bytes[10]])
     }
 
     /// Appends the message record (log and publish time `time`, stamp `ns`) to `records`;
     /// returns its offset.
     pub(crate) fn push(&self, records: &mut Vec<u8>, sequence: u32, time: u64, ns: i64, values: [&[f64]; 3]) -> u64 {
         let at = records.len();
-        let mut head = self.head;
-        head[11..15].copy_from_slice(&sequence.to_le_bytes());
-        head[15..23].copy_from_slice(&time.to_le_bytes());
-        head[23..31].copy_from_slice(&time.to_le_bytes());
-        records.extend_from_slice(&head);
-        self.cdr.encode_into(records, ns, values);
+        records.extend_from_slice(&self.bytes);
+        let rec = &mut records[at..];
+        rec[11..15].copy_from_slice(&sequence.to_le_bytes());
+        rec[15..23].copy_from_slice(&time.to_le_bytes());
+        rec[23..31].copy_from_slice(&time.to_le_bytes());
+        // the stamp, after the 4-byte encapsulation header
+        let sec = ns.div_euclid(1_000_000_000) as i32;
+        let nanosec = ns.rem_euclid(1_000_000_000) as u32;
+        rec[MESSAGE_DATA + 4..MESSAGE_DATA + 8].copy_from_slice(&sec.to_le_bytes());
+        rec[MESSAGE_DATA + 8..MESSAGE_DATA + 12].copy_from_slice(&nanosec.to_le_bytes());
+        for (v, &o) in values.iter().zip(&self.values) {
+            for (x, out) in v.iter().zip(rec[o..o + 8 * v.len()].chunks_exact_mut(8)) {
+                out.copy_from_slice(&x.to_le_bytes());
+            }
+        }
         at as u64
     }
 }
