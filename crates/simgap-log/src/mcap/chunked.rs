@@ -139,18 +139,56 @@ impl MessageTemplate {
     }
 }
 
-/// One chunk as it is filled: its message records, and per message (channel, log time, offset
-/// of its record within `records`).
+/// One chunk as it is filled: its message records, and per channel the entries of its message
+/// index (log time, offset of the record within `records`, little-endian) as they were noted.
 #[derive(Default)]
 pub(crate) struct ChunkBuf {
     pub(crate) records: Vec<u8>,
-    pub(crate) index: Vec<(u16, u64, u64)>,
+    /// Per channel id: message index entries, 16 bytes each.
+    entries: Vec<Vec<u8>>,
+    /// Per channel id: the last log time noted, and whether the entries are in order of it.
+    order: Vec<(u64, bool)>,
+    /// Earliest and latest log time noted.
+    span: Option<(u64, u64)>,
 }
 
 impl ChunkBuf {
+    /// A chunk whose records may grow to `capacity` bytes without reallocating.
+    pub(crate) fn with_capacity(capacity: usize) -> Self {
+        ChunkBuf { records: Vec::with_capacity(capacity), ..ChunkBuf::default() }
+    }
+
+    /// Notes the message record of `channel` at `offset` in `records`, logged at `time`.
+    pub(crate) fn note(&mut self, channel: u16, time: u64, offset: u64) {
+        let c = channel as usize;
+        if self.entries.len() <= c {
+            self.entries.resize_with(c + 1, Vec::new);
+            self.order.resize(c + 1, (0, true));
+        }
+        let (last, sorted) = &mut self.order[c];
+        if time < *last && !self.entries[c].is_empty() {
+            *sorted = false;
+        }
+        *last = time;
+        let mut entry = [0u8; 16];
+        entry[..8].copy_from_slice(&time.to_le_bytes());
+        entry[8..].copy_from_slice(&offset.to_le_bytes());
+        self.entries[c].extend_from_slice(&entry);
+        self.span = Some(self.span.map_or((time, time), |(a, b)| (a.min(time), b.max(time))));
+    }
+
+    /// Whether no message was noted.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.span.is_none()
+    }
+
     pub(crate) fn clear(&mut self) {
         self.records.clear();
-        self.index.clear();
+        for e in &mut self.entries {
+            e.clear();
+        }
+        self.order.iter_mut().for_each(|o| *o = (0, true));
+        self.span = None;
     }
 }
 
@@ -182,8 +220,6 @@ pub(crate) struct ChunkedWriter<W: Write> {
     compressed: Vec<u8>,
     zstd: Option<zstd::bulk::Compressor<'static>>,
     record: Fields,
-    /// (log time, offset) of one channel's messages in the chunk being written
-    entries: Vec<(u64, u64)>,
 }
 
 impl<W: Write> ChunkedWriter<W> {
@@ -202,7 +238,6 @@ impl<W: Write> ChunkedWriter<W> {
             compressed: Vec::new(),
             zstd: None,
             record: Fields::default(),
-            entries: Vec::new(),
         };
         w.raw(super::scan::MAGIC)?;
         let mut f = Fields::default();
@@ -268,11 +303,7 @@ impl<W: Write> ChunkedWriter<W> {
 
     /// Compresses and writes one chunk, then its message index records.
     pub(crate) fn write_chunk(&mut self, chunk: &ChunkBuf) -> std::io::Result<()> {
-        if chunk.index.is_empty() {
-            return Ok(());
-        }
-        let start = chunk.index.iter().map(|m| m.1).min().unwrap_or(0);
-        let end = chunk.index.iter().map(|m| m.1).max().unwrap_or(0);
+        let Some((start, end)) = chunk.span else { return Ok(()) };
         let crc = crc32fast::hash(&chunk.records);
         // compress the whole chunk at once
         let (name, data): (&str, &[u8]) = match self.compression {
@@ -319,33 +350,29 @@ impl<W: Write> ChunkedWriter<W> {
         self.pos += 9 + body_len as u64;
         let length = self.pos - offset;
         // message indexes, one record per channel (in order of id), in order of log time
-        let mut channels: Vec<u16> = Vec::with_capacity(4);
-        for &(c, _, _) in &chunk.index {
-            if !channels.contains(&c) {
-                channels.push(c);
-            }
-        }
-        channels.sort_unstable();
         let index_start = self.pos;
         let mut index_offsets = BTreeMap::new();
-        let mut entries = std::mem::take(&mut self.entries);
-        for c in channels {
-            entries.clear();
-            entries.extend(chunk.index.iter().filter(|m| m.0 == c).map(|m| (m.1, m.2)));
-            if !entries.is_sorted_by_key(|e| e.0) {
-                entries.sort_by_key(|e| e.0);
+        for (c, bytes) in chunk.entries.iter().enumerate().filter(|(_, e)| !e.is_empty()) {
+            let c = c as u16;
+            let mut sorted: Option<Vec<u8>> = None;
+            if !chunk.order[c as usize].1 {
+                // stable, as the entries were noted
+                let mut entries: Vec<[u8; 16]> = bytes.chunks_exact(16).map(|e| e.try_into().expect("16 bytes")).collect();
+                entries.sort_by_key(|e| u64::from_le_bytes(e[..8].try_into().expect("8 bytes")));
+                sorted = Some(entries.concat());
             }
-            *self.counts.entry(c).or_insert(0) += entries.len() as u64;
-            head.0.clear();
-            head.u16(c).u32((entries.len() * 16) as u32);
-            for &(t, at) in &entries {
-                head.u64(t).u64(at);
-            }
-            let body = std::mem::take(&mut head.0);
-            index_offsets.insert(c, self.write_record(op::MESSAGE_INDEX, &body)?);
-            head.0 = body;
+            let bytes = sorted.as_deref().unwrap_or(bytes);
+            *self.counts.entry(c).or_insert(0) += (bytes.len() / 16) as u64;
+            let at = self.pos;
+            let mut head = [0u8; 15];
+            head[0] = op::MESSAGE_INDEX;
+            head[1..9].copy_from_slice(&(6 + bytes.len() as u64).to_le_bytes());
+            head[9..11].copy_from_slice(&c.to_le_bytes());
+            head[11..15].copy_from_slice(&(bytes.len() as u32).to_le_bytes());
+            self.raw(&head)?;
+            self.raw(bytes)?;
+            index_offsets.insert(c, at);
         }
-        self.entries = entries;
         self.record = head;
         self.span = Some(self.span.map_or((start, end), |(a, b)| (a.min(start), b.max(end))));
         self.chunks.push(ChunkIndex { start, end, offset, length, index_offsets, index_length: self.pos - index_start, compressed, uncompressed: chunk.records.len() as u64 });

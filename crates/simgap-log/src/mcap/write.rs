@@ -84,7 +84,8 @@ struct Rows {
     sequence: u32,
     /// Stamp of each row [ns since the epoch].
     ns: Vec<i64>,
-    /// The values of each row, its arrays one after the other.
+    /// The values of each row, its arrays one after the other (room for [`BATCH_ROWS`] rows;
+    /// as many rows as `ns` holds are filled).
     values: Vec<f64>,
 }
 
@@ -147,17 +148,12 @@ impl Encoder {
         Ok(id)
     }
 
-    /// Appends one message record of `slot` to the chunk.
-    fn push(&mut self, slot: u8, sequence: u32, ns: i64, values: [&[f64]; 3]) -> std::io::Result<()> {
-        let lens = values.map(<[f64]>::len);
+    /// Makes the template of `slot` the one for arrays of `lens` values.
+    fn template(&mut self, slot: u8, lens: [usize; 3]) -> std::io::Result<()> {
         if !self.templates[slot as usize].as_ref().is_some_and(|t| t.fits(lens)) {
             let channel = self.channel(slot)?;
             self.templates[slot as usize] = Some(MessageTemplate::new(channel, JointStateTemplate::new(&self.joints, lens)));
         }
-        let template = self.templates[slot as usize].as_ref().expect("set above");
-        let time = ns.max(0) as u64;
-        let at = template.push(&mut self.chunk.records, sequence, time, ns, values);
-        self.chunk.index.push((template.channel(), time, at));
         Ok(())
     }
 
@@ -166,24 +162,42 @@ impl Encoder {
     fn rows(&mut self, rows: &Rows) -> std::io::Result<()> {
         let l = rows.lens;
         let width: usize = l.iter().sum();
+        // where each array starts in a row
+        let mut o = [0usize; 8];
+        for i in 0..7 {
+            o[i + 1] = o[i] + l[i];
+        }
+        // the batch has one layout: its templates are ready before its rows
+        self.template(STATES, [l[0], l[1], l[2]])?;
+        if l[3] > 0 {
+            self.template(REFERENCE, [l[3], l[4], l[5]])?;
+        }
+        if l[6] > 0 {
+            self.template(MEASURED, [0, 0, l[6]])?;
+        }
+        let [states, reference, measured] = &self.templates;
+        let states = states.as_ref().expect("set above");
+        let reference = reference.as_ref().filter(|_| l[3] > 0);
+        let measured = measured.as_ref().filter(|_| l[6] > 0);
+        let chunk = &mut self.chunk;
         for (r, &ns) in rows.ns.iter().enumerate() {
             let row = &rows.values[r * width..(r + 1) * width];
-            let mut parts: [&[f64]; 7] = [&[]; 7];
-            let mut at = 0;
-            for (part, &n) in parts.iter_mut().zip(&l) {
-                *part = &row[at..at + n];
-                at += n;
-            }
             let sequence = rows.sequence.wrapping_add(r as u32);
-            self.push(STATES, sequence, ns, [parts[0], parts[1], parts[2]])?;
-            if l[3] > 0 {
-                self.push(REFERENCE, sequence, ns, [parts[3], parts[4], parts[5]])?;
+            let time = ns.max(0) as u64;
+            let at = states.push(&mut chunk.records, sequence, time, ns, [&row[o[0]..o[1]], &row[o[1]..o[2]], &row[o[2]..o[3]]]);
+            chunk.note(states.channel(), time, at);
+            if let Some(t) = reference {
+                let at = t.push(&mut chunk.records, sequence, time, ns, [&row[o[3]..o[4]], &row[o[4]..o[5]], &row[o[5]..o[6]]]);
+                chunk.note(t.channel(), time, at);
             }
-            if l[6] > 0 {
-                self.push(MEASURED, sequence, ns, [&[], &[], parts[6]])?;
+            if let Some(t) = measured {
+                let at = t.push(&mut chunk.records, sequence, time, ns, [&[], &[], &row[o[6]..o[7]]]);
+                chunk.note(t.channel(), time, at);
             }
-            if self.chunk.records.len() >= self.chunk_size {
-                self.flush()?;
+            if chunk.records.len() >= self.chunk_size {
+                let written = self.w.write_chunk(chunk);
+                chunk.clear();
+                written?;
             }
         }
         Ok(())
@@ -191,7 +205,7 @@ impl Encoder {
 
     /// Compresses and writes the chunk being filled, if it holds anything.
     fn flush(&mut self) -> std::io::Result<()> {
-        if self.chunk.index.is_empty() {
+        if self.chunk.is_empty() {
             return Ok(());
         }
         let result = self.w.write_chunk(&self.chunk);
@@ -213,16 +227,7 @@ fn writer_thread(file: File, options: SinkOptions, rx: Receiver<Command>, recycl
     let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(s)?;
     let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), OFFERED_QOS_PROFILES.to_string())].into();
     let chunk_size = options.chunk_size.max(1024) as usize;
-    let mut e = Encoder {
-        w,
-        schema,
-        qos,
-        joints: Vec::new(),
-        chunk: ChunkBuf { records: Vec::with_capacity(chunk_size + 4096), index: Vec::new() },
-        chunk_size,
-        channels: [None; 3],
-        templates: [None, None, None],
-    };
+    let mut e = Encoder { w, schema, qos, joints: Vec::new(), chunk: ChunkBuf::with_capacity(chunk_size + 4096), chunk_size, channels: [None; 3], templates: [None, None, None] };
     // the states and reference channels come first, as every reader expects them
     e.channel(STATES).map_err(s)?;
     e.channel(REFERENCE).map_err(s)?;
@@ -242,7 +247,6 @@ fn writer_thread(file: File, options: SinkOptions, rx: Receiver<Command>, recycl
             Command::Rows(mut rows) => {
                 let result = e.rows(&rows);
                 rows.ns.clear();
-                rows.values.clear();
                 let _ = recycle.try_send(rows);
                 result
             }
@@ -383,17 +387,22 @@ impl McapSink {
             self.rows.sequence = self.sequence;
         }
         let ns = self.start_ns.saturating_add((t * 1e9).round() as i64);
+        // the row's values at their place in the batch (the buffer holds BATCH_ROWS rows)
+        let width: usize = lens.iter().sum();
+        let r = self.rows.ns.len();
         self.rows.ns.push(ns);
-        let values = &mut self.rows.values;
-        values.extend_from_slice(q);
-        values.extend_from_slice(qd);
-        values.extend_from_slice(tau);
-        if with_ref {
-            values.extend_from_slice(q_ref);
-            values.extend_from_slice(qd_ref);
-            values.extend_from_slice(tau_ff);
+        if self.rows.values.len() < (r + 1) * width {
+            self.rows.values.resize(BATCH_ROWS * width, 0.0);
         }
-        values.extend_from_slice(tau_measured);
+        let row = &mut self.rows.values[r * width..(r + 1) * width];
+        let reference: [&[f64]; 3] = if with_ref { [q_ref, qd_ref, tau_ff] } else { [&[], &[], &[]] };
+        let mut k = 0;
+        for part in [q, qd, tau, reference[0], reference[1], reference[2], tau_measured] {
+            for &x in part {
+                row[k] = x;
+                k += 1;
+            }
+        }
         self.sequence = self.sequence.wrapping_add(1);
         self.last_t = Some(t);
         if self.rows.ns.len() >= BATCH_ROWS {
