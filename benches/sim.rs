@@ -6,7 +6,8 @@
 //!   `simulate/paper_experiment_friction` with the reported viscous and Coulomb friction;
 //!   `simulate/paper_30s[_mcap]` and `simulate/paper_300s[_mcap]`, 30 s and 300 s unlogged and
 //!   written as MCAP as they go (the 300 s ratio is the logging cost `simgap simulate --out`
-//!   pays; target at most 2 on two cores).
+//!   pays; target at most 2 on two cores), and `simulate/paper_300s_csv`, the same written as a
+//!   CSV log as it goes (`simgap simulate --out RUN.csv`).
 //! - `paper/euler_lagrange` and `paper/simplified`: what `simgap paper` simulates per model
 //!   (2 s at 2.5 ms, RK4, paper encoders) into a `MemorySink`, plant built inside; and
 //!   `paper/euler_lagrange_general`, the same run through the general algorithms (an armature
@@ -23,7 +24,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use simgap::core::{Formulation, Model};
-use simgap::log::McapSink;
+use simgap::log::{CsvSink, McapSink};
 use simgap::sim::integrate::Rk4;
 use simgap::sim::paper;
 use simgap::sim::{simulate, Effect, Experiment, MemorySink, Plant, RunEnd, Sample, SimParams, Sink};
@@ -101,8 +102,9 @@ fn paper_experiment(c: &mut Criterion) {
         })
     });
     // the logging cost as `simgap simulate --duration 300 --out RUN.mcap` pays it (120,001
-    // samples, 38.7 MB of records in 6 MB of zstd chunks): target logged / unlogged <= 2 on two
-    // cores (the writer thread compresses on the second)
+    // samples, 38.7 MB of records in 3 MB of zstd chunks and 3.8 MB of message indexes): target
+    // logged / unlogged <= 2 on two cores (the writer thread encodes and compresses on the
+    // second)
     let day_part = SimParams { duration: 300.0, ..params.clone() };
     group.bench_function("paper_300s", |b| {
         b.iter(|| {
@@ -116,6 +118,16 @@ fn paper_experiment(c: &mut Criterion) {
             let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
             let mut pd = paper::controller();
             let mut sink = McapSink::create(&path).unwrap();
+            simulate(&plant, &mut pd, &reference, &day_part, &mut sink, None).unwrap()
+        })
+    });
+    // the same written as CSV as it goes (the writer thread formats the numbers)
+    let csv = dir.join("paper.csv");
+    group.bench_function("paper_300s_csv", |b| {
+        b.iter(|| {
+            let plant = Plant::new(black_box(&model), Formulation::EulerLagrange, &[]).unwrap();
+            let mut pd = paper::controller();
+            let mut sink = CsvSink::create(&csv).unwrap();
             simulate(&plant, &mut pd, &reference, &day_part, &mut sink, None).unwrap()
         })
     });

@@ -4,10 +4,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use simgap::core::Model;
-use simgap::log::McapSink;
+use simgap::log::{CsvSink, McapSink};
 use simgap::sim::{
-    simulate, Controller, Effect, Experiment, Fourier, MemorySink, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink, Step, TrackingL2Sink,
-    VelocityEstimate,
+    simulate, Controller, Effect, Experiment, Fourier, Pd, PdGravity, Plant, Reference, RunEnd, Sample, SensorParams, SimParams, Sink, Step, TrackingL2Sink, VelocityEstimate,
 };
 
 /// Arguments of `simgap simulate`.
@@ -39,7 +38,7 @@ pub(crate) struct Args {
     /// Initial velocities [rad/s], comma-separated (default zeros).
     #[arg(long, allow_hyphen_values = true)]
     qd0: Option<String>,
-    /// Duration [s], 0 < duration ≤ 86400 (at most 10⁷ samples).
+    /// Duration [s], 0 < duration ≤ 86400 (a CSV log at most 10⁷ samples).
     #[arg(long, default_value_t = 3.0)]
     duration: f64,
     /// Controller sample period [s], 10⁻⁶ ≤ T ≤ 1.
@@ -135,8 +134,8 @@ fn is_paper_arm(model: &Model) -> bool {
     model.joint_names() == ["shoulder", "elbow"] && model.dof() == 2
 }
 
-/// Most samples a CSV log may have: it is written from the whole run, held in memory (an MCAP
-/// log is written as the run goes, in bounded memory, whatever its duration).
+/// Most samples a CSV log may have: about 2 GB of text, which every reader reads back whole
+/// (both logs are written as the run goes, in bounded memory; an MCAP log has no such bound).
 const MAX_CSV_SAMPLES: f64 = 1e7;
 
 /// The options the library does not check (the encoder's 0 meaning exact positions, `--out`'s
@@ -151,7 +150,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         let samples = args.duration / args.sample_period;
         if log_format(path)? == "csv" && samples > MAX_CSV_SAMPLES {
             bail!(
-                "--out {}: --duration {} s at --sample-period {} s gives {} samples; a CSV log holds at most {} (it is written from the run in memory); write .mcap, which is written as the run goes",
+                "--out {}: --duration {} s at --sample-period {} s gives {} samples; a CSV log holds at most {} (about 2 GB of text, read back whole); write .mcap, which has no such bound",
                 path.display(),
                 number(args.duration),
                 number(args.sample_period),
@@ -173,31 +172,6 @@ fn log_format(path: &Path) -> anyhow::Result<&'static str> {
     } else {
         bail!("--out {}: unknown log format; expected a file ending in .mcap, .csv or .csv.gz", path.display())
     }
-}
-
-/// Writes `run` to `path` (format by extension) through a hidden temporary file in the same
-/// folder and a rename; a CSV log's experiment goes to its sidecar file.
-fn write_log_atomically(run: &simgap::sim::Run, end: &RunEnd, path: &Path) -> anyhow::Result<()> {
-    let name = path.file_name().with_context(|| format!("--out {}: not a file name", path.display()))?.to_string_lossy().to_string();
-    // the temporary file keeps the extension, which chooses the format
-    let tmp = path.with_file_name(format!(".partial-{}.{name}", std::process::id()));
-    let csv = log_format(path)? == "csv";
-    let tmp_sidecar = simgap::log::experiment::sidecar_path(&tmp);
-    super::interrupt::IN_PROGRESS.lock().map(|mut v| v.extend([tmp.clone(), tmp_sidecar.clone()])).ok();
-    // an MCAP log also says how the run ended (metadata `simgap.run_end`)
-    let written = if csv { simgap::log::write_log(run, &tmp) } else { simgap::log::write_mcap_ended(run, &tmp, end) };
-    let result = written.map_err(anyhow::Error::from).and_then(|()| {
-        if csv && tmp_sidecar.exists() {
-            std::fs::rename(&tmp_sidecar, simgap::log::experiment::sidecar_path(path))?;
-        }
-        std::fs::rename(&tmp, path).map_err(Into::into)
-    });
-    super::interrupt::IN_PROGRESS.lock().map(|mut v| v.retain(|p| p != &tmp && p != &tmp_sidecar)).ok();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-        let _ = std::fs::remove_file(&tmp_sidecar);
-    }
-    result.with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// A sink that counts samples on a progress bar and passes them on, keeping the number of
@@ -277,33 +251,27 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         ..SimParams::default()
     };
     params.validate(n)?;
-    // simulate with a progress bar, the tracking L² computed as the run goes; an MCAP log is
-    // written as it goes (in bounded memory), a CSV log from the run in memory; Ctrl-C stops
-    // the run cleanly
+    // simulate with a progress bar, the tracking L² computed as the run goes; the log is
+    // written as it goes, in bounded memory (a CSV log as NAME.partial.csv until the run ends);
+    // Ctrl-C stops the run cleanly
     super::interrupt::cooperate();
     let samples = params.intervals() as u64 + 1;
     let bar = super::progress_bar(samples, "{spinner} simulating  [{bar:30}] {pos}/{len} samples  {elapsed}");
     let mut l2 = TrackingL2Sink::new();
-    let mut memory = MemorySink::new();
-    let mut mcap = match &args.out {
-        Some(path) if log_format(path)? == "mcap" => Some(McapSink::create(path)?),
-        _ => None,
+    let mut log: Option<Box<dyn Sink>> = match &args.out {
+        Some(path) if log_format(path)? == "mcap" => Some(Box::new(McapSink::create(path)?)),
+        Some(path) => Some(Box::new(CsvSink::create(path)?)),
+        None => None,
     };
-    let csv = args.out.is_some() && mcap.is_none();
     let start = std::time::Instant::now();
     let (end, count, span) = {
         let mut tee_log;
-        let mut tee_memory;
-        let inner: &mut dyn Sink = match (&mut mcap, csv) {
-            (Some(m), _) => {
-                tee_log = Tee(m, &mut l2);
+        let inner: &mut dyn Sink = match &mut log {
+            Some(m) => {
+                tee_log = Tee(m.as_mut(), &mut l2);
                 &mut tee_log
             }
-            (None, true) => {
-                tee_memory = Tee(&mut memory, &mut l2);
-                &mut tee_memory
-            }
-            (None, false) => &mut l2,
+            None => &mut l2,
         };
         let mut counting = Counting { inner, bar: &bar, samples: 0, span: None };
         let end = simulate(&plant, controller.as_mut(), reference.as_ref(), &params, &mut counting, Some(super::interrupt::STOP.as_ref()));
@@ -323,12 +291,9 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         let per: Vec<String> = l2.joints.iter().zip(&l2.per_joint).map(|(j, v)| format!("{j} {v:.6}")).collect();
         println!("L2 tracking error [{}]: overall {:.6} ({})", super::position_unit(&model), l2.overall, per.join(", "));
     }
-    // the log: the MCAP sink finished it with how the run ended; a CSV log is written whole (or
-    // up to the interruption), atomically
+    // the log: the sink finished it (an MCAP log says how the run ended; a CSV log has its name)
+    drop(log);
     if let Some(path) = &args.out {
-        if csv {
-            write_log_atomically(&memory.into_run(), &end, path)?;
-        }
         println!("wrote {}", path.display());
     }
     match end {

@@ -329,20 +329,79 @@ pub fn detect_mapping(header: &[String]) -> Option<CsvMapping> {
     Some(mapping)
 }
 
-/// Opens a possibly gzip-compressed file.
-fn open_maybe_gz(path: &Path) -> Result<Box<dyn Read>> {
-    let file = File::open(path).map_err(|e| log_error(path, format!("cannot open: {e}")))?;
-    let mut reader = BufReader::new(file);
-    let magic = reader.fill_buf().map_err(|e| log_error(path, format!("cannot read: {e}")))?;
-    if magic.starts_with(&[0x1f, 0x8b]) {
-        Ok(Box::new(flate2::read::MultiGzDecoder::new(reader)))
-    } else {
-        Ok(Box::new(reader))
+/// What reading a CSV log whose writer did not finish (`*.partial.csv[.gz]`) left out.
+#[derive(Debug, Default)]
+struct Recovery {
+    /// Bytes after the last line end (a cut last line), dropped.
+    dropped: usize,
+    /// The error that ended a cut gzip stream.
+    cut: Option<String>,
+}
+
+/// Passes on the bytes of `inner` up to its last line end: a last line without one is dropped,
+/// and an error (a gzip stream cut inside a member) ends the data; both are noted in
+/// `recovery`. For the logs of a writer that was killed ([`crate::csv_sink`]).
+struct CompleteLines<R> {
+    inner: R,
+    pending: Vec<u8>,
+    /// `pending[start..ready]` is passed on; `pending[ready..]` waits for a line end.
+    start: usize,
+    ready: usize,
+    eof: bool,
+    recovery: std::rc::Rc<std::cell::RefCell<Recovery>>,
+}
+
+impl<R: Read> Read for CompleteLines<R> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        loop {
+            if self.start < self.ready {
+                let n = out.len().min(self.ready - self.start);
+                out[..n].copy_from_slice(&self.pending[self.start..self.start + n]);
+                self.start += n;
+                return Ok(n);
+            }
+            if self.eof {
+                return Ok(0);
+            }
+            // refill: keep what waits for a line end
+            self.pending.drain(..self.ready);
+            self.start = 0;
+            self.ready = 0;
+            let mut buf = [0u8; 1 << 14];
+            let end = match self.inner.read(&mut buf) {
+                Ok(0) => None,
+                Ok(n) => {
+                    self.pending.extend_from_slice(&buf[..n]);
+                    self.ready = self.pending.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+                    continue;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => Some(e.to_string()),
+            };
+            let mut r = self.recovery.borrow_mut();
+            r.dropped = self.pending.len();
+            r.cut = end;
+            self.pending.clear();
+            self.eof = true;
+        }
     }
 }
 
-fn csv_reader(path: &Path) -> Result<csv::Reader<Box<dyn Read>>> {
-    Ok(csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).comment(Some(b'#')).from_reader(open_maybe_gz(path)?))
+/// Opens a possibly gzip-compressed file; a CSV log whose writer did not finish is read up to
+/// its last line end ([`CompleteLines`]).
+fn open_maybe_gz(path: &Path, recovery: &std::rc::Rc<std::cell::RefCell<Recovery>>) -> Result<Box<dyn Read>> {
+    let file = File::open(path).map_err(|e| log_error(path, format!("cannot open: {e}")))?;
+    let mut reader = BufReader::new(file);
+    let magic = reader.fill_buf().map_err(|e| log_error(path, format!("cannot read: {e}")))?;
+    let decoded: Box<dyn Read> = if magic.starts_with(&[0x1f, 0x8b]) { Box::new(flate2::read::MultiGzDecoder::new(reader)) } else { Box::new(reader) };
+    if !crate::csv_sink::is_partial(path) {
+        return Ok(decoded);
+    }
+    Ok(Box::new(CompleteLines { inner: decoded, pending: Vec::new(), start: 0, ready: 0, eof: false, recovery: recovery.clone() }))
+}
+
+fn csv_reader(path: &Path, recovery: &std::rc::Rc<std::cell::RefCell<Recovery>>) -> Result<csv::Reader<Box<dyn Read>>> {
+    Ok(csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).comment(Some(b'#')).from_reader(open_maybe_gz(path, recovery)?))
 }
 
 /// The header of a CSV file (gzip handled).
@@ -350,7 +409,7 @@ fn csv_reader(path: &Path) -> Result<csv::Reader<Box<dyn Read>>> {
 /// # Errors
 /// [`Error::Read`](crate::Error::Read) when the file cannot be read or has no header.
 pub fn read_header(path: &Path) -> Result<Vec<String>> {
-    let mut r = csv_reader(path)?;
+    let mut r = csv_reader(path, &Default::default())?;
     let h = r.headers().map_err(|e| log_error(path, format!("cannot read the CSV header: {e}")))?;
     Ok(h.iter().map(str::to_string).collect())
 }
@@ -362,12 +421,23 @@ pub fn read_header(path: &Path) -> Result<Vec<String>> {
 /// cell that is not a number (with its line), joints mapped inconsistently, non-finite values,
 /// time not strictly increasing.
 pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
+    let mut warnings = Vec::new();
+    let run = read_csv_warned(path, mapping, &mut warnings)?;
+    for w in &warnings {
+        log::warn!("{}: {w}", path.display());
+    }
+    Ok(run)
+}
+
+/// [`read_csv`], with the warnings (a log whose writer did not finish) pushed to `warnings`.
+pub(crate) fn read_csv_warned(path: &Path, mapping: &CsvMapping, warnings: &mut Vec<String>) -> Result<Run> {
     let err = |m: String| log_error(path, m);
     let joints = mapping.joints();
     if joints.is_empty() {
         return Err(err("the column mapping has no position column".into()));
     }
-    let mut reader = csv_reader(path)?;
+    let recovery = std::rc::Rc::new(std::cell::RefCell::new(Recovery::default()));
+    let mut reader = csv_reader(path, &recovery)?;
     let header: Vec<String> = reader.headers().map_err(|e| err(format!("cannot read the CSV header: {e}")))?.iter().map(str::to_string).collect();
     let column = |name: &str, what: &str| -> Result<usize> {
         header.iter().position(|h| h == name).ok_or_else(|| err(format!("column '{name}' ({what}) is not in the header (columns: {})", header.join(","))))
@@ -456,6 +526,21 @@ pub fn read_csv(path: &Path, mapping: &CsvMapping) -> Result<Run> {
             run.drive.voltage.push(value(c)?);
         }
     }
+    if crate::csv_sink::is_partial(path) {
+        let r = recovery.borrow();
+        let span = match (run.t.first(), run.t.last()) {
+            (Some(a), Some(b)) => format!(" ({a:.4} s to {b:.4} s)"),
+            _ => String::new(),
+        };
+        let mut w = format!("its writer did not finish (a killed `simgap simulate --out` leaves NAME.partial.csv): {} complete rows recovered{span}", run.len());
+        if r.dropped > 0 {
+            w.push_str(&format!("; a cut last line of {} bytes dropped", r.dropped));
+        }
+        if let Some(e) = &r.cut {
+            w.push_str(&format!("; the compressed data end inside a gzip member ({e})"));
+        }
+        warnings.push(w);
+    }
     if run.is_empty() {
         return Err(err("no data rows".into()));
     }
@@ -541,6 +626,16 @@ fn time_cell(run: &Run, k: usize) -> String {
 /// As [`read_csv`], and [`Error::Read`](crate::Error::Read) when the header matches no known layout or the sidecar
 /// is malformed.
 pub fn read_csv_auto(path: &Path) -> Result<Run> {
+    let mut warnings = Vec::new();
+    let run = read_csv_auto_warned(path, &mut warnings)?;
+    for w in &warnings {
+        log::warn!("{}: {w}", path.display());
+    }
+    Ok(run)
+}
+
+/// [`read_csv_auto`], with the warnings pushed to `warnings`.
+pub(crate) fn read_csv_auto_warned(path: &Path, warnings: &mut Vec<String>) -> Result<Run> {
     let header = read_header(path)?;
     let mapping = detect_mapping(&header).ok_or_else(|| {
         log_error(
@@ -552,7 +647,7 @@ pub fn read_csv_auto(path: &Path) -> Result<Run> {
             ),
         )
     })?;
-    let mut run = read_csv(path, &mapping)?;
+    let mut run = read_csv_warned(path, &mapping, warnings)?;
     if let Some(e) = crate::experiment::read_sidecar(path)? {
         run.experiment = Some(e);
         simgap_sim::fill_sample_period(&mut run);

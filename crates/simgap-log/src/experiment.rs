@@ -16,7 +16,8 @@ pub fn sidecar_path(log_path: &Path) -> PathBuf {
 }
 
 /// Sidecar files looked for, in order: `<stem>.experiment.json`, `<stem>.experiment` beside
-/// the log, and for a bag folder `experiment.json` inside it.
+/// the log, for a CSV log still being written (`<name>.partial.csv[.gz]`, see
+/// [`crate::CsvSink`]) also those of `<name>`, and for a bag folder `experiment.json` inside it.
 pub(crate) fn sidecar_candidates(log_path: &Path) -> Vec<PathBuf> {
     let trimmed: PathBuf = log_path.components().collect();
     let name = trimmed.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
@@ -24,6 +25,10 @@ pub(crate) fn sidecar_candidates(log_path: &Path) -> Vec<PathBuf> {
     let stem_len = [".csv.gz", ".csv", ".mcap"].iter().find(|ext| lower.ends_with(*ext)).map_or(name.len(), |ext| name.len() - ext.len());
     let stem = &name[..stem_len];
     let mut out = vec![trimmed.with_file_name(format!("{stem}.experiment.json")), trimmed.with_file_name(format!("{stem}.experiment"))];
+    if stem.to_lowercase().ends_with(crate::csv_sink::PARTIAL) {
+        let whole = &stem[..stem.len() - crate::csv_sink::PARTIAL.len()];
+        out.extend([trimmed.with_file_name(format!("{whole}.experiment.json")), trimmed.with_file_name(format!("{whole}.experiment"))]);
+    }
     if log_path.is_dir() {
         out.push(log_path.join("experiment.json"));
     }

@@ -38,6 +38,7 @@
 
 pub mod bag;
 pub mod csv;
+pub mod csv_sink;
 pub mod error;
 pub mod experiment;
 pub mod mcap;
@@ -49,6 +50,7 @@ use std::path::{Path, PathBuf};
 
 use simgap_sim::{reorder_joints, Experiment, Run};
 
+pub use crate::csv_sink::CsvSink;
 pub use crate::error::{Error, Result};
 pub use crate::mcap::write::{write_mcap, write_mcap_ended, Compression};
 pub use crate::mcap::{McapSink, McapWriter, RunTopics, SinkOptions};
@@ -184,16 +186,17 @@ fn read_any(path: &Path, options: &LogOptions) -> Result<LogRead> {
             read_sources(path, sources, &options.topics, fallback)
         }
         LogFormat::Csv => {
+            let mut warnings = Vec::new();
             let mut run = match &options.csv_mapping {
-                Some(m) => crate::csv::read_csv(path, m)?,
-                None => crate::csv::read_csv_auto(path)?,
+                Some(m) => crate::csv::read_csv_warned(path, m, &mut warnings)?,
+                None => crate::csv::read_csv_auto_warned(path, &mut warnings)?,
             };
             if run.experiment.is_none() {
                 run.experiment = fallback.cloned();
                 simgap_sim::fill_sample_period(&mut run);
                 check_run(&run, path)?;
             }
-            Ok(LogRead { run, warnings: Vec::new() })
+            Ok(LogRead { run, warnings })
         }
     }
 }

@@ -152,6 +152,16 @@ impl JointStateTemplate {
         JointStateTemplate { bytes, data, lens }
     }
 
+    /// The bytes of every message of this template, stamp and values zero.
+    pub(crate) fn bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+
+    /// Offset of the first value of each array (position, velocity, effort) in [`Self::bytes`].
+    pub(crate) fn value_offsets(&self) -> [usize; 3] {
+        self.data
+    }
+
     /// Whether messages with arrays of `lens` values use this template.
     pub(crate) fn fits(&self, lens: [usize; 3]) -> bool {
         self.lens == lens
@@ -159,6 +169,7 @@ impl JointStateTemplate {
 
     /// Appends the message stamped `ns` [ns since the epoch] with `values` (position, velocity,
     /// effort; lengths as the template's) to `buf`.
+    #[cfg(test)]
     pub(crate) fn encode_into(&self, buf: &mut Vec<u8>, ns: i64, values: [&[f64]; 3]) {
         let at = buf.len();
         buf.extend_from_slice(&self.bytes);

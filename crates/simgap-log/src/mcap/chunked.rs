@@ -14,6 +14,8 @@
 use std::collections::BTreeMap;
 use std::io::Write;
 
+use super::cdr::JointStateTemplate;
+
 /// Record opcodes.
 mod op {
     pub(super) const HEADER: u8 = 0x01;
@@ -77,34 +79,116 @@ impl Fields {
     }
 }
 
-/// Appends one message record (opcode, length, header, `data`) to `records`; returns its offset.
-/// `data` is written by `encode` straight into `records`.
-pub(crate) fn push_message(records: &mut Vec<u8>, channel: u16, sequence: u32, log_time: u64, encode: impl FnOnce(&mut Vec<u8>)) -> u64 {
-    let at = records.len();
-    records.push(op::MESSAGE);
-    records.extend_from_slice(&[0; 8]);
-    records.extend_from_slice(&channel.to_le_bytes());
-    records.extend_from_slice(&sequence.to_le_bytes());
-    records.extend_from_slice(&log_time.to_le_bytes());
-    records.extend_from_slice(&log_time.to_le_bytes());
-    encode(records);
-    let len = (records.len() - at - 9) as u64;
-    records[at + 1..at + 9].copy_from_slice(&len.to_le_bytes());
-    at as u64
+/// A message record of one channel whose data is a `sensor_msgs/msg/JointState` of fixed
+/// layout: appending one is one copy of the record's bytes and the sequence, times, stamp and
+/// values written in place (the bytes of the CDR encoder, see the template test in `cdr`).
+pub(crate) struct MessageTemplate {
+    /// The whole record: opcode, record length, channel, sequence, log time, publish time (31
+    /// bytes), then the CDR message.
+    bytes: Vec<u8>,
+    /// Offset of each array's first value in `bytes`.
+    values: [usize; 3],
+    cdr: JointStateTemplate,
 }
 
-/// One chunk as the sink hands it over: its message records, and per message (channel, log
-/// time, offset of its record within `records`).
+/// Offset of the CDR message in a message record.
+const MESSAGE_DATA: usize = 31;
+
+impl MessageTemplate {
+    /// The records of `channel` carrying `cdr` messages.
+    pub(crate) fn new(channel: u16, cdr: JointStateTemplate) -> Self {
+        let mut bytes = vec![0u8; MESSAGE_DATA];
+        bytes[0] = op::MESSAGE;
+        bytes[1..9].copy_from_slice(&((MESSAGE_DATA - 9 + cdr.bytes().len()) as u64).to_le_bytes());
+        bytes[9..11].copy_from_slice(&channel.to_le_bytes());
+        bytes.extend_from_slice(cdr.bytes());
+        let values = cdr.value_offsets().map(|o| o + MESSAGE_DATA);
+        MessageTemplate { bytes, values, cdr }
+    }
+
+    /// Whether messages with arrays of `lens` values use this template.
+    pub(crate) fn fits(&self, lens: [usize; 3]) -> bool {
+        self.cdr.fits(lens)
+    }
+
+    /// The channel of the records.
+    pub(crate) fn channel(&self) -> u16 {
+        u16::from_le_bytes([self.bytes[9], self.bytes[10]])
+    }
+
+    /// Appends the message record (log and publish time `time`, stamp `ns`) to `records`;
+    /// returns its offset.
+    pub(crate) fn push(&self, records: &mut Vec<u8>, sequence: u32, time: u64, ns: i64, values: [&[f64]; 3]) -> u64 {
+        let at = records.len();
+        records.extend_from_slice(&self.bytes);
+        let rec = &mut records[at..];
+        rec[11..15].copy_from_slice(&sequence.to_le_bytes());
+        rec[15..23].copy_from_slice(&time.to_le_bytes());
+        rec[23..31].copy_from_slice(&time.to_le_bytes());
+        // the stamp, after the 4-byte encapsulation header
+        let sec = ns.div_euclid(1_000_000_000) as i32;
+        let nanosec = ns.rem_euclid(1_000_000_000) as u32;
+        rec[MESSAGE_DATA + 4..MESSAGE_DATA + 8].copy_from_slice(&sec.to_le_bytes());
+        rec[MESSAGE_DATA + 8..MESSAGE_DATA + 12].copy_from_slice(&nanosec.to_le_bytes());
+        for (v, &o) in values.iter().zip(&self.values) {
+            for (x, out) in v.iter().zip(rec[o..o + 8 * v.len()].chunks_exact_mut(8)) {
+                out.copy_from_slice(&x.to_le_bytes());
+            }
+        }
+        at as u64
+    }
+}
+
+/// One chunk as it is filled: its message records, and per channel the entries of its message
+/// index (log time, offset of the record within `records`, little-endian) as they were noted.
 #[derive(Default)]
 pub(crate) struct ChunkBuf {
     pub(crate) records: Vec<u8>,
-    pub(crate) index: Vec<(u16, u64, u64)>,
+    /// Per channel id: message index entries, 16 bytes each.
+    entries: Vec<Vec<u8>>,
+    /// Per channel id: the last log time noted, and whether the entries are in order of it.
+    order: Vec<(u64, bool)>,
+    /// Earliest and latest log time noted.
+    span: Option<(u64, u64)>,
 }
 
 impl ChunkBuf {
+    /// A chunk whose records may grow to `capacity` bytes without reallocating.
+    pub(crate) fn with_capacity(capacity: usize) -> Self {
+        ChunkBuf { records: Vec::with_capacity(capacity), ..ChunkBuf::default() }
+    }
+
+    /// Notes the message record of `channel` at `offset` in `records`, logged at `time`.
+    pub(crate) fn note(&mut self, channel: u16, time: u64, offset: u64) {
+        let c = channel as usize;
+        if self.entries.len() <= c {
+            self.entries.resize_with(c + 1, Vec::new);
+            self.order.resize(c + 1, (0, true));
+        }
+        let (last, sorted) = &mut self.order[c];
+        if time < *last && !self.entries[c].is_empty() {
+            *sorted = false;
+        }
+        *last = time;
+        let mut entry = [0u8; 16];
+        entry[..8].copy_from_slice(&time.to_le_bytes());
+        entry[8..].copy_from_slice(&offset.to_le_bytes());
+        self.entries[c].extend_from_slice(&entry);
+        self.span = Some(self.span.map_or((time, time), |(a, b)| (a.min(time), b.max(time))));
+    }
+
+    /// Whether no message was noted.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.span.is_none()
+    }
+
     pub(crate) fn clear(&mut self) {
         self.records.clear();
-        self.index.clear();
+        for e in &mut self.entries {
+            e.clear();
+        }
+        self.order.iter_mut().for_each(|o| *o = (0, true));
+        self.span = None;
     }
 }
 
@@ -219,11 +303,7 @@ impl<W: Write> ChunkedWriter<W> {
 
     /// Compresses and writes one chunk, then its message index records.
     pub(crate) fn write_chunk(&mut self, chunk: &ChunkBuf) -> std::io::Result<()> {
-        if chunk.index.is_empty() {
-            return Ok(());
-        }
-        let start = chunk.index.iter().map(|m| m.1).min().unwrap_or(0);
-        let end = chunk.index.iter().map(|m| m.1).max().unwrap_or(0);
+        let Some((start, end)) = chunk.span else { return Ok(()) };
         let crc = crc32fast::hash(&chunk.records);
         // compress the whole chunk at once
         let (name, data): (&str, &[u8]) = match self.compression {
@@ -269,24 +349,29 @@ impl<W: Write> ChunkedWriter<W> {
         }
         self.pos += 9 + body_len as u64;
         let length = self.pos - offset;
-        // message indexes, one record per channel, in order of log time within the chunk
-        let mut per_channel: BTreeMap<u16, Vec<(u64, u64)>> = BTreeMap::new();
-        for &(c, t, at) in &chunk.index {
-            per_channel.entry(c).or_default().push((t, at));
-            *self.counts.entry(c).or_insert(0) += 1;
-        }
+        // message indexes, one record per channel (in order of id), in order of log time
         let index_start = self.pos;
         let mut index_offsets = BTreeMap::new();
-        for (c, mut entries) in per_channel {
-            entries.sort_by_key(|e| e.0);
-            head.0.clear();
-            head.u16(c).u32((entries.len() * 16) as u32);
-            for (t, at) in entries {
-                head.u64(t).u64(at);
+        for (c, bytes) in chunk.entries.iter().enumerate().filter(|(_, e)| !e.is_empty()) {
+            let c = c as u16;
+            let mut sorted: Option<Vec<u8>> = None;
+            if !chunk.order[c as usize].1 {
+                // stable, as the entries were noted
+                let mut entries: Vec<[u8; 16]> = bytes.chunks_exact(16).map(|e| e.try_into().expect("16 bytes")).collect();
+                entries.sort_by_key(|e| u64::from_le_bytes(e[..8].try_into().expect("8 bytes")));
+                sorted = Some(entries.concat());
             }
-            let body = std::mem::take(&mut head.0);
-            index_offsets.insert(c, self.write_record(op::MESSAGE_INDEX, &body)?);
-            head.0 = body;
+            let bytes = sorted.as_deref().unwrap_or(bytes);
+            *self.counts.entry(c).or_insert(0) += (bytes.len() / 16) as u64;
+            let at = self.pos;
+            let mut head = [0u8; 15];
+            head[0] = op::MESSAGE_INDEX;
+            head[1..9].copy_from_slice(&(6 + bytes.len() as u64).to_le_bytes());
+            head[9..11].copy_from_slice(&c.to_le_bytes());
+            head[11..15].copy_from_slice(&(bytes.len() as u32).to_le_bytes());
+            self.raw(&head)?;
+            self.raw(bytes)?;
+            index_offsets.insert(c, at);
         }
         self.record = head;
         self.span = Some(self.span.map_or((start, end), |(a, b)| (a.min(start), b.max(end))));
