@@ -116,23 +116,6 @@ fn describe(t: &Term) -> String {
     }
 }
 
-/// The motor-constant terms of the servo joints of the fit runs: a torque gain on each, and a
-/// back-EMF where some run disables the drive.
-pub(crate) fn servo_base_terms(ctx: &Context<'_>) -> Vec<Term> {
-    let dof = ctx.problem.dof;
-    if !ctx.data.iter().any(|d| crate::prepare::servo::is_servo(&d.raw)) {
-        return Vec::new();
-    }
-    let mut out = Vec::new();
-    for j in 0..dof {
-        out.push(Term::Gain(j));
-        if crate::vocabulary::back_emf::separable(j, ctx.data) {
-            out.push(Term::BackEmf(j));
-        }
-    }
-    out
-}
-
 /// Forward stepwise selection with cross-validation, then backward pruning.
 pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     let p = &ctx.problem;
@@ -142,21 +125,6 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     let mut designs: Vec<TermDesign> = Vec::new();
     let mut log = Vec::new();
     let fams = families(ctx.data);
-    // a servo's motor constants are fitted first, always: a drive gain (kt/R) and, where a drop
-    // with torque off tells it from viscous friction, its back-EMF (kt²/R), so that no other
-    // effect stands in for them
-    let base = servo_base_terms(ctx);
-    if !base.is_empty() {
-        let (ds, _, f) = fit_terms(p, ctx.data, &base);
-        if admissible(&ds, &base, &f.theta) {
-            for t in &base {
-                log.push(Step { term: t.clone(), cv_mse: f.cv_mse, accepted: true, reason: "a servo's motor constant: fitted with every set".into() });
-            }
-            terms = base;
-            designs = ds;
-            current = f;
-        }
-    }
     while terms.len() < opts.max_terms {
         let resid = residual_after(p, &designs, &current.theta);
         // best member of every family, then the inertial error, evaluated jointly with the set
