@@ -2,14 +2,14 @@
 //! family), scored against the hidden truth.
 
 use rayon::prelude::*;
-use simgap_diag::selfcheck::{family_of, run_scenario, summarise, FAMILIES};
+use simgap_diag::selfcheck::{family_of, run_scenario, run_servo_scenario, summarise, FAMILIES};
 
 #[test]
 fn fit_recovers_known_effects_in_blind_scenarios() {
-    // one cycle: four random scenarios and one of each named family, the servo last (a second cycle draws four
+    // one cycle: four random scenarios and one of each named family (a second cycle draws four
     // 7-DOF scenarios of minutes each, and its 7-DOF delay is missed: that is left to the
     // 200-scenario run; SIMGAP_SELFCHECK_N=26 runs it)
-    let n: usize = std::env::var("SIMGAP_SELFCHECK_N").ok().and_then(|s| s.parse().ok()).unwrap_or(14);
+    let n: usize = std::env::var("SIMGAP_SELFCHECK_N").ok().and_then(|s| s.parse().ok()).unwrap_or(13);
     let scores: Vec<_> = (0..n).into_par_iter().map(|i| run_scenario(42, i)).collect();
     for s in &scores {
         eprintln!(
@@ -20,7 +20,7 @@ fn fit_recovers_known_effects_in_blind_scenarios() {
     let sum = summarise(&scores);
     eprintln!("{}", serde_json::to_string_pretty(&sum).unwrap());
     assert!(sum.failures == 0, "scenarios failed to run");
-    if n >= 14 {
+    if n >= 13 {
         for f in &FAMILIES[2..] {
             assert!(scores.iter().any(|s| s.family == *f), "family {f} not drawn in {n} scenarios");
         }
@@ -54,9 +54,9 @@ fn fit_recovers_known_effects_in_blind_scenarios() {
 
 #[test]
 fn families_cycle_through_every_named_family() {
-    let named: Vec<&str> = (0..14).map(family_of).filter(|f| *f != "random").collect();
+    let named: Vec<&str> = (0..13).map(family_of).filter(|f| *f != "random").collect();
     assert_eq!(named, FAMILIES[2..].to_vec());
-    assert_eq!((0..14).filter(|i| family_of(*i) == "random").count(), 4);
+    assert_eq!((0..13).filter(|i| family_of(*i) == "random").count(), 4);
 }
 
 /// A different torque gain on each joint of the paper's arm (scenario 74 of seed 1: k = 1.146,
@@ -84,15 +84,15 @@ fn per_joint_gains_are_exchanged_for_the_inertial_correction_taken_first() {
 
 #[test]
 fn servo_scenarios_find_the_hidden_mechanics_and_the_motor_constants() {
-    // the servo family (index 13 of every cycle) on several seeds: blind servo logs, no priors
-    let scores: Vec<_> = (1..=6u64).into_par_iter().map(|seed| run_scenario(seed, 13)).collect();
+    // twelve servo scenarios: blind servo logs, no motor-constant priors
+    let scores: Vec<_> = (0..12usize).into_par_iter().map(|i| run_servo_scenario(1, i)).collect();
     for s in &scores {
         eprintln!("seed scenario {} {:<15} right={:<5} truth={:?} found={:?} kstep={:.3} {} {:?}", s.index, s.robot, s.right, s.truth, s.found, s.kstep_ratio, s.rule, s.error);
         assert_eq!(s.family, "servo");
     }
     let right = scores.iter().filter(|s| s.right).count();
-    // measured 3 of 6 on this build: the round-2 target of 90 % is not met (the wrong ones add
-    // a load-dependent friction or rotor inertia beside the hidden friction, or an inertial
-    // error standing in for a one-joint drive gain); this guards against doing worse
-    assert!(right >= 3, "{right} of {} servo scenarios right", scores.len());
+    // measured 10 of 12 on this build, short of the 90 % target: on a one-joint pendulum a
+    // load-dependent friction stood in for Coulomb friction once, and an inertial correction
+    // was added beside a viscous friction once
+    assert!(right >= 10, "{right} of {} servo scenarios right", scores.len());
 }

@@ -145,6 +145,11 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
         if c.spring_k[i] != 0.0 {
             let _ = write!(attrs, " springref=\"{}\"", num(c.spring_q0[i]));
         }
+        if c.coulomb[i] != 0.0 {
+            // the friction constraint's time constant: two steps, not MuJoCo's default 0.02 s,
+            // whose soft friction lets a loaded joint creep where dry friction holds it
+            let _ = write!(attrs, " solreffriction=\"{} 1\"", num(2.0 * options.timestep));
+        }
         let _ = writeln!(s, "{pad}  <joint {attrs}/>");
         // a visual capsule to the next joint (the last body's to its centre of mass)
         let to: Vector3<f64> = joints.get(i + 1).map_or(c.bodies[i].com(), |next| next.placement.translation);

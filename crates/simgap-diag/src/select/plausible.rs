@@ -54,6 +54,10 @@ fn on_bound(theta: f64, b: f64) -> bool {
     b.is_finite() && (theta - b).abs() <= 1e-6 * b.abs().max(1e-12)
 }
 
+/// The smallest share of its joint's commanded torque (RMS) a selected term explains to be a
+/// finding: [`crate::select::SelectOptions::min_torque_share`]'s default.
+const MIN_TORQUE_SHARE: f64 = 0.01;
+
 /// Judges one selected term from its column coefficients `theta` and their standard deviations
 /// `std` (the design's coordinates, see [`TermDesign`]).
 pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64], data: &[crate::prepare::dataset::FitData], joints: &[String]) -> Judgment {
@@ -63,6 +67,21 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
         return Judgment::Finding;
     }
     let name = term.describe(joints);
+    // too small to matter: the torque it explains on its joint is below the share of the
+    // commanded torque the stepwise selection asks of every term (a term a multiple-shooting
+    // set brought in was never asked)
+    if let (Some(j), Some(d0)) = (term.joint(), data.first()) {
+        let dof = d0.dof;
+        let samples = design.cols.first().map_or(0, |c| if c.joint.is_some() { c.values.len() } else { c.values.len() / dof.max(1) });
+        let explained: f64 = (0..samples).map(|s| design.cols.iter().zip(theta).map(|(c, th)| th * c.at(s, j, dof)).sum::<f64>().powi(2)).sum();
+        let commanded: f64 = data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(d.dof)).map(|t| t * t).sum();
+        if samples > 0 && commanded > 0.0 {
+            let share = (explained / commanded).sqrt();
+            if share < MIN_TORQUE_SHARE {
+                return Judgment::NoFinding(format!("not a finding: {name} explains {:.2} % of the commanded torque on its joint (RMS): too small to matter", 100.0 * share));
+            }
+        }
+    }
     // at the edge of its physical range (a bound other than the neutral 0)
     for (c, &th) in theta.iter().enumerate() {
         for b in [design.lo.get(c).copied().unwrap_or(f64::NEG_INFINITY), design.hi.get(c).copied().unwrap_or(f64::INFINITY)] {
