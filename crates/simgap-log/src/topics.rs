@@ -8,6 +8,12 @@
 //! | `reference` | `/joint_reference` | `q_ref`, `qd_ref`, `tau_ff` (feed-forward) from its effort |
 //! | `effort` | none | `tau` (commanded effort), replacing the effort of `states` |
 //! | `measured_effort` | `/joint_effort_measured` | `tau_measured` |
+//! | `duty` | none | a servo's measured PWM duty in [−1, 1] (`drive.duty`), held per message |
+//! | `torque_enable` | none | a servo's torque enable, 0 or 1 (`drive.torque_enable`), held |
+//! | `temperature` | none | a servo's temperature [°C] (`drive.temperature`), reported only |
+//!
+//! The servo roles read a `sensor_msgs/msg/JointState`'s `effort` (or a `Float64MultiArray`'s
+//! `data` with the joint names in brackets), one value per joint.
 //!
 //! Real bags name topics after the robot; a map such as
 //! `states=/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[j1;j2]`
@@ -35,19 +41,29 @@ pub enum Role {
     Effort,
     /// Torque the drives report.
     MeasuredEffort,
+    /// A servo's measured PWM duty.
+    Duty,
+    /// A servo's torque enable.
+    TorqueEnable,
+    /// A servo's temperature.
+    Temperature,
 }
 
 impl Role {
     /// Every role, in map order.
-    pub const ALL: [Role; 4] = [Role::States, Role::Reference, Role::Effort, Role::MeasuredEffort];
+    pub const ALL: [Role; 7] = [Role::States, Role::Reference, Role::Effort, Role::MeasuredEffort, Role::Duty, Role::TorqueEnable, Role::Temperature];
 
-    /// The role's key in a topic map: `states`, `reference`, `effort`, `measured_effort`.
+    /// The role's key in a topic map: `states`, `reference`, `effort`, `measured_effort`, `duty`,
+    /// `torque_enable`, `temperature`.
     pub fn key(self) -> &'static str {
         match self {
             Role::States => "states",
             Role::Reference => "reference",
             Role::Effort => "effort",
             Role::MeasuredEffort => "measured_effort",
+            Role::Duty => "duty",
+            Role::TorqueEnable => "torque_enable",
+            Role::Temperature => "temperature",
         }
     }
 }
@@ -117,6 +133,12 @@ pub struct TopicMap {
     pub effort: Option<TopicSpec>,
     /// Torque the drives report (default `/joint_effort_measured`).
     pub measured_effort: TopicSpec,
+    /// A servo's measured duty (default none).
+    pub duty: Option<TopicSpec>,
+    /// A servo's torque enable (default none).
+    pub torque_enable: Option<TopicSpec>,
+    /// A servo's temperature (default none).
+    pub temperature: Option<TopicSpec>,
 }
 
 impl Default for TopicMap {
@@ -126,6 +148,9 @@ impl Default for TopicMap {
             reference: TopicSpec::new(JOINT_REFERENCE_TOPIC),
             effort: None,
             measured_effort: TopicSpec::new(JOINT_EFFORT_MEASURED_TOPIC),
+            duty: None,
+            torque_enable: None,
+            temperature: None,
         }
     }
 }
@@ -165,8 +190,11 @@ impl TopicMap {
             "reference" => self.reference = spec,
             "effort" => self.effort = Some(spec),
             "measured_effort" => self.measured_effort = spec,
+            "duty" => self.duty = Some(spec),
+            "torque_enable" => self.torque_enable = Some(spec),
+            "temperature" => self.temperature = Some(spec),
             other => {
-                return Err(format!("unknown role '{other}': expected states, reference, effort or measured_effort"));
+                return Err(format!("unknown role '{other}': expected states, reference, effort, measured_effort, duty, torque_enable or temperature"));
             }
         }
         Ok(())
@@ -179,6 +207,9 @@ impl TopicMap {
             Role::Reference => Some(&self.reference),
             Role::Effort => self.effort.as_ref(),
             Role::MeasuredEffort => Some(&self.measured_effort),
+            Role::Duty => self.duty.as_ref(),
+            Role::TorqueEnable => self.torque_enable.as_ref(),
+            Role::Temperature => self.temperature.as_ref(),
         }
     }
 

@@ -324,3 +324,37 @@ fn a_recovered_bag_warns_with_what_it_recovered() {
     let w = read.warnings.join("; ");
     assert!(w.contains("teleop_1.mcap") && w.contains("no summary") && w.contains("40 samples over 0.078 s"), "{w}");
 }
+
+#[test]
+fn a_servo_bag_maps_its_duty_torque_enable_and_temperature_topics_by_role() {
+    // a servo's signals on topics of their own: JointState efforts (duty, temperature) and a
+    // Float64MultiArray without names (the torque enable, named in the map)
+    let path = tmp("servo.mcap");
+    let mut bag = BagFile::new(&path);
+    for k in 0..20i64 {
+        let t = T0 + k * DT;
+        let x = k as f64;
+        let mut js = JointState { name: names(&["a", "b"]), position: vec![0.01 * x, -0.01 * x], velocity: vec![0.5, -0.5], ..JointState::default() };
+        js.set_stamp_ns(t);
+        bag.publish("/servo/states", "sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION, t, &js.encode_cdr());
+        let mut duty = JointState { name: names(&["b", "a"]), effort: vec![-0.02 * x, 0.03 * x], ..JointState::default() };
+        duty.set_stamp_ns(t);
+        bag.publish("/servo/pwm", "sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION, t, &duty.encode_cdr());
+        let mut temp = JointState { name: names(&["a", "b"]), effort: vec![30.0 + 0.1 * x, 31.0], ..JointState::default() };
+        temp.set_stamp_ns(t);
+        bag.publish("/servo/temperature", "sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION, t, &temp.encode_cdr());
+        let mut c = Cdr::new();
+        c.u32(0).u32(0).f64s(&[if k < 10 { 1.0 } else { 0.0 }, 1.0]);
+        bag.publish("/servo/torque_enable", "std_msgs/msg/Float64MultiArray", FLOAT64_MULTI_ARRAY_DEFINITION, t, &c.0);
+    }
+    bag.finish();
+    let topics = TopicMap::parse("states=/servo/states,duty=/servo/pwm,torque_enable=/servo/torque_enable[a;b],temperature=/servo/temperature").unwrap();
+    let run = read_log(&path, &LogOptions { topics, ..LogOptions::default() }).unwrap();
+    for k in 0..20 {
+        let x = k as f64;
+        assert_eq!(run.row(&run.drive.duty, k), &[0.03 * x, -0.02 * x], "duty by joint name at sample {k}");
+        assert_eq!(run.row(&run.drive.torque_enable, k), &[if k < 10 { 1.0 } else { 0.0 }, 1.0]);
+        assert_eq!(run.row(&run.drive.temperature, k), &[30.0 + 0.1 * x, 31.0]);
+    }
+    assert!(run.tau.is_empty(), "a servo logs no torque");
+}

@@ -64,7 +64,7 @@ struct ChannelPlan {
 fn columns_of(role: Role) -> [(&'static str, &'static str); 3] {
     match role {
         Role::States | Role::Reference => [("positions", "position"), ("velocities", "velocity"), ("efforts", "effort")],
-        Role::Effort | Role::MeasuredEffort => [("efforts", "effort"), ("-", "-"), ("-", "-")],
+        Role::Effort | Role::MeasuredEffort | Role::Duty | Role::TorqueEnable | Role::Temperature => [("efforts", "effort"), ("-", "-"), ("-", "-")],
     }
 }
 
@@ -116,6 +116,8 @@ fn plan_role(schema: &Schema, role: Role, topic: &str, fixed_names: &[String]) -
             let base = point(&["feedback", "actual"]);
             [first_array(schema, base, &effort).or_else(|| data.clone()), None, None]
         }
+        // a servo's signals: one value per joint in a JointState's effort or an array's data
+        Role::Duty | Role::TorqueEnable | Role::Temperature => [first_array(schema, None, &effort).or_else(|| data.clone()), None, None],
     };
     if columns[0].is_none() {
         let want = if matches!(role, Role::States | Role::Reference) { "positions" } else { "efforts" };
@@ -322,6 +324,19 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
     if let Some(m) = data.remove(&Role::MeasuredEffort) {
         let m = m.merge(&topics.measured_effort.topic, Some(&joints)).map_err(err)?;
         run.tau_measured = onto(&m, &m.position, false);
+    }
+    // a servo's signals: the duty and the enable held from message to message, the temperature
+    // interpolated
+    for (role, hold) in [(Role::Duty, true), (Role::TorqueEnable, true), (Role::Temperature, false)] {
+        if let (Some(d), Some(spec)) = (data.remove(&role), topics.get(role)) {
+            let d = d.merge(&spec.topic, Some(&joints)).map_err(err)?;
+            let values = onto(&d, &d.position, hold);
+            match role {
+                Role::Duty => run.drive.duty = values,
+                Role::TorqueEnable => run.drive.torque_enable = values.iter().map(|e| if *e > 0.5 { 1.0 } else { 0.0 }).collect(),
+                _ => run.drive.temperature = values,
+            }
+        }
     }
 
     // experiment: the file's, else the caller's (a sidecar is looked for by the caller)
