@@ -620,10 +620,10 @@ pub fn drive_torque(
             }
         }
     }
-    for i in 0..n {
-        drive[i] *= enabled[i];
-        out[i] = drive[i];
+    for (d, e) in drive.iter_mut().zip(enabled) {
+        *d *= e;
     }
+    out.copy_from_slice(drive);
     for e in effects {
         if let Effect::LoadFriction { fc, mu, w } = e {
             for i in 0..n {
