@@ -198,6 +198,10 @@ class Run:
         tau_ff: _ArrayLike | None = None,
         tau_measured: _ArrayLike | None = None,
         start_ns: int | None = None,
+        duty: _ArrayLike | None = None,
+        torque_enable: _ArrayLike | None = None,
+        voltage: _ArrayLike | None = None,
+        temperature: _ArrayLike | None = None,
     ) -> Run:
         """Builds a run from arrays; ``joints`` names the columns.
 
@@ -205,7 +209,9 @@ class Run:
         ``tau_ff``, ``tau_measured``: shape (N, len(joints)). ``experiment`` is the
         ``simgap.experiment`` metadata map (``controller``, ``joints``, ``kp``, ``kv``,
         ``sample_period``, as strings); ``start_ns`` the absolute time of ``t = 0`` [ns since
-        the Unix epoch].
+        the Unix epoch]. A position-controlled servo's signals: ``duty`` (PWM duty in [−1, 1]),
+        ``torque_enable`` (0/1) and ``temperature`` [°C], shape (N, len(joints)), and
+        ``voltage`` [V], shape (N,).
 
         Raises DimensionError for arrays of the wrong shape, LogError for an invalid run (time
         not strictly increasing, non-finite values, duplicate joints, a bad experiment).
@@ -252,6 +258,22 @@ class Run:
     def tau_measured(self) -> _FloatArray | None:
         """Torques the drives report delivering [N·m or N] (``/joint_effort_measured``), shape
         (N, dof); None when the log has none."""
+
+    @property
+    def duty(self) -> _FloatArray | None:
+        """A servo's measured PWM duty in [−1, 1], shape (N, dof); None when the log has none."""
+
+    @property
+    def torque_enable(self) -> _FloatArray | None:
+        """A servo's torque enable (0 or 1), shape (N, dof); None when the log has none."""
+
+    @property
+    def voltage(self) -> _FloatArray | None:
+        """A servo's supply voltage [V], shape (N,); None when the log has none."""
+
+    @property
+    def temperature(self) -> _FloatArray | None:
+        """A servo's temperature [°C], shape (N, dof); None when the log has none."""
 
     @property
     def start_ns(self) -> int | None:

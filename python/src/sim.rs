@@ -74,12 +74,14 @@ impl PyRun {
     /// Builds a run from arrays; `joints` names the columns. `tau`, `q_ref`, `qd_ref`,
     /// `tau_ff`, `tau_measured` may be omitted; `experiment` is the `simgap.experiment` metadata
     /// map (`controller`, `joints`, `kp`, `kv`, `sample_period`, as strings); `start_ns` the
-    /// absolute time of `t = 0` [ns since the Unix epoch].
+    /// absolute time of `t = 0` [ns since the Unix epoch]. A position-controlled servo's
+    /// signals: `duty` (PWM duty in [−1, 1]), `torque_enable` (0/1) and `temperature` [°C], shape
+    /// (N, dof), and `voltage` [V], shape (N,).
     ///
     /// Raises DimensionError for arrays of the wrong shape, LogError for an invalid run (time
     /// not strictly increasing, non-finite values, duplicate joints, a bad experiment).
     #[new]
-    #[pyo3(signature = (joints, t, q, qd, tau = None, q_ref = None, qd_ref = None, experiment = None, source = "python", tau_ff = None, tau_measured = None, start_ns = None))]
+    #[pyo3(signature = (joints, t, q, qd, tau = None, q_ref = None, qd_ref = None, experiment = None, source = "python", tau_ff = None, tau_measured = None, start_ns = None, duty = None, torque_enable = None, voltage = None, temperature = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         joints: Vec<String>,
@@ -94,6 +96,10 @@ impl PyRun {
         tau_ff: Option<ArrayArg<'_>>,
         tau_measured: Option<ArrayArg<'_>>,
         start_ns: Option<i64>,
+        duty: Option<ArrayArg<'_>>,
+        torque_enable: Option<ArrayArg<'_>>,
+        voltage: Option<ArrayArg<'_>>,
+        temperature: Option<ArrayArg<'_>>,
     ) -> PyResult<Self> {
         let n = joints.len();
         let t = match t.shape() {
@@ -110,7 +116,12 @@ impl PyRun {
             qd_ref: opt("qd_ref", &qd_ref)?,
             tau_ff: opt("tau_ff", &tau_ff)?,
             tau_measured: opt("tau_measured", &tau_measured)?,
-            drive: Default::default(),
+            drive: simgap_sim::DriveSignals {
+                duty: opt("duty", &duty)?,
+                torque_enable: opt("torque_enable", &torque_enable)?,
+                voltage: voltage.as_ref().map_or(Ok(Vec::new()), |a| sized("voltage", a, rows, None))?,
+                temperature: opt("temperature", &temperature)?,
+            },
             start_ns,
             experiment: experiment.map(self::experiment).transpose()?,
             source: source.to_owned(),
@@ -181,6 +192,30 @@ impl PyRun {
     #[getter]
     fn tau_measured<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
         self.matrix(py, &self.run.tau_measured)
+    }
+
+    /// A servo's measured PWM duty in [−1, 1], shape (N, dof); None when the log has none.
+    #[getter]
+    fn duty<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        self.matrix(py, &self.run.drive.duty)
+    }
+
+    /// A servo's torque enable (0 or 1), shape (N, dof); None when the log has none (enabled).
+    #[getter]
+    fn torque_enable<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        self.matrix(py, &self.run.drive.torque_enable)
+    }
+
+    /// A servo's supply voltage [V], shape (N,); None when the log has none.
+    #[getter]
+    fn voltage<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        (!self.run.drive.voltage.is_empty()).then(|| to_array(py, self.run.drive.voltage.clone(), &[self.run.len()]).into_any())
+    }
+
+    /// A servo's temperature [°C], shape (N, dof); None when the log has none.
+    #[getter]
+    fn temperature<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
+        self.matrix(py, &self.run.drive.temperature)
     }
 
     /// Absolute time of `t = 0` [ns since the Unix epoch] for logs with absolute stamps, else

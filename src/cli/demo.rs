@@ -82,6 +82,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         urdf: Some(&urdf),
         export_urdf: Some(&corrected_urdf),
         export_mjcf: Some(&corrected_mjcf),
+        directional_friction: false,
     })?;
 
     // the hidden truth next to the answer

@@ -72,6 +72,11 @@ pub(crate) struct Args {
     /// (defaults /joint_states, /joint_reference, /joint_effort_measured).
     #[arg(long = "topic", value_parser = parse_topic_map)]
     topics: Option<TopicMap>,
+    /// Also try friction that differs with the direction of motion (levels and slopes per
+    /// direction) in place of each joint's Coulomb and viscous friction: for ball screws and worn
+    /// gearboxes.
+    #[arg(long = "directional-friction")]
+    directional_friction: bool,
 }
 
 /// Parses `--topic`.
@@ -94,6 +99,8 @@ pub(crate) struct Job<'a> {
     pub(crate) urdf: Option<&'a Path>,
     pub(crate) export_urdf: Option<&'a Path>,
     pub(crate) export_mjcf: Option<&'a Path>,
+    /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
+    pub(crate) directional_friction: bool,
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
@@ -111,6 +118,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         urdf: Some(&args.urdf),
         export_urdf: args.export_urdf.as_deref(),
         export_mjcf: args.export_mjcf.as_deref(),
+        directional_friction: args.directional_friction,
     })?;
     Ok(())
 }
@@ -153,7 +161,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     };
     // Ctrl-C stops the diagnosis at its next step (exit 130, nothing written)
     super::interrupt::cooperate();
-    let options = DiagnoseOptions { stop: Some(super::interrupt::STOP.clone()), ..DiagnoseOptions::default() };
+    let options = DiagnoseOptions { stop: Some(super::interrupt::STOP.clone()), directional_friction: job.directional_friction, ..DiagnoseOptions::default() };
     let result = diagnose(job.model, job.formulation, &fit, &holdout, &options, &mut on_progress);
     bar.finish_and_clear();
     let diagnosis = match result {

@@ -75,6 +75,42 @@ pub(crate) fn prune_and_complete(
         terms = set;
         score = refine_by_prediction(scorer, groups, alone_score, &mut terms, &mut log, progress, options)?;
     }
+    // friction that differs with the direction of motion (when asked for), tried in place of a
+    // joint's selected Coulomb and viscous friction (the symmetric pair it nests): kept only when it predicts
+    // the fit runs better by ADD_GAIN in every part of them, so symmetric friction stays the pair
+    let dof = if options.directional_friction { scorer.ctx.problem.dof } else { 0 };
+    for j in 0..dof {
+        check_stop(options)?;
+        let dry_w = terms.iter().find_map(|t| match *t {
+            Term::Coulomb { joint, w } if joint == j => Some(w),
+            _ => None,
+        });
+        let viscous = terms.contains(&Term::Viscous(j));
+        if dry_w.is_none() && !viscous {
+            continue;
+        }
+        let w = dry_w.unwrap_or_else(|| scorer.ctx.dry_width[j].mid());
+        let directional = Term::Directional { joint: j, w };
+        let mut set: Vec<Term> = terms.iter().filter(|t| !(t.joint() == Some(j) && matches!(t, Term::Coulomb { .. } | Term::Viscous(_)))).cloned().collect();
+        if !fits_in(&set, &directional) {
+            continue;
+        }
+        set.push(directional.clone());
+        let set = select::repolish(scorer.ctx, &set);
+        let s = scorer.score(&set);
+        if s.is_finite() && s < score * (1.0 - ADD_GAIN) && scorer.gain_test(&set, &terms).holds(PRUNE_TOLERANCE, ADD_GAIN) {
+            log.push(select::Step {
+                term: directional,
+                cv_mse: f64::NAN,
+                accepted: true,
+                reason: format!(
+                    "in place of the symmetric friction on its joint: the fit runs' cross-validated k-step error is {s:.4} of the nominal model's ({score:.4} with Coulomb and viscous friction), better in every part of them"
+                ),
+            });
+            terms = set;
+            score = s;
+        }
+    }
     // the improvement must be large enough and hold across the folds of the fit runs
     let test = scorer.cv_errors(&terms).map_or_else(|| kstep::FoldTest::of(&[]), |e| scorer.against_nominal(&e));
     let why = if score >= 1.0 - ADD_GAIN {

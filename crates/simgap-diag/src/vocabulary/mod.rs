@@ -15,6 +15,7 @@
 //! joint_spring   r_j ∋  k_j q_j − k_j q0_j              (k ≥ 0, k q0 free)
 //! load_friction  r_j ∋  (fc + mu |τ_j|) tanh(q̇_j / w)   (fc ≥ 0, 0 ≤ mu ≤ 1)
 //! back_emf       r_j ∋  kb_j en_j q̇_j                   (en the drive's enable)
+//! directional    r_j ∋  s⁺ (fc⁺ + b⁺ q̇) − s⁻ (fc⁻ − b⁻ q̇) (s± = (1 ± tanh(q̇/w)) / 2, all ≥ 0)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! ```
@@ -24,6 +25,7 @@ pub(crate) mod back_emf;
 mod cogging;
 mod coriolis;
 mod delay;
+mod directional;
 pub(crate) mod effects;
 mod friction;
 mod inertial;
@@ -80,6 +82,14 @@ pub(crate) enum Term {
     },
     /// Back-EMF on a joint while its drive is enabled.
     BackEmf(usize),
+    /// Friction that differs with the direction of motion on a joint (levels and slopes per
+    /// direction), its switch smoothed as tanh(q̇ / w).
+    Directional {
+        /// Joint index.
+        joint: usize,
+        /// Width of the smoothed switch [rad/s or m/s].
+        w: f64,
+    },
     /// Rotor inertia on a joint.
     Armature(usize),
     /// Torque gain on a joint.
@@ -135,6 +145,7 @@ impl Term {
             Term::Stribeck { .. } => EffectKind::StribeckFriction,
             Term::LoadFriction { .. } => EffectKind::LoadFriction,
             Term::BackEmf(_) => EffectKind::BackEmf,
+            Term::Directional { .. } => EffectKind::DirectionalFriction,
             Term::Armature(_) => EffectKind::Armature,
             Term::Gain(_) => EffectKind::TorqueGain,
             Term::Offset(_) => EffectKind::TorqueOffset,
@@ -157,18 +168,23 @@ impl Term {
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
             Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) | Term::BackEmf(j) => Some(j),
-            Term::Coulomb { joint, .. } | Term::Stribeck { joint, .. } | Term::LoadFriction { joint, .. } | Term::Saturation { joint, .. } | Term::Cogging { joint, .. } => {
-                Some(joint)
-            }
+            Term::Coulomb { joint, .. }
+            | Term::Stribeck { joint, .. }
+            | Term::LoadFriction { joint, .. }
+            | Term::Directional { joint, .. }
+            | Term::Saturation { joint, .. }
+            | Term::Cogging { joint, .. } => Some(joint),
             _ => None,
         }
     }
 
     /// Whether the term and `other` occupy a slot in common ([`Term::slot`], and the torque
-    /// offset's slot a spring also occupies on its joint: both hold a constant).
+    /// offset's slot a spring also occupies on its joint: both hold a constant; the viscous
+    /// slot a directional friction also occupies: it holds a slope per direction).
     pub(crate) fn shares_slot(&self, other: &Term) -> bool {
         let also = |t: &Term| match t {
             Term::Spring(j) => Some((Slot::Effect(EffectKind::TorqueOffset), Some(*j))),
+            Term::Directional { joint, .. } => Some((Slot::Effect(EffectKind::ViscousFriction), Some(*joint))),
             _ => None,
         };
         let (a, b) = (self.slot(), other.slot());
@@ -180,7 +196,7 @@ impl Term {
     /// [`Term::shares_slot`]).
     pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
         let slot = match self {
-            Term::Coulomb { .. } | Term::Stribeck { .. } | Term::LoadFriction { .. } => Slot::DryFriction,
+            Term::Coulomb { .. } | Term::Stribeck { .. } | Term::LoadFriction { .. } | Term::Directional { .. } => Slot::DryFriction,
             Term::Payload { .. } | Term::InertialError { .. } => Slot::Inertia,
             other => Slot::Effect(other.kind()),
         };
@@ -207,9 +223,12 @@ impl Term {
         let joint = self.joint().unwrap_or(usize::MAX);
         let k = self.kind();
         match self {
-            Term::Saturation { limit: x, .. } | Term::Cogging { periods: x, .. } | Term::Delay { delay: x } | Term::Coulomb { w: x, .. } | Term::LoadFriction { w: x, .. } => {
-                TermKey(k, joint, x.to_bits(), [0; 3])
-            }
+            Term::Saturation { limit: x, .. }
+            | Term::Cogging { periods: x, .. }
+            | Term::Delay { delay: x }
+            | Term::Coulomb { w: x, .. }
+            | Term::LoadFriction { w: x, .. }
+            | Term::Directional { w: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
             Term::Stribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
             Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
             Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
@@ -246,6 +265,7 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::design(term, data),
         Term::LoadFriction { joint, w } => load_friction::design(*joint, *w, data),
         Term::BackEmf(j) => back_emf::design(*j, data),
+        Term::Directional { joint, w } => directional::design(*joint, *w, data),
         Term::Armature(j) => rotor::design(*j, data),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::design(term, data),
         Term::Cogging { joint, periods } => cogging::design(*joint, *periods, data),
@@ -267,6 +287,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
     match term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::physical(term, theta),
         Term::LoadFriction { .. } => load_friction::physical(theta),
+        Term::Directional { .. } => directional::physical(theta),
         Term::Armature(_) => rotor::physical(theta),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
         Term::Payload { .. } => payload::physical(theta),
@@ -293,6 +314,7 @@ fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::apply(f, n, out),
         Term::LoadFriction { .. } => load_friction::apply(f, n, out),
         Term::BackEmf(j) => back_emf::apply(*j, &f.theta, n, out),
+        Term::Directional { .. } => directional::apply(f, n, out),
         Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::apply(f, n, out),
         Term::Cogging { joint, periods } => cogging::apply(*joint, *periods, &f.theta, n, out),
@@ -312,6 +334,7 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::report(f, entry),
         Term::LoadFriction { .. } => load_friction::report(f, entry),
         Term::BackEmf(_) => entry.push("kb", th[0], ci(sd[0])),
+        Term::Directional { .. } => directional::report(f, entry),
         Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::report(f, entry),
         Term::Cogging { periods, .. } => cogging::report(*periods, th, sd, entry),
@@ -336,9 +359,9 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         Ok(EffectKind::TimeDelay) => delay::describe(e),
         Ok(EffectKind::CoriolisStructure) => coriolis::describe(),
         Ok(EffectKind::Payload) => payload::describe(model, e),
-        // an inertial error states its changes per link; a directional friction is simulated, not
-        // yet fitted (no term)
-        Ok(EffectKind::InertialError | EffectKind::DirectionalFriction) | Err(_) => String::new(),
+        Ok(EffectKind::DirectionalFriction) => directional::describe(e),
+        // an inertial error states its changes per link
+        Ok(EffectKind::InertialError) | Err(_) => String::new(),
     }
 }
 

@@ -1,0 +1,66 @@
+"""A position-controlled servo's signals in a Run built from numpy arrays: kept, checked, and
+read back, and a servo log written as CSV diagnosed from Python."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import simgap
+from simgap import DimensionError, LogError, Run
+
+PENDULUM = Path(__file__).resolve().parents[2] / "crates" / "simgap-core" / "models" / "pendulum.urdf"
+
+
+def servo_arrays(n: int = 400) -> dict[str, np.ndarray]:
+    t = np.arange(n) * 0.005
+    q = 0.3 * np.sin(t - 0.1)
+    return {
+        "t": t,
+        "q": q[:, None],
+        "qd": (0.3 * np.cos(t - 0.1))[:, None],
+        "q_ref": (0.3 * np.sin(t))[:, None],
+        "duty": np.clip(2.0 * (0.3 * np.sin(t) - q), -1, 1)[:, None],
+        "torque_enable": (t < 1.5).astype(float)[:, None],
+        "voltage": np.full(n, 7.4),
+        "temperature": np.full((n, 1), 30.0),
+    }
+
+
+def test_a_servo_run_keeps_its_duty_enable_voltage_and_temperature() -> None:
+    a = servo_arrays()
+    run = Run(["hinge"], a["t"], a["q"], a["qd"], q_ref=a["q_ref"], duty=a["duty"], torque_enable=a["torque_enable"], voltage=a["voltage"], temperature=a["temperature"])
+    np.testing.assert_array_equal(run.duty, a["duty"])
+    np.testing.assert_array_equal(run.torque_enable, a["torque_enable"])
+    np.testing.assert_array_equal(run.voltage, a["voltage"])
+    np.testing.assert_array_equal(run.temperature, a["temperature"])
+    assert run.tau is None, "a servo logs no torque"
+    plain = Run(["hinge"], a["t"], a["q"], a["qd"])
+    assert plain.duty is None and plain.voltage is None
+
+
+def test_bad_servo_signals_are_refused_naming_them() -> None:
+    a = servo_arrays()
+    duty = a["duty"].copy()
+    duty[7, 0] = 1.5
+    with pytest.raises(LogError, match=r"duty of joint 'hinge' is 1.5 .*sample 7.*\[-1, 1\]"):
+        Run(["hinge"], a["t"], a["q"], a["qd"], q_ref=a["q_ref"], duty=duty)
+    enable = a["torque_enable"].copy()
+    enable[3, 0] = 0.5
+    with pytest.raises(LogError, match="torque_enable of joint 'hinge' is 0.5"):
+        Run(["hinge"], a["t"], a["q"], a["qd"], torque_enable=enable)
+    with pytest.raises(DimensionError, match="voltage: expected shape"):
+        Run(["hinge"], a["t"], a["q"], a["qd"], voltage=a["voltage"][:10])
+
+
+def test_a_servo_log_without_its_duty_gain_is_refused_by_the_diagnosis(tmp_path: Path) -> None:
+    a = servo_arrays()
+    csv = tmp_path / "servo.csv"
+    rows = np.column_stack([a["t"], a["q"][:, 0], a["qd"][:, 0], a["q_ref"][:, 0], a["duty"][:, 0], a["torque_enable"][:, 0]])
+    np.savetxt(csv, rows, delimiter=",", header="time,q_hinge,qd_hinge,q_ref_hinge,duty_hinge,torque_enable_hinge", comments="")
+    (tmp_path / "servo.experiment.json").write_text(json.dumps({"controller": "servo", "joints": "hinge", "supply_voltage": "12"}))
+    with pytest.raises(simgap.SimgapError, match="duty_gain"):
+        simgap.diagnose(simgap.Model.from_urdf(PENDULUM), [str(csv)], progress=False)
