@@ -346,7 +346,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // servo runs: the gap by phase, and what their temperatures confound
     let h_last = horizons.len() - 1;
     notes.extend(crate::report::servo::phase_note(&prep.hold_pred, &before_runs_k, &after_runs_k, &floor_runs, h_last, horizons[h_last], &units.position));
-    notes.extend(crate::report::servo::temperature_note(&prep.fit_runs.iter().chain(&prep.hold_runs).cloned().collect::<Vec<_>>()));
+    notes.extend(crate::report::servo::temperature_note(prep.fit_runs.iter().chain(&prep.hold_runs)));
     if moving {
         // a pitfall is named with what prediction says of the matching correction; a rotor
         // inertia that does not improve prediction is not named at all

@@ -128,6 +128,12 @@ impl DriveSignals {
         self.duty.is_empty() && self.torque_enable.is_empty() && self.voltage.is_empty() && self.temperature.is_empty()
     }
 
+    /// The signals with each per-joint matrix passed through `per_joint` and the voltage through
+    /// `per_sample` (for a slice of the run, or its joints reordered).
+    pub fn map(&self, per_joint: impl Fn(&[f64]) -> Vec<f64>, per_sample: impl Fn(&[f64]) -> Vec<f64>) -> DriveSignals {
+        DriveSignals { duty: per_joint(&self.duty), torque_enable: per_joint(&self.torque_enable), voltage: per_sample(&self.voltage), temperature: per_joint(&self.temperature) }
+    }
+
     /// Whether the drive of joint `j` is enabled at sample `k` (`dof` joints; enabled when the
     /// log has no torque-enable signal).
     pub fn enabled(&self, k: usize, j: usize, dof: usize) -> bool {
@@ -210,12 +216,7 @@ impl Run {
             qd_ref: rows(&self.qd_ref),
             tau_ff: rows(&self.tau_ff),
             tau_measured: rows(&self.tau_measured),
-            drive: DriveSignals {
-                duty: rows(&self.drive.duty),
-                torque_enable: rows(&self.drive.torque_enable),
-                voltage: if self.drive.voltage.len() >= b { self.drive.voltage[a..b].to_vec() } else { Vec::new() },
-                temperature: rows(&self.drive.temperature),
-            },
+            drive: self.drive.map(rows, |v| if v.len() >= b { v[a..b].to_vec() } else { Vec::new() }),
             start_ns: self.start_ns,
             experiment: self.experiment.clone(),
             source: self.source.clone(),
@@ -375,12 +376,7 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
         qd_ref: pick(&run.qd_ref),
         tau_ff: pick(&run.tau_ff),
         tau_measured: pick(&run.tau_measured),
-        drive: DriveSignals {
-            duty: pick(&run.drive.duty),
-            torque_enable: pick(&run.drive.torque_enable),
-            voltage: run.drive.voltage.clone(),
-            temperature: pick(&run.drive.temperature),
-        },
+        drive: run.drive.map(pick, <[f64]>::to_vec),
         start_ns: run.start_ns,
         experiment: run.experiment.clone(),
         source: run.source.clone(),

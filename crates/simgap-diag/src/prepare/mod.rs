@@ -195,14 +195,14 @@ fn servo_commands(model: &Model, fit_runs: &mut [Run], hold_runs: &mut [Run], op
             c
         }
     };
+    let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     for ((r, v), p) in fit_runs.iter_mut().chain(hold_runs.iter_mut()).zip(&volts).zip(params) {
         let Some(mut p) = p else { continue };
         r.tau = (0..v.len()).map(|i| constants.kt[i % n] / constants.r[i % n] * v[i]).collect();
         p.kt = Some(constants.kt.clone());
         p.r = Some(constants.r.clone());
-        let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
         if let Some(e) = r.experiment.as_mut() {
-            e.joints = names;
+            e.joints = names.clone();
             p.write_to(e);
         }
     }

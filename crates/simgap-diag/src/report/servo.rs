@@ -60,9 +60,9 @@ pub(crate) fn phase_note(runs: &[PredictionRun], before: &[Errors], after: &[Err
 /// A note when the logs' temperatures rise with another of their differences (the gain, the
 /// order of the runs): the diagnosis fits one servo, and a drive that weakens as it warms looks
 /// like a gain or friction that changes between logs.
-pub(crate) fn temperature_note(runs: &[Run]) -> Option<String> {
+pub(crate) fn temperature_note<'a>(runs: impl Iterator<Item = &'a Run>) -> Option<String> {
     let means: Vec<(String, f64)> =
-        runs.iter().filter(|r| !r.drive.temperature.is_empty()).map(|r| (r.source.clone(), r.drive.temperature.iter().sum::<f64>() / r.drive.temperature.len() as f64)).collect();
+        runs.filter(|r| !r.drive.temperature.is_empty()).map(|r| (r.source.clone(), r.drive.temperature.iter().sum::<f64>() / r.drive.temperature.len() as f64)).collect();
     if means.len() < 2 {
         return None;
     }
