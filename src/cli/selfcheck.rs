@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use rayon::prelude::*;
-use simgap::diag::selfcheck::{run_scenario, summarise, ScenarioScore, Summary};
+use simgap::diag::selfcheck::{run_mixed_scenario, summarise, ScenarioScore, Summary};
 
 /// Arguments of `simgap selfcheck`.
 #[derive(clap::Args)]
@@ -55,6 +55,8 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     for (name, (inside, count)) in &sum.coverage_variants {
         let _ = writeln!(s, "  with the {} interval alone: {inside} of {count} ({})", name.replace('_', " "), pct(*inside, *count).trim());
     }
+    let (odd, selected) = sum.implausible;
+    let _ = writeln!(s, "selected effects outside their physical range or whose interval holds no effect: {odd} of {selected}");
     let _ = writeln!(s, "\nconfusion (rows: hidden effect, columns: selected effect; a scenario counts once per pair)");
     let mut cols: Vec<String> = sum.confusion.values().flat_map(|m| m.keys().cloned()).collect();
     cols.sort();
@@ -95,7 +97,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
             if super::interrupt::requested() {
                 return None;
             }
-            let s = run_scenario(args.seed, i);
+            let s = run_mixed_scenario(args.seed, i);
             bar.inc(1);
             Some(s)
         })
@@ -118,6 +120,9 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
             if s.rule.is_empty() { String::new() } else { format!("; {}", s.rule) },
             s.error.as_deref().map(|e| format!(" — {e}")).unwrap_or_default()
         );
+    }
+    for s in scores.iter().filter(|s| !s.implausible.is_empty()) {
+        eprintln!("  scenario {:>3} ({}): implausible {:?}", s.index, s.family, s.implausible);
     }
     let sum = summarise(&scores);
     print!("{}", table(&sum, scores.len(), args.seed));

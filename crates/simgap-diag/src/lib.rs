@@ -42,7 +42,7 @@ mod select;
 mod vocabulary;
 
 #[cfg(feature = "check")]
-pub use check::{bench, selfcheck};
+pub use check::{bench, drives, selfcheck};
 pub use error::{Error, Result};
 pub use locate::{JointGap, Segment, Where};
 pub use options::{DiagnoseOptions, Progress};

@@ -175,6 +175,38 @@ pub fn generate_servo(
     Ok(run)
 }
 
+/// Second-order Butterworth low-pass at `hz`, run forward and backward (zero phase) over every
+/// column of a row-major `len × dof` signal sampled every `period` seconds.
+pub fn zero_phase_lowpass(x: &mut [f64], dof: usize, hz: f64, period: f64) {
+    let k = (std::f64::consts::PI * hz * period).tan();
+    let q = std::f64::consts::FRAC_1_SQRT_2;
+    let norm = 1.0 / (1.0 + k / q + k * k);
+    let (b0, b1, b2) = (k * k * norm, 2.0 * k * k * norm, k * k * norm);
+    let (a1, a2) = (2.0 * (k * k - 1.0) * norm, (1.0 - k / q + k * k) * norm);
+    let n = x.len() / dof;
+    for j in 0..dof {
+        let mut col: Vec<f64> = (0..n).map(|i| x[i * dof + j]).collect();
+        for pass in 0..2 {
+            if pass == 1 {
+                col.reverse();
+            }
+            // started at rest on the first value, so the edges do not ring
+            let (mut x1, mut x2, mut y1, mut y2) = (col[0], col[0], col[0], col[0]);
+            for v in col.iter_mut() {
+                let y = b0 * *v + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+                (x2, x1, y2, y1) = (x1, *v, y1, y);
+                *v = y;
+            }
+            if pass == 1 {
+                col.reverse();
+            }
+        }
+        for i in 0..n {
+            x[i * dof + j] = col[i];
+        }
+    }
+}
+
 /// PD gains giving each joint a natural frequency `hz` and damping 0.7 on the diagonal of H(0).
 pub fn gains_for(model: &Model, hz: f64) -> (Vec<f64>, Vec<f64>) {
     let mut ws = Workspace::new(model);

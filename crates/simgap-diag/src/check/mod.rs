@@ -2,4 +2,5 @@
 //! scenarios drawn from them ([`selfcheck`]).
 
 pub mod bench;
+pub mod drives;
 pub mod selfcheck;

@@ -48,6 +48,9 @@ pub struct Scenario {
     pub glitch: Option<(usize, usize, usize)>,
     /// A `servo` scenario's servos (their motor constants are the truth the diagnosis fits).
     pub servo: Option<crate::check::bench::ServoSpec>,
+    /// The diagnosis is asked to try friction that differs by direction (as
+    /// `--directional-friction`).
+    pub directional_friction: bool,
 }
 
 /// Relabels runs as open-loop replays of their commanded torque.
@@ -61,7 +64,7 @@ fn as_replay(runs: &mut [Run]) {
     }
 }
 
-fn rms(run: &Run, m: &[f64], j: usize) -> f64 {
+pub(crate) fn rms(run: &Run, m: &[f64], j: usize) -> f64 {
     let n = run.dof();
     let v: Vec<f64> = m.iter().skip(j).step_by(n).copied().collect();
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
@@ -143,7 +146,7 @@ pub const FAMILIES: [&str; 11] = [
 /// Of every [`CYCLE`] consecutive scenarios, the first [`RANDOM_SLOTS`] are random
 /// (`closed_loop` or `open_loop`); the others are the named families from
 /// `double_pendulum_replay` on, one each.
-const CYCLE: usize = 13;
+pub const CYCLE: usize = 13;
 const RANDOM_SLOTS: usize = 4;
 
 /// The family of scenario `index`.
@@ -189,7 +192,7 @@ pub fn inertia_about_axis_as_com(model: &Model) -> Model {
 
 /// Draws `count` effects of different kinds for `model` (sized against `nominal`), keeping out
 /// pairs the data cannot tell apart (see the comments).
-fn draw_effects(model: &Model, nominal: &Run, count: usize, rng: &mut ChaCha8Rng) -> Vec<Effect> {
+pub(crate) fn draw_effects(model: &Model, nominal: &Run, count: usize, rng: &mut ChaCha8Rng) -> Vec<Effect> {
     let n = model.dof();
     let mut effects: Vec<Effect> = Vec::new();
     while effects.len() < count {
@@ -371,7 +374,7 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
                 "random" => "closed_loop",
                 f => f,
             };
-            return Ok(Scenario { index, model, diagnosis_model, effects, truth, fit, holdout, family, glitch, servo: None });
+            return Ok(Scenario { index, model, diagnosis_model, effects, truth, fit, holdout, family, glitch, servo: None, directional_friction: false });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every draw diverged")))
@@ -436,7 +439,19 @@ pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
         let hold = gen(3, f64::INFINITY, rng, format!("s{index}-holdout"));
         if let (Ok(fit), Ok(hold)) = (fit, hold) {
             let truth = truth_set(&model, &effects);
-            return Ok(Scenario { index, diagnosis_model: model.clone(), model, effects, truth, fit, holdout: vec![hold], family: "servo", glitch: None, servo: Some(servo) });
+            return Ok(Scenario {
+                index,
+                diagnosis_model: model.clone(),
+                model,
+                effects,
+                truth,
+                fit,
+                holdout: vec![hold],
+                family: "servo",
+                glitch: None,
+                servo: Some(servo),
+                directional_friction: false,
+            });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every servo draw diverged")))
@@ -514,6 +529,16 @@ fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectReport]) -> Vec
             Effect::TorqueOffset { offset } => out.extend(per_joint("offset", offset)),
             Effect::TorqueSaturation { limit } => out.extend(per_joint("limit", limit)),
             Effect::Cogging { amplitude, .. } => out.extend(per_joint("amplitude", amplitude)),
+            Effect::JointSpring { k, .. } => out.extend(per_joint("k", k)),
+            Effect::LoadFriction { fc, mu, .. } => {
+                out.extend(per_joint("fc", fc));
+                out.extend(per_joint("mu", mu));
+            }
+            Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, .. } => {
+                for (key, v) in [("fc_pos", fc_pos), ("fc_neg", fc_neg), ("b_pos", b_pos), ("b_neg", b_neg)] {
+                    out.extend(per_joint(key, v));
+                }
+            }
             Effect::TimeDelay { delay } => {
                 if let Some(Param::Number(f)) = rep.parameters.get("delay") {
                     out.push(("time_delay.delay".into(), *delay, *f, f64::NAN));
@@ -543,6 +568,72 @@ fn inside(c: &Comparison) -> bool {
 fn coverage_of(c: &[Comparison]) -> (usize, usize) {
     let with: Vec<&Comparison> = c.iter().filter(|x| x.3.is_finite()).collect();
     (with.iter().filter(|x| inside(x)).count(), with.len())
+}
+
+/// The selected effects of `reports` outside their physical range on `model` and the fit runs
+/// `fit`, or whose reported 95 % intervals hold their neutral value in every parameter (no
+/// finding): the self-check's own statement of the ranges, apart from the pipeline's.
+///
+/// Ranges: a rotor inertia positive and at most a hundred times the largest `H_jj` its joint
+/// moves over the fit runs; a torque offset at most the largest torque logged on its joint; a
+/// torque gain within 0.2–5; frictions, springs and load-friction coefficients non-negative,
+/// mu at most 1; a payload's mass positive.
+pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<String> {
+    let names = model.joint_names();
+    let n = model.dof();
+    let mut ws = Workspace::new(model);
+    // the largest H_jj and |τ_j| over the fit runs (every 20th sample)
+    let (mut h_max, mut tau_max) = (vec![0.0f64; n], vec![0.0f64; n]);
+    for r in fit.iter().filter(|r| r.dof() == n) {
+        for k in (0..r.len()).step_by(20) {
+            let h = mass_matrix(model, &mut ws, &r.q[k * n..(k + 1) * n]);
+            for j in 0..n {
+                h_max[j] = h_max[j].max(h[(j, j)]);
+            }
+        }
+        for (i, t) in r.tau.iter().enumerate() {
+            tau_max[i % n] = tau_max[i % n].max(t.abs());
+        }
+    }
+    let mut out = Vec::new();
+    for e in reports {
+        let per_joint = |key: &str| match e.parameters.get(key) {
+            Some(Param::PerJoint(v)) => v.clone(),
+            _ => vec![],
+        };
+        let half = |key: &str| match e.uncertainty.get(key) {
+            Some(Param::PerJoint(v)) => v.clone(),
+            _ => vec![],
+        };
+        for (pos, joint) in e.joints.iter().enumerate() {
+            let Some(j) = names.iter().position(|x| x == joint) else { continue };
+            let value = |key: &str| per_joint(key).get(pos).copied().unwrap_or(f64::NAN);
+            let hw = |key: &str| half(key).get(pos).copied().unwrap_or(f64::NAN);
+            let nonneg = |keys: &[&str]| keys.iter().all(|k| !(value(k) < -1e-9));
+            let (in_range, neutral): (bool, Vec<(&str, f64)>) = match e.effect.as_str() {
+                "armature" => (value("ia") > 0.0 && value("ia") <= 100.0 * h_max[j], vec![("ia", 0.0)]),
+                "torque_offset" => (tau_max[j] == 0.0 || value("offset").abs() <= tau_max[j], vec![("offset", 0.0)]),
+                "torque_gain" => ((0.2..=5.0).contains(&value("k")), vec![("k", 1.0)]),
+                "viscous_friction" => (nonneg(&["b"]), vec![("b", 0.0)]),
+                "coulomb_friction" => (nonneg(&["fc"]), vec![("fc", 0.0)]),
+                "stribeck_friction" => (nonneg(&["fc", "fs"]), vec![("fc", 0.0), ("fs", 0.0)]),
+                "joint_spring" => (nonneg(&["k"]), vec![("k", 0.0)]),
+                "load_friction" => (nonneg(&["fc", "mu"]) && !(value("mu") > 1.0), vec![("fc", 0.0), ("mu", 0.0)]),
+                "directional_friction" => (nonneg(&["fc_pos", "fc_neg", "b_pos", "b_neg"]), vec![("fc_pos", 0.0), ("fc_neg", 0.0), ("b_pos", 0.0), ("b_neg", 0.0)]),
+                _ => (true, vec![]),
+            };
+            // no finding: every neutral-valued parameter's interval (where given) holds it
+            let given: Vec<&(&str, f64)> = neutral.iter().filter(|(k, _)| hw(k).is_finite()).collect();
+            let no_finding = !given.is_empty() && given.iter().all(|(k, v)| (value(k) - v).abs() <= hw(k));
+            if !in_range || no_finding {
+                out.push(format!("{}@{joint}{}", e.effect, if in_range { " (its interval holds no effect)" } else { " (outside its physical range)" }));
+            }
+        }
+        if e.effect == "payload" && !matches!(e.parameters.get("mass"), Some(Param::Number(m)) if *m > 0.0) {
+            out.push("payload (mass not positive)".into());
+        }
+    }
+    out
 }
 
 /// The score of one scenario.
@@ -579,6 +670,9 @@ pub struct ScenarioScore {
     pub interval_variants: BTreeMap<String, (usize, usize)>,
     /// Held-out L² after / before.
     pub holdout_ratio: f64,
+    /// Selected effects outside their physical range or consistent with no effect
+    /// ([`implausible`]).
+    pub implausible: Vec<String>,
     /// An error, if the diagnosis failed.
     pub error: Option<String>,
 }
@@ -601,6 +695,7 @@ impl ScenarioScore {
             intervals: vec![],
             interval_variants: BTreeMap::new(),
             holdout_ratio: f64::NAN,
+            implausible: vec![],
             error: Some(error),
         }
     }
@@ -646,6 +741,37 @@ pub fn run_servo_scenario(seed: u64, index: usize) -> ScenarioScore {
     score(index, "servo", servo_scenario(seed, index))
 }
 
+/// Runs real-drive scenario `index` of seed `seed` ([`drive_scenario`](crate::check::drives::drive_scenario))
+/// and scores it. Right when the selected set is exactly the hidden one or among the
+/// alternatives, except:
+///
+/// - `servo`: as [`run_servo_scenario`];
+/// - `coulomb_trap`: exactly the hidden set (a Stribeck friction, richer, is wrong even as the
+///   selected set with Coulomb friction among its alternatives);
+/// - `directional_friction`: exactly the hidden set, every unit that of a linear axis;
+/// - `link_side`: the sensor offsets and the spring found, no rotor inertia selected (the
+///   viscous frictions may be missed, and extra effects are listed in the rule).
+pub fn run_drive_scenario(seed: u64, index: usize) -> ScenarioScore {
+    score(index, crate::check::drives::drive_family_of(index), crate::check::drives::drive_scenario(seed, index))
+}
+
+/// Of every [`MIXED_CYCLE`] scenarios `simgap selfcheck` runs, the first [`CYCLE`] are one cycle
+/// of [`scenario`] and the rest one of each real-drive family
+/// ([`DRIVE_FAMILIES`](crate::check::drives::DRIVE_FAMILIES)).
+pub const MIXED_CYCLE: usize = CYCLE + crate::check::drives::DRIVE_FAMILIES.len();
+
+/// Runs scenario `index` of the mixed self-check (see [`MIXED_CYCLE`]): scenario
+/// `(index / MIXED_CYCLE) · CYCLE + slot` of [`run_scenario`] for the first [`CYCLE`] slots, else
+/// real-drive scenario `(index / MIXED_CYCLE) · 7 + slot − CYCLE` of [`run_drive_scenario`].
+pub fn run_mixed_scenario(seed: u64, index: usize) -> ScenarioScore {
+    let (block, slot) = (index / MIXED_CYCLE, index % MIXED_CYCLE);
+    if slot < CYCLE {
+        run_scenario(seed, block * CYCLE + slot)
+    } else {
+        run_drive_scenario(seed, block * crate::check::drives::DRIVE_FAMILIES.len() + slot - CYCLE)
+    }
+}
+
 /// Diagnoses a generated scenario and scores it by its family's rule.
 fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioScore {
     let sc = match sc {
@@ -658,7 +784,7 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
         let n = fit[r].dof();
         fit[r].q[k * n + j] = GLITCH_VALUE;
     }
-    let options = DiagnoseOptions::default();
+    let options = DiagnoseOptions { directional_friction: sc.directional_friction, ..DiagnoseOptions::default() };
     let d = match diagnose(&sc.diagnosis_model, Formulation::EulerLagrange, &fit, &sc.holdout, &options, &mut |_| {}) {
         Ok(d) => d,
         Err(e) => return ScenarioScore::failed(index, sc.model.name().into(), sc.family.into(), label(&truth), e.to_string()),
@@ -712,6 +838,26 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
                 ),
             )
         }
+        "coulomb_trap" => {
+            let richer = found.iter().any(|(e, _)| e == "stribeck_friction");
+            (exact, format!("exactly the hidden set, not even among alternatives (a Stribeck friction selected: {richer})"))
+        }
+        "directional_friction" => {
+            // the axis is linear: its forces in N, its speeds in m/s
+            let units_ok = d.report.selected_effects.iter().all(|e| e.units.values().all(|u| !u.contains("N·m") && !u.contains("rad")));
+            (exact && units_ok, format!("exactly the hidden set (directional or the symmetric pair); units of a linear axis: {units_ok}"))
+        }
+        "link_side" => {
+            // the offsets and the spring must be found, and no rotor inertia: a link-side torque
+            // holds none; the viscous frictions are part of the truth but not required
+            let needed: BTreeSet<(String, Option<String>)> = truth.iter().filter(|(e, _)| e != "viscous_friction").cloned().collect();
+            let armature = found.iter().any(|(e, _)| e == "armature");
+            let extra: Vec<String> = label(&found.difference(&truth).cloned().collect());
+            (
+                needed.is_subset(&found) && !armature,
+                format!("sensor offsets and spring found: {}; rotor inertia selected: {armature}; beyond the truth: {extra:?}", needed.is_subset(&found)),
+            )
+        }
         "glitch" => {
             let clean = diagnose(&sc.diagnosis_model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &options, &mut |_| {}).map(|c| found_set(&c));
             let (r, _, _) = sc.glitch.unwrap_or_default();
@@ -742,6 +888,7 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
         holdout_ratio: d.report.gap.ratio,
         truth: label(&truth),
         found: label(&found),
+        implausible: implausible(&sc.model, &sc.fit, &d.report.selected_effects),
         error: None,
     }
 }
@@ -767,6 +914,9 @@ pub struct Summary {
     pub median_parameter_error: f64,
     /// Median held-out L² after/before where the true effects were found.
     pub median_holdout_ratio: f64,
+    /// Selected effects ([`implausible`]): (outside their physical range or consistent with no
+    /// effect, selected in all).
+    pub implausible: (usize, usize),
     /// Scenarios that failed to run.
     pub failures: usize,
 }
@@ -795,6 +945,7 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
     let mut perr = Vec::new();
     let mut ratios = Vec::new();
     let mut failures = 0;
+    let mut implausible = (0, 0);
     let base = |s: &str| s.split('@').next().unwrap_or(s).to_string();
     for s in scores {
         let f = by_family.entry(s.family.clone()).or_insert((0, 0, Vec::new()));
@@ -842,10 +993,23 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
             }
         }
         perr.extend(s.parameter_errors.iter().map(|p| p.1));
+        implausible.0 += s.implausible.len();
+        implausible.1 += s.found.len();
         if s.exact && !true_effects.is_empty() {
             ratios.push(s.holdout_ratio);
         }
     }
     let by_family = by_family.into_iter().map(|(k, (n, right, r))| (k, (n, right, median(r)))).collect();
-    Summary { by_count, by_family, delays_found, coverage, coverage_variants, confusion, median_parameter_error: median(perr), median_holdout_ratio: median(ratios), failures }
+    Summary {
+        by_count,
+        by_family,
+        delays_found,
+        coverage,
+        coverage_variants,
+        confusion,
+        median_parameter_error: median(perr),
+        median_holdout_ratio: median(ratios),
+        implausible,
+        failures,
+    }
 }

@@ -7,47 +7,15 @@ use simgap_core::{Formulation, Model, UrdfOptions};
 use simgap_sim::{ControllerKind, Effect, Run};
 
 use super::common::replay;
-use crate::check::bench::{gains_for, generate, random_fourier, RefSpec, RunSpec};
+use crate::check::bench::{gains_for, generate, random_fourier, zero_phase_lowpass, RefSpec, RunSpec};
 use crate::{diagnose, DiagnoseOptions};
-
-/// Second-order Butterworth low-pass at `hz`, run forward and backward (zero phase) over every
-/// column of a row-major `len × dof` signal sampled every `period` seconds.
-fn filtfilt(x: &mut [f64], dof: usize, hz: f64, period: f64) {
-    let k = (std::f64::consts::PI * hz * period).tan();
-    let q = std::f64::consts::FRAC_1_SQRT_2;
-    let norm = 1.0 / (1.0 + k / q + k * k);
-    let (b0, b1, b2) = (k * k * norm, 2.0 * k * k * norm, k * k * norm);
-    let (a1, a2) = (2.0 * (k * k - 1.0) * norm, (1.0 - k / q + k * k) * norm);
-    let n = x.len() / dof;
-    for j in 0..dof {
-        let mut col: Vec<f64> = (0..n).map(|i| x[i * dof + j]).collect();
-        for pass in 0..2 {
-            if pass == 1 {
-                col.reverse();
-            }
-            // started at rest on the first value, so the edges do not ring
-            let (mut x1, mut x2, mut y1, mut y2) = (col[0], col[0], col[0], col[0]);
-            for v in col.iter_mut() {
-                let y = b0 * *v + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
-                (x2, x1, y2, y1) = (x1, *v, y1, y);
-                *v = y;
-            }
-            if pass == 1 {
-                col.reverse();
-            }
-        }
-        for i in 0..n {
-            x[i * dof + j] = col[i];
-        }
-    }
-}
 
 /// The recorder's export: positions, velocities and the logged torque filtered at `hz`.
 fn recorded(mut run: Run, hz: f64, period: f64) -> Run {
     let dof = run.dof();
-    filtfilt(&mut run.q, dof, hz, period);
-    filtfilt(&mut run.qd, dof, hz, period);
-    filtfilt(&mut run.tau, dof, hz, period);
+    zero_phase_lowpass(&mut run.q, dof, hz, period);
+    zero_phase_lowpass(&mut run.qd, dof, hz, period);
+    zero_phase_lowpass(&mut run.tau, dof, hz, period);
     replay(&mut run, period);
     run
 }
