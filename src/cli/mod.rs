@@ -114,16 +114,6 @@ pub(crate) mod interrupt {
 /// A progress bar on stderr (hidden when stderr is not a terminal) that redraws every 100 ms,
 /// so its spinner and elapsed time move even while one long step runs. `template` is an
 /// indicatif template.
-/// The unit of positions pooled over the model's joints: rad, m, or "rad or m" for a mix.
-pub(crate) fn position_unit(model: &Model) -> String {
-    let linear = model.joints().iter().filter(|j| !j.kind.is_rotational()).count();
-    match linear {
-        0 => "rad".into(),
-        n if n == model.dof() => "m".into(),
-        _ => "rad or m".into(),
-    }
-}
-
 pub(crate) fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(len);
     bar.set_style(indicatif::ProgressStyle::with_template(template).unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()).progress_chars("=> "));

@@ -72,7 +72,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         if effects.is_empty() { String::new() } else { format!(" with {}", effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")) },
         k.runs.iter().map(|r| r.windows).sum::<usize>()
     );
-    let u = super::position_unit(&model);
+    let u = simgap::diag::Units::of(&model.joints().iter().map(|j| j.kind).collect::<Vec<_>>()).position;
     println!("  {:>10} {:>14} {:>14} {:>14}", "horizon", format!("model [{u}]"), format!("+effects [{u}]"), format!("floor [{u}]"));
     for (i, h) in k.horizons_s.iter().enumerate() {
         println!("  {:>9.3}s {:>14.4e} {:>14.4e} {:>14.4e}", h, k.before[i], k.after[i], k.floor[i]);

@@ -52,6 +52,7 @@ pub use prepare::{DryWidth, FitData, PrepareOptions};
 #[cfg(feature = "html")]
 pub use report::html;
 pub use report::residual::ResidualTest;
+pub use report::units::Units;
 pub use report::{Alternative, Candidate, Decision, Diagnosis, EffectiveConstants, Gap, KStep, Report, RunKStep, ServoReport, WindowStart};
 pub use select::SelectOptions;
 pub use vocabulary::{EffectReport, Param};

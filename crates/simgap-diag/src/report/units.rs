@@ -6,7 +6,7 @@ use simgap_sim::Quantity;
 
 /// The units of positions, velocities and efforts over a set of joints.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Units {
+pub struct Units {
     /// rad, m, or "rad or m" for a mix.
     pub position: String,
     /// rad/s, m/s, or both.
@@ -17,7 +17,7 @@ pub(crate) struct Units {
 
 impl Units {
     /// The units of figures pooled over joints of types `kinds`.
-    pub(crate) fn of(kinds: &[JointKind]) -> Units {
+    pub fn of(kinds: &[JointKind]) -> Units {
         let pooled = |q: Quantity| {
             let rotational = kinds.is_empty() || kinds.iter().any(|k| k.is_rotational());
             let linear = kinds.iter().any(|k| !k.is_rotational());
