@@ -289,7 +289,12 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     println!("{count} samples over {duration:.4} s in {:.1} ms", elapsed.as_secs_f64() * 1e3);
     if let Ok(l2) = l2.report() {
         let per: Vec<String> = l2.joints.iter().zip(&l2.per_joint).map(|(j, v)| format!("{j} {v:.6}")).collect();
-        println!("L2 tracking error [{}]: overall {:.6} ({})", simgap::diag::Units::of(&model.joints().iter().map(|j| j.kind).collect::<Vec<_>>()).position, l2.overall, per.join(", "));
+        println!(
+            "L2 tracking error [{}]: overall {:.6} ({})",
+            simgap::diag::Units::of(&model.joints().iter().map(|j| j.kind).collect::<Vec<_>>()).position,
+            l2.overall,
+            per.join(", ")
+        );
     }
     // the log: the sink finished it (an MCAP log says how the run ended; a CSV log has its name)
     drop(log);

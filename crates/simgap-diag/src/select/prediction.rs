@@ -109,6 +109,26 @@ pub(crate) fn prune_and_complete(
             });
             terms = set;
             score = s;
+            // its asymmetry of dry friction is a constant torque on the joint (−s⁺ fc_pos +
+            // s⁻ fc_neg = −(fc_pos + fc_neg)/2 sgn − (fc_pos − fc_neg)/2): an offset beside it
+            // says the same, and the simpler set without it is kept when it predicts as well
+            if terms.contains(&Term::Offset(j)) {
+                let without: Vec<Term> = terms.iter().filter(|t| **t != Term::Offset(j)).cloned().collect();
+                let without = select::repolish(scorer.ctx, &without);
+                let s = scorer.score(&without);
+                if s.is_finite() && s <= score * (1.0 + TIE_TOLERANCE) {
+                    log.push(select::Step {
+                        term: Term::Offset(j),
+                        cv_mse: f64::NAN,
+                        accepted: false,
+                        reason: format!(
+                            "dropped beside the directional friction on its joint, whose asymmetry is a constant torque: the fit runs' cross-validated k-step error is {s:.4} of the nominal model's without it ({score:.4} with it)"
+                        ),
+                    });
+                    terms = without;
+                    score = s;
+                }
+            }
         }
     }
     // the improvement must be large enough and hold across the folds of the fit runs
