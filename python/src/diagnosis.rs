@@ -342,10 +342,14 @@ impl PyReport {
     fn export_mjcf(&self, py: Python<'_>, path: PathBuf) -> PyResult<String> {
         let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
         py.detach(move || {
-            use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions};
+            use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions, ServoActuators};
             let timestep = sample_period_of(&diagnosis.holdout)
                 .ok_or_else(|| Kind::Simgap.err("export_mjcf: the held-out logs have no sample period (no experiment sample_period, fewer than two stamps)"))?;
-            let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), ..MjcfOptions::new(timestep) };
+            let servo = match &diagnosis.report.servo {
+                Some(sr) => ServoActuators::of(&model, sr, &diagnosis.holdout).map_err(from_export)?,
+                None => None,
+            };
+            let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), servo, ..MjcfOptions::new(timestep) };
             let file = export_mjcf(&model, &diagnosis.report.selected_effects, &options).map_err(from_export)?;
             write_export(&path, &file)
         })
