@@ -246,7 +246,23 @@ fn a_dry_friction_without_w_on_a_prismatic_axis_simulates_the_prismatic_typical_
     let run = |effect: &str, name: &str| -> Vec<f64> {
         let out = dir.join(name);
         let o = simgap(&[
-            "simulate", "--urdf", s(&urdf), "--kp", "200", "--kv", "5", "--target", "0.05", "--duration", "0.3", "--counts-per-rev", "0", "--effect", effect, "--out", s(&out),
+            "simulate",
+            "--urdf",
+            s(&urdf),
+            "--kp",
+            "200",
+            "--kv",
+            "5",
+            "--target",
+            "0.05",
+            "--duration",
+            "0.3",
+            "--counts-per-rev",
+            "0",
+            "--effect",
+            effect,
+            "--out",
+            s(&out),
         ]);
         assert!(o.status.success(), "{effect}: {}", text(&o));
         simgap::log::read_log(&out, &Default::default()).unwrap().q

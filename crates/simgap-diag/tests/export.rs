@@ -333,11 +333,7 @@ fn servo_joints_are_mujoco_position_actuators_with_the_motor_law_in_kp_kv_and_fo
     use simgap_sim::{ControllerKind, Experiment, Run};
     let model = Model::from_urdf_str(PAPER_ARM_URDF).unwrap();
     // a servo log whose experiment lists the joints in another order than the model
-    let extra = BTreeMap::from([
-        ("duty_gain".to_string(), "3,2".to_string()),
-        ("max_duty".to_string(), "0.5,1".to_string()),
-        ("supply_voltage".to_string(), "12".to_string()),
-    ]);
+    let extra = BTreeMap::from([("duty_gain".to_string(), "3,2".to_string()), ("max_duty".to_string(), "0.5,1".to_string()), ("supply_voltage".to_string(), "12".to_string())]);
     let mut run = Run::new(vec!["elbow".into(), "shoulder".into()]);
     run.source = "servo.csv".into();
     run.experiment = Some(Experiment { controller: ControllerKind::Servo, joints: vec!["elbow".into(), "shoulder".into()], kp: vec![], kv: vec![], sample_period: 0.002, extra });
@@ -355,16 +351,11 @@ fn servo_joints_are_mujoco_position_actuators_with_the_motor_law_in_kp_kv_and_fo
     // elbow: kt/R = 0.0625, kp = 0.0625·12·3, kv = 0.25²/4, force = 0.0625·12·0.5
     assert_eq!((servo.kp(0), servo.kv(0), servo.force_limit(0)), (6.0, 0.125, 3.0));
     assert_eq!((servo.kp(1), servo.kv(1), servo.force_limit(1)), (2.25, 0.015625, 0.375));
-    let effects = [
-        effect("back_emf", &["shoulder", "elbow"], &[("kb", Param::PerJoint(vec![0.01, 0.02]))]),
-        effect("viscous_friction", &["elbow"], &[("b", Param::PerJoint(vec![0.3]))]),
-    ];
+    let effects =
+        [effect("back_emf", &["shoulder", "elbow"], &[("kb", Param::PerJoint(vec![0.01, 0.02]))]), effect("viscous_friction", &["elbow"], &[("b", Param::PerJoint(vec![0.3]))])];
     let out = export_mjcf(&model, &effects, &MjcfOptions { servo: Some(servo), ..MjcfOptions::new(0.002) }).unwrap();
     let t = &out.text;
-    assert!(
-        t.contains("<position name=\"shoulder_servo\" joint=\"shoulder\" kp=\"6\" kv=\"0.125\" ctrllimited=\"false\" forcelimited=\"true\" forcerange=\"-3 3\"/>"),
-        "{t}"
-    );
+    assert!(t.contains("<position name=\"shoulder_servo\" joint=\"shoulder\" kp=\"6\" kv=\"0.125\" ctrllimited=\"false\" forcelimited=\"true\" forcerange=\"-3 3\"/>"), "{t}");
     assert!(
         t.contains("<position name=\"elbow_servo\" joint=\"elbow\" kp=\"2.25\" kv=\"0.015625\" ctrllimited=\"false\" forcelimited=\"true\" forcerange=\"-0.375 0.375\"/>"),
         "{t}"

@@ -91,14 +91,23 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     if let Some(sv) = &options.servo {
         let m = sv.joints.len();
         if [sv.kt.len(), sv.r.len(), sv.duty_gain.len(), sv.max_duty.len()].iter().any(|&l| l != m) {
-            return Err(ExportError::Option(format!("servo actuators: {m} joints with {} kt, {} R, {} duty_gain and {} max_duty; expected one of each per joint", sv.kt.len(), sv.r.len(), sv.duty_gain.len(), sv.max_duty.len())));
+            return Err(ExportError::Option(format!(
+                "servo actuators: {m} joints with {} kt, {} R, {} duty_gain and {} max_duty; expected one of each per joint",
+                sv.kt.len(),
+                sv.r.len(),
+                sv.duty_gain.len(),
+                sv.max_duty.len()
+            )));
         }
         if let Some(j) = sv.joints.iter().find(|j| model.joint_index(j).is_none()) {
             return Err(ExportError::Option(format!("servo joint '{j}' is not one of the model's joints {:?}", model.joint_names())));
         }
         let numbers = (0..m).flat_map(|i| [sv.kp(i), sv.kv(i), sv.force_limit(i)]);
         if numbers.chain([sv.voltage]).any(|x| !(x.is_finite() && x > 0.0)) {
-            return Err(ExportError::Option(format!("servo actuators: kt {:?}, R {:?}, V {} V, duty_gain {:?}, max_duty {:?}; expected positive numbers", sv.kt, sv.r, sv.voltage, sv.duty_gain, sv.max_duty)));
+            return Err(ExportError::Option(format!(
+                "servo actuators: kt {:?}, R {:?}, V {} V, duty_gain {:?}, max_duty {:?}; expected positive numbers",
+                sv.kt, sv.r, sv.voltage, sv.duty_gain, sv.max_duty
+            )));
         }
     }
     let c = Corrections::read(model, effects)?;
@@ -264,7 +273,18 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
             .joints
             .iter()
             .enumerate()
-            .map(|(k, j)| format!("{j}: kt {}, R {} Ω, duty_gain {}, max_duty {} → kp {}, kv {}, forcerange ±{}", num(sv.kt[k]), num(sv.r[k]), num(sv.duty_gain[k]), num(sv.max_duty[k]), num(sv.kp(k)), num(sv.kv(k)), num(sv.force_limit(k))))
+            .map(|(k, j)| {
+                format!(
+                    "{j}: kt {}, R {} Ω, duty_gain {}, max_duty {} → kp {}, kv {}, forcerange ±{}",
+                    num(sv.kt[k]),
+                    num(sv.r[k]),
+                    num(sv.duty_gain[k]),
+                    num(sv.max_duty[k]),
+                    num(sv.kp(k)),
+                    num(sv.kv(k)),
+                    num(sv.force_limit(k))
+                )
+            })
             .collect();
         sidecar.notes.push(format!(
             "servo joints are MuJoCo position actuators (JOINT_servo; ctrl = the goal position): force = clip(kp·(ctrl − q) − kv·q̇, ±forcerange), kp = kt/R·V·duty_gain, kv = kt²/R (the back-EMF), forcerange = kt/R·V·max_duty, with the report's effective kt and R (servo.effective) and V = {} V ({}); {}",
@@ -279,7 +299,9 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
             "a servo's torque enable is not in the MJCF: with torque off the servo applies no torque and no back-EMF, so set the actuator's kp and kv to zero (MuJoCo: actuator_gainprm[i][0] = 0, actuator_biasprm[i][1:3] = 0) for those samples".into(),
         );
         if !servo_limited.is_empty() {
-            sidecar.notes.push(format!("on servo joints {servo_limited:?} the selected torque saturation (× gain) is below the servo's stall torque at max_duty and is the forcerange"));
+            sidecar
+                .notes
+                .push(format!("on servo joints {servo_limited:?} the selected torque saturation (× gain) is below the servo's stall torque at max_duty and is the forcerange"));
         }
         sidecar.notes.extend(sv.notes.iter().cloned());
     }

@@ -68,7 +68,8 @@ impl ServoActuators {
             ));
             (mean, "mean logged voltage".to_string())
         };
-        let others: Vec<&str> = servo_runs[1..].iter().filter(|r| params(r).is_ok_and(|q| q.duty_gain != p.duty_gain || q.max_duty != p.max_duty)).map(|r| r.source.as_str()).collect();
+        let others: Vec<&str> =
+            servo_runs[1..].iter().filter(|r| params(r).is_ok_and(|q| q.duty_gain != p.duty_gain || q.max_duty != p.max_duty)).map(|r| r.source.as_str()).collect();
         if !others.is_empty() {
             notes.push(format!(
                 "kp and forcerange are for the firmware gain (duty_gain) and max_duty of {}; logs {others:?} set others: for them set kp = kt/R·V·duty_gain and forcerange = ±kt/R·V·max_duty (MuJoCo: actuator_gainprm[i][0] = kp, actuator_biasprm[i][1] = −kp, actuator_forcerange[i])",
