@@ -228,3 +228,48 @@ fn terms_prints_a_warning_per_repeated_urdf_element_and_reads_the_first() {
         assert!(x.len() == y.len() && x.iter().zip(&y).all(|(p, q)| (p - q).abs() < 1e-12), "{key}: {x:?} vs {y:?}");
     }
 }
+
+#[test]
+fn a_dry_friction_without_w_on_a_prismatic_axis_simulates_the_prismatic_typical_width() {
+    // one slide along x (no gravity along it): w left out must be 0.002 m/s, not 0.01
+    let dir = scratch("prismatic_w");
+    let urdf = dir.join("slide.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="slide">
+  <link name="base"/>
+  <link name="carriage"><inertial><origin xyz="0 0 0"/><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="x" type="prismatic"><parent link="base"/><child link="carriage"/><axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="100" velocity="1"/></joint>
+</robot>"#,
+    )
+    .unwrap();
+    let run = |effect: &str, name: &str| -> Vec<f64> {
+        let out = dir.join(name);
+        let o = simgap(&[
+            "simulate",
+            "--urdf",
+            s(&urdf),
+            "--kp",
+            "200",
+            "--kv",
+            "5",
+            "--target",
+            "0.05",
+            "--duration",
+            "0.3",
+            "--counts-per-rev",
+            "0",
+            "--effect",
+            effect,
+            "--out",
+            s(&out),
+        ]);
+        assert!(o.status.success(), "{effect}: {}", text(&o));
+        simgap::log::read_log(&out, &Default::default()).unwrap().q
+    };
+    let default = run("coulomb_friction:fc=5", "default.csv");
+    let prismatic = run("coulomb_friction:fc=5;w=0.002", "w0002.csv");
+    let revolute = run("coulomb_friction:fc=5;w=0.01", "w001.csv");
+    assert_eq!(default, prismatic, "w left out is the prismatic typical width 0.002 m/s");
+    assert_ne!(default, revolute, "and not the revolute 0.01");
+}

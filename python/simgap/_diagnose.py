@@ -54,6 +54,7 @@ def diagnose(
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: bool | ProgressCallback | None = None,
     urdf: str | PathLike[str] | None = None,
+    directional_friction: bool = False,
 ) -> _simgap.Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks on
@@ -74,6 +75,10 @@ def diagnose(
 
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
 
+    ``directional_friction``: also try friction that differs with the direction of motion
+    (levels and slopes per direction) in place of each joint's Coulomb and viscous friction,
+    for ball screws and worn gearboxes (the CLI's ``--directional-friction``; off by default).
+
     Returns a :class:`Report`, which a notebook displays as the HTML report. Ctrl-C raises
     KeyboardInterrupt; errors as :func:`simgap._simgap.diagnose`.
     """
@@ -88,7 +93,7 @@ def diagnose(
     else:
         raise TypeError(f"progress: expected True, False, None or a callable (stage, done, total), got {type(progress).__name__}")
     try:
-        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf)  # type: ignore[arg-type]
+        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, directional_friction=directional_friction)  # type: ignore[arg-type]
     finally:
         if close is not None:
             close()

@@ -560,6 +560,7 @@ def diagnose(
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: Callable[[str, int, int], object] | None = None,
     urdf: str | PathLike[str] | None = None,
+    directional_friction: bool = False,
 ) -> Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks
@@ -572,6 +573,8 @@ def diagnose(
     in closed loop. ``formulation``: the C of the model under test.
 
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
+    ``directional_friction``: also try friction that differs with the direction of motion in
+    place of each joint's Coulomb and viscous friction (the CLI's ``--directional-friction``).
 
     ``experiment``: the experiment of runs that carry none (a recorded bag, a CSV log without
     sidecar): a ``simgap.experiment`` metadata dict (``controller``, ``joints``, ``kp``,

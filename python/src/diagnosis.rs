@@ -79,6 +79,8 @@ struct Job {
     holdout: Vec<Source>,
     /// Given to runs that carry none.
     experiment: Option<Experiment>,
+    /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
+    directional_friction: bool,
     /// Where the worker leaves its latest progress for the Python thread.
     latest: Latest,
 }
@@ -109,7 +111,7 @@ impl Job {
                 *latest = Some((p.stage.to_string(), p.done, p.total));
             }
         };
-        let options = DiagnoseOptions { stop: Some(stop.clone()), ..DiagnoseOptions::default() };
+        let options = DiagnoseOptions { stop: Some(stop.clone()), directional_friction: self.directional_friction, ..DiagnoseOptions::default() };
         simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &options, &mut progress)
     }
 
@@ -172,14 +174,17 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// `simulate`) or paths to logs (read like `read_log`), or a single one. Every run must carry
 /// its experiment (controller, gains, sample period) to be re-simulated in closed loop.
 /// `formulation`: the C of the model under test, "euler_lagrange" or "simplified". `urdf`: the
-/// URDF file `model` was loaded from, kept for `Report.export_urdf`.
+/// URDF file `model` was loaded from, kept for `Report.export_urdf`. `directional_friction`:
+/// also try friction that differs with the direction of motion (levels and slopes per
+/// direction) in place of each joint's Coulomb and viscous friction, for ball screws and worn
+/// gearboxes (the CLI's `--directional-friction`; off by default).
 ///
 /// Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
 /// FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
 /// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
 /// TypeError for arguments that are neither runs nor paths.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None))]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, directional_friction = false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -190,6 +195,7 @@ pub(crate) fn diagnose(
     experiment: Option<&Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
     urdf: Option<PathBuf>,
+    directional_friction: bool,
 ) -> PyResult<PyReport> {
     let progress = progress.filter(|p| !p.is_none());
     if let Some(p) = &progress {
@@ -205,6 +211,7 @@ pub(crate) fn diagnose(
         fit: Source::from_arg("fit", fit)?,
         holdout: Source::from_arg("holdout", holdout)?,
         experiment,
+        directional_friction,
         latest: Latest::default(),
     };
     let diagnosis = run_interruptible(py, job, progress)?;
@@ -342,10 +349,14 @@ impl PyReport {
     fn export_mjcf(&self, py: Python<'_>, path: PathBuf) -> PyResult<String> {
         let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
         py.detach(move || {
-            use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions};
+            use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions, ServoActuators};
             let timestep = sample_period_of(&diagnosis.holdout)
                 .ok_or_else(|| Kind::Simgap.err("export_mjcf: the held-out logs have no sample period (no experiment sample_period, fewer than two stamps)"))?;
-            let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), ..MjcfOptions::new(timestep) };
+            let servo = match &diagnosis.report.servo {
+                Some(sr) => ServoActuators::of(&model, sr, &diagnosis.holdout).map_err(from_export)?,
+                None => None,
+            };
+            let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), servo, ..MjcfOptions::new(timestep) };
             let file = export_mjcf(&model, &diagnosis.report.selected_effects, &options).map_err(from_export)?;
             write_export(&path, &file)
         })

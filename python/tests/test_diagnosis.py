@@ -171,3 +171,40 @@ def test_diagnosis_is_interrupted_by_ctrl_c() -> None:
     finally:
         timer.cancel()
     assert time.perf_counter() - t0 < 5.0
+
+
+SLIDER_URDF = """<robot name="slider">
+  <link name="base"/>
+  <link name="carriage">
+    <inertial><origin xyz="0 0 0"/><mass value="5"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+  </link>
+  <joint name="axis" type="prismatic">
+    <parent link="base"/><child link="carriage"/><axis xyz="1 0 0"/>
+    <limit lower="-0.5" upper="0.5" effort="500" velocity="2"/>
+  </joint>
+</robot>
+"""
+
+
+def test_directional_friction_is_tried_only_when_asked_for(tmp_path: Path) -> None:
+    # a worn ball screw (8 N and 30 N·s/m moving forward, 5 N and 45 N·s/m back) tracked by a
+    # PD loop: diagnose(..., directional_friction=True) mirrors the CLI's --directional-friction
+    urdf = tmp_path / "slider.urdf"
+    urdf.write_text(SLIDER_URDF)
+    model = simgap.Model.from_urdf(urdf)
+    hidden = "directional_friction:fc_pos=8;fc_neg=5;b_pos=30;b_neg=45;w=0.002"
+
+    def slide(freq: float, amp: float, name: str) -> simgap.Run:
+        t = np.arange(0.0, 3.0 + 1e-9, 0.001)
+        w = 2 * np.pi * freq
+        q = (amp * (1 - np.cos(w * t)))[:, None]
+        qd = (amp * w * np.sin(w * t))[:, None]
+        ref = simgap.Run(model.joint_names, t, q, qd, q_ref=q, qd_ref=qd, source=name)
+        return simgap.simulate(model, ref, controller="pd", kp=[2000.0], kv=[100.0], effects=[hidden], duration=3.0, sample_period=0.001)
+
+    fit = [slide(0.7, 0.1, "fit1"), slide(0.3, 0.15, "fit2")]
+    held = [slide(1.1, 0.12, "hold")]
+    asked = simgap.diagnose(model, fit, held, directional_friction=True)
+    assert [e["effect"] for e in asked["selected_effects"]] == ["directional_friction"], asked.summary()
+    default = simgap.diagnose(model, fit, held)
+    assert "directional_friction" not in [e["effect"] for e in default["selected_effects"]], default.summary()

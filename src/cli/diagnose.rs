@@ -203,7 +203,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
 /// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`;
 /// returns the files written, each with what it is.
 fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::Result<Vec<(String, PathBuf)>> {
-    use simgap::diag::export::{export_mjcf, export_urdf, passive_joints, sample_period_of, sidecar_path, ExportedFile, MjcfOptions};
+    use simgap::diag::export::{export_mjcf, export_urdf, passive_joints, sample_period_of, sidecar_path, ExportedFile, MjcfOptions, ServoActuators};
     let effects = &diagnosis.report.selected_effects;
     let mut written: Vec<(String, PathBuf)> = Vec::new();
     let mut write = |path: &Path, file: &ExportedFile, what: &str| -> anyhow::Result<()> {
@@ -228,7 +228,11 @@ fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::
     }
     if let Some(path) = job.export_mjcf {
         let timestep = sample_period_of(runs).context("--export-mjcf: the logs have no sample period (no experiment sample_period and fewer than two stamps)")?;
-        let options = MjcfOptions { passive: passive_joints(job.model, runs), ..MjcfOptions::new(timestep) };
+        let servo = match &diagnosis.report.servo {
+            Some(sr) => ServoActuators::of(job.model, sr, runs).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?,
+            None => None,
+        };
+        let options = MjcfOptions { passive: passive_joints(job.model, runs), servo, ..MjcfOptions::new(timestep) };
         let file = export_mjcf(job.model, effects, &options).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
         write(path, &file, "corrected MJCF (MuJoCo)")?;
     }

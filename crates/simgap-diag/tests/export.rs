@@ -325,3 +325,49 @@ fn passive_joints_and_the_sample_period_come_from_the_logs() {
     assert_eq!(sample_period_of(&[a]), Some(0.0025));
     assert_eq!(sample_period_of(&[simgap_sim::Run::new(vec!["elbow".into()])]), None);
 }
+
+#[test]
+fn servo_joints_are_mujoco_position_actuators_with_the_motor_law_in_kp_kv_and_forcerange() {
+    use simgap_diag::export::ServoActuators;
+    use simgap_diag::{EffectiveConstants, ServoReport};
+    use simgap_sim::{ControllerKind, Experiment, Run};
+    let model = Model::from_urdf_str(PAPER_ARM_URDF).unwrap();
+    // a servo log whose experiment lists the joints in another order than the model
+    let extra = BTreeMap::from([("duty_gain".to_string(), "3,2".to_string()), ("max_duty".to_string(), "0.5,1".to_string()), ("supply_voltage".to_string(), "12".to_string())]);
+    let mut run = Run::new(vec!["elbow".into(), "shoulder".into()]);
+    run.source = "servo.csv".into();
+    run.experiment = Some(Experiment { controller: ControllerKind::Servo, joints: vec!["elbow".into(), "shoulder".into()], kp: vec![], kv: vec![], sample_period: 0.002, extra });
+    // the report's servo key, also in another order: the effective constants are used
+    let report = ServoReport {
+        joints: vec!["elbow".into(), "shoulder".into()],
+        kt: vec![1.0, 1.0],
+        r: vec![1.0, 1.0],
+        source: "fitted".into(),
+        effective: EffectiveConstants { kt: vec![0.25, 0.5], r: vec![4.0, 2.0] },
+    };
+    let servo = ServoActuators::of(&model, &report, &[run]).unwrap().expect("a servo log");
+    assert_eq!(servo.joints, ["shoulder", "elbow"]);
+    // shoulder: kt/R = 0.25, kp = 0.25·12·2, kv = 0.5²/2, force = 0.25·12·1;
+    // elbow: kt/R = 0.0625, kp = 0.0625·12·3, kv = 0.25²/4, force = 0.0625·12·0.5
+    assert_eq!((servo.kp(0), servo.kv(0), servo.force_limit(0)), (6.0, 0.125, 3.0));
+    assert_eq!((servo.kp(1), servo.kv(1), servo.force_limit(1)), (2.25, 0.015625, 0.375));
+    let effects =
+        [effect("back_emf", &["shoulder", "elbow"], &[("kb", Param::PerJoint(vec![0.01, 0.02]))]), effect("viscous_friction", &["elbow"], &[("b", Param::PerJoint(vec![0.3]))])];
+    let out = export_mjcf(&model, &effects, &MjcfOptions { servo: Some(servo), ..MjcfOptions::new(0.002) }).unwrap();
+    let t = &out.text;
+    assert!(t.contains("<position name=\"shoulder_servo\" joint=\"shoulder\" kp=\"6\" kv=\"0.125\" ctrllimited=\"false\" forcelimited=\"true\" forcerange=\"-3 3\"/>"), "{t}");
+    assert!(
+        t.contains("<position name=\"elbow_servo\" joint=\"elbow\" kp=\"2.25\" kv=\"0.015625\" ctrllimited=\"false\" forcelimited=\"true\" forcerange=\"-0.375 0.375\"/>"),
+        "{t}"
+    );
+    assert!(!t.contains("<motor"), "a servo joint has no torque motor: {t}");
+    assert!(t.contains("damping=\"0.3\""), "joint effects stay on the joints: {t}");
+    // the back-EMF is in kv (folded into the effective constants), the friction on the joint
+    assert!(out.sidecar.selected_effects.is_empty(), "{:?}", out.sidecar.selected_effects);
+    assert!(out.sidecar.held.iter().any(|h| h.effect == "back_emf" && h.written_as.contains("kv")), "{:?}", out.sidecar.held);
+    let notes = out.sidecar.notes.join("\n");
+    assert!(notes.contains("position actuators") && notes.contains("V = 12 V (supply_voltage of servo.csv)"), "{notes}");
+    assert!(notes.contains("duty and torque are proportional at zero speed") && notes.contains("(kt²/R)·|q̇|"), "the approximation is stated: {notes}");
+    assert!(notes.contains("torque enable"), "{notes}");
+    roxmltree::Document::parse(t).unwrap();
+}

@@ -1,6 +1,6 @@
 //! Which topic of a bag holds what: the topic map.
 //!
-//! Four roles, each with a default topic:
+//! The roles, some with a default topic:
 //!
 //! | role | default topic | fills |
 //! |---|---|---|
@@ -11,9 +11,13 @@
 //! | `duty` | none | a servo's measured PWM duty in [−1, 1] (`drive.duty`), held per message |
 //! | `torque_enable` | none | a servo's torque enable, 0 or 1 (`drive.torque_enable`), held |
 //! | `temperature` | none | a servo's temperature [°C] (`drive.temperature`), reported only |
+//! | `voltage` | none | a servo's supply voltage [V] (`drive.voltage`, one value per sample), interpolated |
 //!
-//! The servo roles read a `sensor_msgs/msg/JointState`'s `effort` (or a `Float64MultiArray`'s
-//! `data` with the joint names in brackets), one value per joint.
+//! The per-joint servo roles read a `sensor_msgs/msg/JointState`'s `effort` (or a
+//! `Float64MultiArray`'s `data` with the joint names in brackets), one value per joint. The
+//! voltage is one value for the whole robot: a `std_msgs/msg/Float64`'s `data`, or a message of
+//! the other types with exactly one value (a one-element `Float64MultiArray`, a JointState with
+//! one effort, whatever its name); it needs no joint names.
 //!
 //! Real bags name topics after the robot; a map such as
 //! `states=/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[j1;j2]`
@@ -47,14 +51,16 @@ pub enum Role {
     TorqueEnable,
     /// A servo's temperature.
     Temperature,
+    /// A servo's supply voltage (one value per sample, not per joint).
+    Voltage,
 }
 
 impl Role {
     /// Every role, in map order.
-    pub const ALL: [Role; 7] = [Role::States, Role::Reference, Role::Effort, Role::MeasuredEffort, Role::Duty, Role::TorqueEnable, Role::Temperature];
+    pub const ALL: [Role; 8] = [Role::States, Role::Reference, Role::Effort, Role::MeasuredEffort, Role::Duty, Role::TorqueEnable, Role::Temperature, Role::Voltage];
 
     /// The role's key in a topic map: `states`, `reference`, `effort`, `measured_effort`, `duty`,
-    /// `torque_enable`, `temperature`.
+    /// `torque_enable`, `temperature`, `voltage`.
     pub fn key(self) -> &'static str {
         match self {
             Role::States => "states",
@@ -64,6 +70,7 @@ impl Role {
             Role::Duty => "duty",
             Role::TorqueEnable => "torque_enable",
             Role::Temperature => "temperature",
+            Role::Voltage => "voltage",
         }
     }
 }
@@ -139,6 +146,8 @@ pub struct TopicMap {
     pub torque_enable: Option<TopicSpec>,
     /// A servo's temperature (default none).
     pub temperature: Option<TopicSpec>,
+    /// A servo's supply voltage (default none).
+    pub voltage: Option<TopicSpec>,
 }
 
 impl Default for TopicMap {
@@ -151,6 +160,7 @@ impl Default for TopicMap {
             duty: None,
             torque_enable: None,
             temperature: None,
+            voltage: None,
         }
     }
 }
@@ -193,8 +203,9 @@ impl TopicMap {
             "duty" => self.duty = Some(spec),
             "torque_enable" => self.torque_enable = Some(spec),
             "temperature" => self.temperature = Some(spec),
+            "voltage" => self.voltage = Some(spec),
             other => {
-                return Err(format!("unknown role '{other}': expected states, reference, effort, measured_effort, duty, torque_enable or temperature"));
+                return Err(format!("unknown role '{other}': expected states, reference, effort, measured_effort, duty, torque_enable, temperature or voltage"));
             }
         }
         Ok(())
@@ -210,6 +221,7 @@ impl TopicMap {
             Role::Duty => self.duty.as_ref(),
             Role::TorqueEnable => self.torque_enable.as_ref(),
             Role::Temperature => self.temperature.as_ref(),
+            Role::Voltage => self.voltage.as_ref(),
         }
     }
 

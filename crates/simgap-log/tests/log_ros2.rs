@@ -357,4 +357,62 @@ fn a_servo_bag_maps_its_duty_torque_enable_and_temperature_topics_by_role() {
         assert_eq!(run.row(&run.drive.temperature, k), &[30.0 + 0.1 * x, 31.0]);
     }
     assert!(run.tau.is_empty(), "a servo logs no torque");
+    assert!(run.drive.voltage.is_empty(), "no voltage role mapped: the experiment's supply voltage drives it");
+}
+
+#[test]
+fn a_servo_bag_maps_its_supply_voltage_by_role_from_any_one_value_message() {
+    // the voltage on a topic of its own, at half the state rate (interpolated onto the state
+    // stamps), as a std_msgs/msg/Float64, a one-element Float64MultiArray, or a JointState with
+    // one effort; a message with two values is refused
+    const FLOAT64_DEFINITION: &str = "float64 data\n";
+    let volts = |k: i64| 5.0 - 0.01 * k as f64;
+    for (kind, n_values) in [("float64", 1), ("array", 1), ("joint_state", 1), ("array", 2)] {
+        let path = tmp(&format!("servo_voltage_{kind}_{n_values}.mcap"));
+        let mut bag = BagFile::new(&path);
+        for k in 0..20i64 {
+            let t = T0 + k * DT;
+            let mut js = JointState { name: names(&["a", "b"]), position: vec![0.0, 0.0], velocity: vec![0.0, 0.0], ..JointState::default() };
+            js.set_stamp_ns(t);
+            bag.publish("/servo/states", "sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION, t, &js.encode_cdr());
+            if k % 2 != 0 {
+                continue;
+            }
+            let values = vec![volts(k); n_values];
+            match kind {
+                "float64" => {
+                    let mut c = Cdr::new();
+                    c.align(8);
+                    c.0.extend_from_slice(&volts(k).to_le_bytes());
+                    bag.publish("/servo/voltage", "std_msgs/msg/Float64", FLOAT64_DEFINITION, t, &c.0);
+                }
+                "array" => {
+                    let mut c = Cdr::new();
+                    c.u32(0).u32(0).f64s(&values);
+                    bag.publish("/servo/voltage", "std_msgs/msg/Float64MultiArray", FLOAT64_MULTI_ARRAY_DEFINITION, t, &c.0);
+                }
+                _ => {
+                    let mut v = JointState { name: names(&["bus"]), effort: values, ..JointState::default() };
+                    v.set_stamp_ns(t);
+                    bag.publish("/servo/voltage", "sensor_msgs/msg/JointState", JOINT_STATE_DEFINITION, t, &v.encode_cdr());
+                }
+            }
+        }
+        bag.finish();
+        let topics = TopicMap::parse("states=/servo/states,voltage=/servo/voltage").unwrap();
+        assert_eq!(TopicMap::parse(&topics.to_string()).unwrap(), topics);
+        let read = read_log(&path, &LogOptions { topics, ..LogOptions::default() });
+        if n_values != 1 {
+            let e = read.unwrap_err().to_string();
+            assert!(e.contains("/servo/voltage") && e.contains("one value") && e.contains("this one 2"), "{e}");
+            continue;
+        }
+        let run = read.unwrap_or_else(|e| panic!("{kind}: {e}"));
+        assert_eq!(run.drive.voltage.len(), 20, "{kind}: one voltage per state sample");
+        for (k, v) in run.drive.voltage.iter().enumerate() {
+            // the last state is past the last voltage message: held
+            let want = volts((k as i64).min(18));
+            assert!((v - want).abs() < 1e-12, "{kind}: voltage at sample {k} is {v}, expected {want}");
+        }
+    }
 }

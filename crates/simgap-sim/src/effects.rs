@@ -41,7 +41,26 @@ use crate::kind::EffectKind;
 /// steps per 2.5 ms sample; with 1e-3 it would need about 25. The simulator raises the number
 /// of substeps automatically to stay stable
 /// ([`effective_substeps`](crate::simulate::effective_substeps)).
-pub const DEFAULT_COULOMB_WIDTH: f64 = 0.01;
+pub const DEFAULT_COULOMB_WIDTH: f64 = TYPICAL_WIDTH_REVOLUTE;
+
+/// Typical width `w` of the sign of a turning joint's dry friction [rad/s] (0.6 °/s): the
+/// width [`Effect::parse_for_model`] gives a revolute or continuous joint whose spelling leaves
+/// `w` out, and the diagnosis's starting width (`prepare/width.rs` in simgap-diag).
+pub const TYPICAL_WIDTH_REVOLUTE: f64 = 0.01;
+
+/// Typical width `w` of the sign of a linear joint's dry friction [m/s] (2 mm/s: linear axes
+/// move at a fifth of the speeds, in their units, that arms turn at; 0.01 m/s would be 1 cm/s).
+pub const TYPICAL_WIDTH_PRISMATIC: f64 = 0.002;
+
+/// The typical dry-friction width of a joint type [rad/s or m/s]: [`TYPICAL_WIDTH_REVOLUTE`]
+/// for revolute and continuous joints, [`TYPICAL_WIDTH_PRISMATIC`] for prismatic ones.
+pub fn typical_width(kind: simgap_core::JointKind) -> f64 {
+    if kind.is_rotational() {
+        TYPICAL_WIDTH_REVOLUTE
+    } else {
+        TYPICAL_WIDTH_PRISMATIC
+    }
+}
 
 /// Upper bound of the derivative `−∂τ_friction,i/∂q̇_i` of every friction effect on each
 /// joint (viscous `b`, Coulomb `fc / w`, Stribeck `max(fc, fs) / w` plus its hump, directional
@@ -363,7 +382,8 @@ impl Effect {
     /// Per-joint parameters take one value per joint (`dof` values), or a single value used for
     /// every joint. A dry friction's width `w` [rad/s or m/s] may be given
     /// (`coulomb_friction:fc=7.17,1.734;w=0.01,0.02`); left out, it is
-    /// [`DEFAULT_COULOMB_WIDTH`] on every joint.
+    /// [`DEFAULT_COULOMB_WIDTH`] on every joint (with the model known, use
+    /// [`Effect::parse_for_model`]: the joint type's typical width).
     ///
     /// # Errors
     /// [`Error::Invalid`] for an unknown name, a missing or unknown parameter, or a bad number.
@@ -378,6 +398,28 @@ impl Effect {
     /// As [`Effect::parse`]; also [`Error::Invalid`] for a `default_w` that is needed and is not
     /// a finite number `>= 0`.
     pub fn parse_with_width(spec: &str, dof: usize, default_w: f64) -> Result<Effect> {
+        if !(default_w.is_finite() && default_w >= 0.0) {
+            // refused only where a dry friction needs it (below)
+            return Effect::parse_with_widths(spec, dof, &[default_w]);
+        }
+        Effect::parse_with_widths(spec, dof, &vec![default_w; dof])
+    }
+
+    /// [`Effect::parse`] for `model`'s joints: a dry friction whose spelling leaves `w` out
+    /// gets each joint type's typical width ([`typical_width`]: 0.01 rad/s on a revolute
+    /// joint, 0.002 m/s on a prismatic one), the width the diagnosis starts from. This is how
+    /// `simgap simulate --effect` and `simgap predict --effect` read their effects.
+    ///
+    /// # Errors
+    /// As [`Effect::parse`].
+    pub fn parse_for_model(spec: &str, model: &Model) -> Result<Effect> {
+        let widths: Vec<f64> = model.joints().iter().map(|j| typical_width(j.kind)).collect();
+        Effect::parse_with_widths(spec, model.dof(), &widths)
+    }
+
+    /// The parser: `default_w` the widths of a dry friction whose spelling leaves `w` out, one
+    /// per joint (or a single value, refused as not a width where one is needed).
+    fn parse_with_widths(spec: &str, dof: usize, default_w: &[f64]) -> Result<Effect> {
         let (name, rest) = match spec.split_once(':') {
             Some((n, r)) => (n.trim(), r.trim()),
             None => (spec.trim(), ""),
@@ -421,10 +463,13 @@ impl Effect {
             if params.iter().any(|(p, _)| p == k) {
                 return per_joint(k);
             }
-            if !(default_w.is_finite() && default_w >= 0.0) {
-                return Err(invalid(name, format!("default width w = {default_w}; expected a finite number >= 0 [rad/s or m/s] (0: the exact sign)")));
+            if let Some(w) = default_w.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
+                return Err(invalid(name, format!("default width w = {w}; expected a finite number >= 0 [rad/s or m/s] (0: the exact sign)")));
             }
-            Ok(vec![default_w; dof])
+            if default_w.len() != dof {
+                return Err(invalid(name, format!("{} default widths for {dof} joints", default_w.len())));
+            }
+            Ok(default_w.to_vec())
         };
         let scalar = |k: &str| -> Result<f64> {
             let v = get(k)?;

@@ -27,7 +27,7 @@ pub use sink::{MemorySink, RunEnd, Sink};
 
 pub use controller::{controller_from_experiment, Controller, Pd, PdGravity, Replay, Servo, ServoParams, ZeroTorque};
 pub use delay::DelayLine;
-pub use effects::{applied_torque, friction_torque, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH};
+pub use effects::{applied_torque, friction_torque, typical_width, Effect, LinkDelta, DEFAULT_COULOMB_WIDTH, TYPICAL_WIDTH_PRISMATIC, TYPICAL_WIDTH_REVOLUTE};
 pub use integrate::Integrator;
 pub use kind::{EffectKind, ParamSpec, Quantity};
 pub use l2::{l2_between, l2_index, l2_per_joint, l2_tracking, L2Accumulator, L2Report, TrackingL2Sink};

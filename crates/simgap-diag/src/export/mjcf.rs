@@ -7,6 +7,7 @@ use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 use simgap_core::{JointKind, Model, SpatialInertia};
 
 use super::effects::Corrections;
+use super::servo::ServoActuators;
 use super::sidecar::{Format, Sidecar};
 use super::urdf::num;
 use super::{ExportError, ExportedFile};
@@ -27,12 +28,15 @@ pub struct MjcfOptions {
     pub integrator: String,
     /// Joints that get no motor (passive joints, whose commanded torque is always zero).
     pub passive: Vec<String>,
+    /// Position-controlled servos (a diagnosis of servo runs, [`ServoActuators::of`]): their
+    /// joints get a `<position>` actuator instead of a motor.
+    pub servo: Option<ServoActuators>,
 }
 
 impl MjcfOptions {
     /// The options for logs sampled every `timestep` seconds: RK4, every joint driven.
     pub fn new(timestep: f64) -> Self {
-        MjcfOptions { timestep, integrator: "RK4".into(), passive: Vec::new() }
+        MjcfOptions { timestep, integrator: "RK4".into(), passive: Vec::new(), servo: None }
     }
 }
 
@@ -55,6 +59,11 @@ impl MjcfOptions {
 /// - One `motor` per driven joint: `gear` = the torque gain, `forcelimited` `forcerange` =
 ///   the torque saturation of the command, `ctrllimited="false"`: `ctrl` is the commanded
 ///   torque [N·m or N].
+/// - A servo joint ([`MjcfOptions::servo`]) gets a `position` actuator `JOINT_servo` instead:
+///   `ctrl` is the goal position [rad or m], `kp = kt/R·V·duty_gain`, `kv = kt²/R` (the
+///   back-EMF), `forcerange = ±kt/R·V·max_duty` (the firmware's duty saturation as a force
+///   clamp), with the report's effective `kt`, `R` (selected torque gain and back-EMF folded in);
+///   the sidecar states what this approximates.
 /// - `<option timestep gravity integrator>`: the logs' sample period, the model's gravity
 ///   [m/s²], RK4 by default.
 /// - Geometry: a thin capsule from each body to the next (to its centre of mass for the last),
@@ -77,6 +86,28 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     for p in &options.passive {
         if model.joint_index(p).is_none() {
             return Err(ExportError::Option(format!("passive joint '{p}' is not one of the model's joints {:?}", model.joint_names())));
+        }
+    }
+    if let Some(sv) = &options.servo {
+        let m = sv.joints.len();
+        if [sv.kt.len(), sv.r.len(), sv.duty_gain.len(), sv.max_duty.len()].iter().any(|&l| l != m) {
+            return Err(ExportError::Option(format!(
+                "servo actuators: {m} joints with {} kt, {} R, {} duty_gain and {} max_duty; expected one of each per joint",
+                sv.kt.len(),
+                sv.r.len(),
+                sv.duty_gain.len(),
+                sv.max_duty.len()
+            )));
+        }
+        if let Some(j) = sv.joints.iter().find(|j| model.joint_index(j).is_none()) {
+            return Err(ExportError::Option(format!("servo joint '{j}' is not one of the model's joints {:?}", model.joint_names())));
+        }
+        let numbers = (0..m).flat_map(|i| [sv.kp(i), sv.kv(i), sv.force_limit(i)]);
+        if numbers.chain([sv.voltage]).any(|x| !(x.is_finite() && x > 0.0)) {
+            return Err(ExportError::Option(format!(
+                "servo actuators: kt {:?}, R {:?}, V {} V, duty_gain {:?}, max_duty {:?}; expected positive numbers",
+                sv.kt, sv.r, sv.voltage, sv.duty_gain, sv.max_duty
+            )));
         }
     }
     let c = Corrections::read(model, effects)?;
@@ -164,10 +195,31 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     }
     let _ = writeln!(s, "  </worldbody>");
 
-    // a motor per driven joint: ctrl is the commanded torque
+    // a motor per driven joint: ctrl is the commanded torque; a position actuator per servo
+    // joint: ctrl is the goal
     let _ = writeln!(s, "  <actuator>");
+    let mut servo_limited = Vec::new();
     for (i, j) in joints.iter().enumerate() {
         if options.passive.contains(&j.name) {
+            continue;
+        }
+        if let Some((sv, k)) = options.servo.as_ref().and_then(|sv| sv.index(&j.name).map(|k| (sv, k))) {
+            // a selected saturation of the drive torque (after the gain) lowers the clamp
+            let mut force = sv.force_limit(k);
+            if c.limit[i].is_finite() && c.gain[i] * c.limit[i] < force {
+                force = c.gain[i] * c.limit[i];
+                servo_limited.push(j.name.clone());
+            }
+            let _ = writeln!(
+                s,
+                "    <position name=\"{}_servo\" joint=\"{}\" kp=\"{}\" kv=\"{}\" ctrllimited=\"false\" forcelimited=\"true\" forcerange=\"{} {}\"/>",
+                xml(&j.name),
+                xml(&j.name),
+                num(sv.kp(k)),
+                num(sv.kv(k)),
+                num(-force),
+                num(force)
+            );
             continue;
         }
         let mut attrs = format!("name=\"{}_motor\" joint=\"{}\" gear=\"{}\" ctrllimited=\"false\"", xml(&j.name), xml(&j.name), num(c.gain[i]));
@@ -183,8 +235,15 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
 
     // the sidecar
     let mut sidecar = Sidecar::new("mjcf");
+    let on_servos = |e: &EffectReport| options.servo.as_ref().is_some_and(|sv| !e.joints.is_empty() && e.joints.iter().all(|j| sv.index(j).is_some()));
     for e in effects {
         match e.effect.as_str() {
+            "torque_gain" | "back_emf" if on_servos(e) => sidecar.hold(e, "servo position actuator kp, kv and forcerange (folded into the servo's effective kt and R)", ""),
+            "torque_saturation" if on_servos(e) => sidecar.hold(
+                e,
+                "servo position actuator forcerange, where below the servo's own",
+                "MuJoCo clamps the actuator's whole force (after the back-EMF term); simgap clamps the drive torque before subtracting the selected back-EMF",
+            ),
             "inertial_error" | "payload" => sidecar.hold(e, "body <inertial>", ""),
             "viscous_friction" => sidecar.hold(e, "joint damping", ""),
             "coulomb_friction" => sidecar.hold(
@@ -208,6 +267,43 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     }
     for p in &options.passive {
         sidecar.notes.push(format!("joint '{p}' is passive (commanded torque always zero in the logs): it has no motor"));
+    }
+    if let Some(sv) = &options.servo {
+        let per_joint: Vec<String> = sv
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(k, j)| {
+                format!(
+                    "{j}: kt {}, R {} Ω, duty_gain {}, max_duty {} → kp {}, kv {}, forcerange ±{}",
+                    num(sv.kt[k]),
+                    num(sv.r[k]),
+                    num(sv.duty_gain[k]),
+                    num(sv.max_duty[k]),
+                    num(sv.kp(k)),
+                    num(sv.kv(k)),
+                    num(sv.force_limit(k))
+                )
+            })
+            .collect();
+        sidecar.notes.push(format!(
+            "servo joints are MuJoCo position actuators (JOINT_servo; ctrl = the goal position): force = clip(kp·(ctrl − q) − kv·q̇, ±forcerange), kp = kt/R·V·duty_gain, kv = kt²/R (the back-EMF), forcerange = kt/R·V·max_duty, with the report's effective kt and R (servo.effective) and V = {} V ({}); {}",
+            num(sv.voltage),
+            sv.voltage_source,
+            per_joint.join("; ")
+        ));
+        sidecar.notes.push(
+            "approximated: the firmware saturates the duty, simgap's τ = (kt/R)·(V·clip(duty_gain·(goal − q), ±max_duty) − kt·q̇); MuJoCo clamps the force, τ = clip((kt/R)·V·duty_gain·(goal − q) − (kt²/R)·q̇, ±(kt/R)·V·max_duty). The two are the same while the duty is not saturated, and at rest when it is (duty and torque are proportional at zero speed, so the duty clamp is exactly a force clamp); with the duty saturated and the joint moving they differ by up to (kt²/R)·|q̇|: MuJoCo keeps the full clamp where simgap's torque is the clamped duty's less the back-EMF (less torque moving with the drive, more braking against it)".into(),
+        );
+        sidecar.notes.push(
+            "a servo's torque enable is not in the MJCF: with torque off the servo applies no torque and no back-EMF, so set the actuator's kp and kv to zero (MuJoCo: actuator_gainprm[i][0] = 0, actuator_biasprm[i][1:3] = 0) for those samples".into(),
+        );
+        if !servo_limited.is_empty() {
+            sidecar
+                .notes
+                .push(format!("on servo joints {servo_limited:?} the selected torque saturation (× gain) is below the servo's stall torque at max_duty and is the forcerange"));
+        }
+        sidecar.notes.extend(sv.notes.iter().cloned());
     }
     if joints.iter().any(|j| j.kind == JointKind::Revolute && j.limits.upper - j.limits.lower >= FULL_TURN) {
         sidecar.notes.push("revolute joints whose URDF range spans a full turn are unlimited in the MJCF: a ±π range is the angle's convention, not a stop".into());

@@ -20,16 +20,20 @@
 //! | `torque_gain` | sidecar | motor `gear` |
 //! | `torque_saturation` | sidecar | motor `forcerange` |
 //! | `joint_spring` | sidecar | joint `stiffness`, `springref` |
+//! | servo runs (the report's `servo` key) | sidecar | a `position` actuator per joint: `kp = kt/R·V·duty_gain`, `kv = kt²/R`, `forcerange = ±kt/R·V·max_duty` ([`ServoActuators`]) |
+//! | `torque_gain`, `back_emf` on servo runs | sidecar | folded into the servo's `kp`, `kv` |
 //! | everything else | sidecar | sidecar |
 
 mod effects;
 mod mjcf;
+mod servo;
 mod sidecar;
 mod urdf;
 
 use std::path::{Path, PathBuf};
 
 pub use mjcf::{export_mjcf, MjcfOptions, FULL_TURN};
+pub use servo::ServoActuators;
 pub use sidecar::{HeldEntry, Sidecar, SidecarEntry};
 pub use urdf::export_urdf;
 

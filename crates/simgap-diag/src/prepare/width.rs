@@ -28,12 +28,13 @@ pub(crate) const MIN_SHARE: f64 = 0.002;
 /// Largest width as a share of the joint's RMS speed [–].
 pub(crate) const MAX_SHARE: f64 = 0.05;
 
-/// Typical width of the sign of a turning joint's dry friction [rad/s] (0.6 °/s).
-pub(crate) const TYPICAL_REVOLUTE: f64 = simgap_sim::DEFAULT_COULOMB_WIDTH;
+/// Typical width of the sign of a turning joint's dry friction [rad/s] (0.6 °/s): the
+/// simulator's, so that `simgap simulate --effect` without `w` simulates the same width.
+pub(crate) const TYPICAL_REVOLUTE: f64 = simgap_sim::TYPICAL_WIDTH_REVOLUTE;
 
 /// Typical width of the sign of a linear joint's dry friction [m/s] (2 mm/s: linear axes move
-/// at a fifth of the speeds, in their units, that arms turn at).
-pub(crate) const TYPICAL_PRISMATIC: f64 = 0.002;
+/// at a fifth of the speeds, in their units, that arms turn at): the simulator's.
+pub(crate) const TYPICAL_PRISMATIC: f64 = simgap_sim::TYPICAL_WIDTH_PRISMATIC;
 
 /// The widths of a joint's dry friction the data allow [rad/s or m/s] (see `prepare/width.rs`).
 #[derive(Clone, Copy, Debug, PartialEq)]

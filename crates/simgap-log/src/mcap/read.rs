@@ -11,12 +11,15 @@
 //! - values: `position`/`positions`, `velocity`/`velocities`, `effort` of the message, or of its
 //!   trajectory point for controller states (`feedback` or `actual` for the states and the
 //!   measured effort, `reference` or `desired` for the reference, `output` for the commanded
-//!   effort; the states take their effort from `output`), or `data` for arrays.
+//!   effort; the states take their effort from `output`), or `data` for arrays;
+//! - the supply voltage (role `voltage`): one value per message, a `std_msgs/msg/Float64`'s
+//!   `data`, or the single value of an array message (no joint names needed).
 //!
 //! Assembling the run: the states give the times (`start_ns` = the first, `t` = time since it);
 //! the reference, feed-forward and measured torque are interpolated linearly onto the state
 //! times when logged at others; a separate commanded effort is held from one command to the
-//! next (zero-order hold). No velocities in the states: q̇ by central difference of q (see
+//! next (zero-order hold); a servo's duty and torque enable are held, its temperature and supply
+//! voltage interpolated. No velocities in the states: q̇ by central difference of q (see
 //! `run.source`).
 
 use std::collections::{BTreeMap, HashMap};
@@ -51,6 +54,8 @@ struct Extractor {
     fixed_names: Vec<String>,
     stamp: Option<Vec<usize>>,
     columns: [Option<Vec<usize>>; 3],
+    /// One value per message for the whole robot (the supply voltage), not one per joint.
+    one_value: bool,
 }
 
 /// A channel that plays one or more roles.
@@ -64,7 +69,7 @@ struct ChannelPlan {
 fn columns_of(role: Role) -> [(&'static str, &'static str); 3] {
     match role {
         Role::States | Role::Reference => [("positions", "position"), ("velocities", "velocity"), ("efforts", "effort")],
-        Role::Effort | Role::MeasuredEffort | Role::Duty | Role::TorqueEnable | Role::Temperature => [("efforts", "effort"), ("-", "-"), ("-", "-")],
+        Role::Effort | Role::MeasuredEffort | Role::Duty | Role::TorqueEnable | Role::Temperature | Role::Voltage => [("efforts", "effort"), ("-", "-"), ("-", "-")],
     }
 }
 
@@ -85,6 +90,17 @@ fn first_array(schema: &Schema, prefix: Option<&str>, candidates: &[&str]) -> Op
 /// Works out where a role's values are in a schema.
 fn plan_role(schema: &Schema, role: Role, topic: &str, fixed_names: &[String]) -> std::result::Result<Extractor, String> {
     let ty = schema.name().to_string();
+    if role == Role::Voltage {
+        // one value for the whole robot: a scalar `data` (std_msgs/msg/Float64), else the one
+        // value of an array (effort of a JointState, data of a Float64MultiArray)
+        let scalar = schema.path("data").and_then(|(p, f)| (matches!(f.elem, ElemType::Primitive(Primitive::F64 | Primitive::F32)) && f.arity == Arity::Single).then_some(p));
+        let column = scalar.or_else(|| first_array(schema, None, &["effort", "efforts"])).or_else(|| float_array(schema, "data"));
+        if column.is_none() {
+            return Err(format!("cannot map {ty} on {topic} as voltage: it has no float field data (std_msgs/msg/Float64), effort or data array"));
+        }
+        let stamp = schema.message_at("header.stamp").and_then(|_| schema.path("header.stamp").map(|(p, _)| p));
+        return Ok(Extractor { names: None, fixed_names: vec!["voltage".to_string()], stamp, columns: [column, None, None], one_value: true });
+    }
     // joint names
     let names = ["name", "joint_names"].iter().find_map(|n| {
         let (p, f) = schema.path(n)?;
@@ -118,16 +134,17 @@ fn plan_role(schema: &Schema, role: Role, topic: &str, fixed_names: &[String]) -
         }
         // a servo's signals: one value per joint in a JointState's effort or an array's data
         Role::Duty | Role::TorqueEnable | Role::Temperature => [first_array(schema, None, &effort).or_else(|| data.clone()), None, None],
+        Role::Voltage => unreachable!("planned above"),
     };
     if columns[0].is_none() {
         let want = if matches!(role, Role::States | Role::Reference) { "positions" } else { "efforts" };
         return Err(format!("cannot map {ty} on {topic} as {}: it has no {want} (no field position, positions, effort or data)", role.key()));
     }
-    Ok(Extractor { names, fixed_names: fixed_names.to_vec(), stamp, columns })
+    Ok(Extractor { names, fixed_names: fixed_names.to_vec(), stamp, columns, one_value: false })
 }
 
 impl Extractor {
-    fn extract(&self, v: &Value) -> std::result::Result<Extracted, String> {
+    fn extract(&self, v: &Value, topic: &str) -> std::result::Result<Extracted, String> {
         let names = match &self.names {
             Some(p) => match v.at(p) {
                 Some(Value::List(items)) => items.iter().map(|s| if let Value::Str(s) = s { s.clone() } else { String::new() }).collect(),
@@ -145,9 +162,17 @@ impl Extractor {
         let column = |c: &Option<Vec<usize>>| -> Vec<f64> {
             match c.as_ref().and_then(|p| v.at(p)) {
                 Some(Value::Floats(x)) => x.clone(),
+                Some(Value::Float(x)) => vec![*x],
                 _ => Vec::new(),
             }
         };
+        if self.one_value {
+            let values = column(&self.columns[0]);
+            if values.len() != 1 {
+                return Err(format!("{topic}: a voltage message holds one value (the supply voltage [V]), this one {}", values.len()));
+            }
+            return Ok(Extracted { stamp, names: self.fixed_names.clone(), values: [values, Vec::new(), Vec::new()] });
+        }
         Ok(Extracted { stamp, names, values: [column(&self.columns[0]), column(&self.columns[1]), column(&self.columns[2])] })
     }
 }
@@ -232,7 +257,7 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
                     let log_ns = i64::try_from(log_time).unwrap_or(i64::MAX);
                     let channel_key = (file_index as u32) << 16 | u32::from(channel_id);
                     for (role, extractor) in &plan.roles {
-                        let m = extractor.extract(&value)?;
+                        let m = extractor.extract(&value, &plan.topic)?;
                         data.entry(*role)
                             .or_insert_with(|| TopicData::new(columns_of(*role), &topics.states.topic))
                             .push(&plan.topic, m, log_ns, channel_key, at)?;
@@ -337,6 +362,11 @@ pub(crate) fn read_sources(label: &Path, sources: Vec<Source<'_>>, topics: &Topi
                 _ => run.drive.temperature = values,
             }
         }
+    }
+    // the supply voltage: one value per sample, interpolated
+    if let (Some(d), Some(spec)) = (data.remove(&Role::Voltage), topics.voltage.as_ref()) {
+        let d = d.merge(&spec.topic, None).map_err(err)?;
+        run.drive.voltage = if d.t == states.t { d.position } else { interpolate_rows(&rel(&d.t), &d.position, 1, &run.t) };
     }
 
     // experiment: the file's, else the caller's (a sidecar is looked for by the caller)
