@@ -146,13 +146,13 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
         selection.designs = designs;
         selection.fit = sel_fit;
-        let (fitted, variants, raw_std) = match &refined {
+        let (fitted, variants, raw_std, resampling_std) = match &refined {
             // shooting's own spread (see [`shooting::Shot::std`])
             Some(r) => {
                 let fitted = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.shot.std));
                 let own = fitted_terms(&r.terms, &r.designs, &r.shot.theta, Some(&r.own_std));
                 let variants = vec![("multiple_shooting", effects::to_reports(model, &own))];
-                (fitted, variants, r.shot.std.clone())
+                (fitted, variants, r.shot.std.clone(), None)
             }
             None => {
                 let boot_std = bootstrap_std(&sel_grams, 100, 7);
@@ -169,7 +169,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                     .into_iter()
                     .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
                     .collect();
-                (fitted, variants, sel_std)
+                (fitted, variants, sel_std, Some(resampling))
             }
         };
         check_stop(options)?;
@@ -200,10 +200,20 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 kept.2.extend(cols.iter().map(|&i| sd.get(i).copied().unwrap_or(f64::NAN)));
                 kept.3.extend(cols.iter().map(|&i| own.get(i).copied().unwrap_or(f64::NAN)));
             };
-            // a shooting answer is judged by shooting's own spread: its reported one adds the
-            // disagreement of halves and methods, which bounds the error of the values but
-            // would drop terms the shooting fit needs (and it is not refitted without them)
-            let judged_sd: &[f64] = if refined.is_some() && own.len() == k { &own } else { sd };
+            // whether a term is there is judged by the data's own spread: a shooting answer by
+            // shooting's own, a torque-residual answer by its resampling spread. The reported
+            // half-widths add the pipeline's shared error (and, for shooting, the disagreement
+            // of halves and methods), which bounds the error of the values, not whether the
+            // effect is there: on open-loop replays of a long arm, whose re-simulation drifts
+            // away from the logs, it would drop a torque offset that takes 93 % off the residual
+            let resampled: Vec<f64> = resampling_std.as_ref().map(|r| (c - k..c).map(|i| r.get(i).copied().unwrap_or(f64::NAN)).collect()).unwrap_or_default();
+            let judged_sd: &[f64] = if refined.is_some() && own.len() == k {
+                &own
+            } else if resampled.len() == k {
+                &resampled
+            } else {
+                sd
+            };
             let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, judged_sd, data, &joints) } else { plausible::Judgment::Finding };
             match judgment {
                 plausible::Judgment::Finding => keep(t.clone(), d.clone(), &(0..k).collect::<Vec<_>>(), &mut next),
