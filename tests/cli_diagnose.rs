@@ -218,18 +218,8 @@ fn a_recording_without_holdout_is_split_in_time_and_says_so() {
     assert!(r["selected_effects"].as_array().unwrap().iter().any(|e| e["effect"] == "coulomb_friction"), "{}", r["selected_effects"]);
 }
 
-/// A linear axis: one prismatic joint along x, a 5 kg carriage.
-const SLIDER: &str = r#"<robot name="slider">
-  <link name="base"/>
-  <link name="carriage">
-    <inertial><origin xyz="0 0 0"/><mass value="5"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
-  </link>
-  <joint name="axis" type="prismatic">
-    <parent link="base"/><child link="carriage"/><axis xyz="1 0 0"/>
-    <limit lower="-0.5" upper="0.5" effort="500" velocity="2"/>
-  </joint>
-</robot>
-"#;
+/// A linear axis: one prismatic joint along x, a 5 kg carriage (the self-check's).
+use simgap::diag::drives::SLIDER_URDF as SLIDER;
 
 #[test]
 fn a_prismatic_axis_is_diagnosed_and_reported_in_newtons_and_metres() {

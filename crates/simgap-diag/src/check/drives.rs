@@ -15,7 +15,7 @@ use simgap_core::{Formulation, Model, UrdfOptions};
 use simgap_sim::{ControllerKind, Effect, Fourier, Run};
 
 use super::bench::{gains_for, generate, random_fourier, random_setpoints, zero_phase_lowpass, RefSpec, RunSpec};
-use super::selfcheck::{double_pendulum, draw_effects, rms, servo_scenario, truth_set, Scenario};
+use super::selfcheck::{as_replay, double_pendulum, draw_effects, rms, servo_scenario, Scenario};
 
 /// The real-drive families, in the order [`drive_scenario`] cycles through them.
 pub const DRIVE_FAMILIES: [&str; 7] = ["servo", "joint_spring", "coulomb_trap", "directional_friction", "load_friction", "link_side", "filtered"];
@@ -38,24 +38,14 @@ pub const SLIDER_URDF: &str = r#"<robot name="slider">
 </robot>
 "#;
 
-/// Relabels `run` an open-loop replay of its logged torque (a recorder's export, with no
-/// controller to re-simulate).
-fn as_replay(run: &mut Run) {
-    if let Some(e) = run.experiment.as_mut() {
-        e.controller = ControllerKind::Replay;
-        e.kp = vec![0.0; e.joints.len()];
-        e.kv = vec![0.0; e.joints.len()];
-    }
-}
-
 /// `run` as a recorder exports it: positions, velocities and torques low-pass filtered at `hz`
 /// without phase, labelled a replay.
-fn filtered(mut run: Run, hz: f64, period: f64) -> Run {
+pub(crate) fn filtered(mut run: Run, hz: f64, period: f64) -> Run {
     let dof = run.dof();
     zero_phase_lowpass(&mut run.q, dof, hz, period);
     zero_phase_lowpass(&mut run.qd, dof, hz, period);
     zero_phase_lowpass(&mut run.tau, dof, hz, period);
-    as_replay(&mut run);
+    as_replay(std::slice::from_mut(&mut run));
     run
 }
 
@@ -189,8 +179,7 @@ fn draw(family: &'static str, index: usize, rng: &mut ChaCha8Rng) -> crate::Resu
         fit = fit.into_iter().map(|r| filtered(r, hz, 0.0025)).collect();
         holdout = holdout.into_iter().map(|r| filtered(r, hz, 0.0025)).collect();
     }
-    let truth = truth_set(&model, &effects);
-    Ok(Some(Scenario { index, diagnosis_model: model.clone(), model, effects, truth, fit, holdout, family, glitch: None, servo: None, directional_friction: false }))
+    Ok(Some(Scenario::simulated(index, model, effects, fit, holdout, family)))
 }
 
 /// A `directional_friction` draw on the linear axis `model`.
@@ -227,20 +216,7 @@ fn directional(model: Model, index: usize, rng: &mut ChaCha8Rng) -> crate::Resul
     let hold = spec(format!("d{index}-holdout"), 6.0, rng);
     let gen = |s: &RunSpec| generate(&model, Formulation::EulerLagrange, &effects, s, period, counts);
     let (Ok(fit), Ok(hold)) = (specs.iter().map(gen).collect::<crate::Result<Vec<Run>>>(), gen(&hold)) else { return Ok(None) };
-    let truth = truth_set(&model, &effects);
-    Ok(Some(Scenario {
-        index,
-        diagnosis_model: model.clone(),
-        model,
-        effects,
-        truth,
-        fit,
-        holdout: vec![hold],
-        family: "directional_friction",
-        glitch: None,
-        servo: None,
-        directional_friction: true,
-    }))
+    Ok(Some(Scenario { directional_friction: true, ..Scenario::simulated(index, model, effects, fit, vec![hold], "directional_friction") }))
 }
 
 /// A `link_side` draw on the 7-DOF arm `model`.
@@ -279,18 +255,5 @@ fn link_side(model: Model, index: usize, rng: &mut ChaCha8Rng) -> crate::Result<
     else {
         return Ok(None);
     };
-    let truth = truth_set(&model, &effects);
-    Ok(Some(Scenario {
-        index,
-        diagnosis_model: model.clone(),
-        model,
-        effects,
-        truth,
-        fit: vec![a, b],
-        holdout: vec![hold],
-        family: "link_side",
-        glitch: None,
-        servo: None,
-        directional_friction: false,
-    }))
+    Ok(Some(Scenario::simulated(index, model, effects, vec![a, b], vec![hold], "link_side")))
 }

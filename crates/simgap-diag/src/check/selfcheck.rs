@@ -53,8 +53,18 @@ pub struct Scenario {
     pub directional_friction: bool,
 }
 
+impl Scenario {
+    /// A scenario whose logs were simulated on `model` itself with the hidden `effects` (the
+    /// diagnosis gets the robot's own model; the truth is [`truth_set`] of the effects; no glitch,
+    /// no servo, directional friction not tried).
+    pub(crate) fn simulated(index: usize, model: Model, effects: Vec<Effect>, fit: Vec<Run>, holdout: Vec<Run>, family: &'static str) -> Scenario {
+        let truth = truth_set(&model, &effects);
+        Scenario { index, diagnosis_model: model.clone(), model, effects, truth, fit, holdout, family, glitch: None, servo: None, directional_friction: false }
+    }
+}
+
 /// Relabels runs as open-loop replays of their commanded torque.
-fn as_replay(runs: &mut [Run]) {
+pub(crate) fn as_replay(runs: &mut [Run]) {
     for r in runs {
         if let Some(e) = r.experiment.as_mut() {
             e.controller = ControllerKind::Replay;
@@ -438,20 +448,7 @@ pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
         let fit: std::result::Result<Vec<Run>, _> = (0..3).map(|i| gen(i, if i < 2 { 5.0 } else { f64::INFINITY }, rng, format!("s{index}-fit{i}"))).collect();
         let hold = gen(3, f64::INFINITY, rng, format!("s{index}-holdout"));
         if let (Ok(fit), Ok(hold)) = (fit, hold) {
-            let truth = truth_set(&model, &effects);
-            return Ok(Scenario {
-                index,
-                diagnosis_model: model.clone(),
-                model,
-                effects,
-                truth,
-                fit,
-                holdout: vec![hold],
-                family: "servo",
-                glitch: None,
-                servo: Some(servo),
-                directional_friction: false,
-            });
+            return Ok(Scenario { servo: Some(servo), ..Scenario::simulated(index, model, effects, fit, vec![hold], "servo") });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every servo draw diverged")))
@@ -597,18 +594,15 @@ pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<
     }
     let mut out = Vec::new();
     for e in reports {
-        let per_joint = |key: &str| match e.parameters.get(key) {
-            Some(Param::PerJoint(v)) => v.clone(),
-            _ => vec![],
-        };
-        let half = |key: &str| match e.uncertainty.get(key) {
-            Some(Param::PerJoint(v)) => v.clone(),
-            _ => vec![],
+        // a per-joint entry of `map` at position `pos` (NaN where absent)
+        let at = |map: &BTreeMap<String, Param>, key: &str, pos: usize| match map.get(key) {
+            Some(Param::PerJoint(v)) => v.get(pos).copied().unwrap_or(f64::NAN),
+            _ => f64::NAN,
         };
         for (pos, joint) in e.joints.iter().enumerate() {
             let Some(j) = names.iter().position(|x| x == joint) else { continue };
-            let value = |key: &str| per_joint(key).get(pos).copied().unwrap_or(f64::NAN);
-            let hw = |key: &str| half(key).get(pos).copied().unwrap_or(f64::NAN);
+            let value = |key: &str| at(&e.parameters, key, pos);
+            let hw = |key: &str| at(&e.uncertainty, key, pos);
             let nonneg = |keys: &[&str]| keys.iter().all(|k| !(value(k) < -1e-9));
             let (in_range, neutral): (bool, Vec<(&str, f64)>) = match e.effect.as_str() {
                 "armature" => (value("ia") > 0.0 && value("ia") <= 100.0 * h_max[j], vec![("ia", 0.0)]),

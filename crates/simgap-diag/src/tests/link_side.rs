@@ -4,21 +4,11 @@
 //! its signals without phase (as an offline export does), and the fit runs repeat one trajectory.
 
 use simgap_core::{Formulation, Model, UrdfOptions};
-use simgap_sim::{ControllerKind, Effect, Run};
+use simgap_sim::{ControllerKind, Effect};
 
-use super::common::replay;
-use crate::check::bench::{gains_for, generate, random_fourier, zero_phase_lowpass, RefSpec, RunSpec};
+use crate::check::bench::{gains_for, generate, random_fourier, RefSpec, RunSpec};
+use crate::check::drives::filtered as recorded;
 use crate::{diagnose, DiagnoseOptions};
-
-/// The recorder's export: positions, velocities and the logged torque filtered at `hz`.
-fn recorded(mut run: Run, hz: f64, period: f64) -> Run {
-    let dof = run.dof();
-    zero_phase_lowpass(&mut run.q, dof, hz, period);
-    zero_phase_lowpass(&mut run.qd, dof, hz, period);
-    zero_phase_lowpass(&mut run.tau, dof, hz, period);
-    replay(&mut run, period);
-    run
-}
 
 #[test]
 fn link_side_torque_sensing_finds_the_sensor_offsets_and_the_spring_and_no_rotor_inertia() {
