@@ -207,6 +207,10 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             // effect is there: on open-loop replays of a long arm, whose re-simulation drifts
             // away from the logs, it would drop a torque offset that takes 93 % off the residual
             let resampled: Vec<f64> = resampling_std.as_ref().map(|r| (c - k..c).map(|i| r.get(i).copied().unwrap_or(f64::NAN)).collect()).unwrap_or_default();
+            // whether a richer shape is resolved beyond its simpler nested term is judged as
+            // before: by shooting's own spread, or by the reported half-widths with the
+            // pipeline's shared error
+            let shape_sd: &[f64] = if refined.is_some() && own.len() == k { &own } else { sd };
             let judged_sd: &[f64] = if refined.is_some() && own.len() == k {
                 &own
             } else if resampled.len() == k {
@@ -214,7 +218,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             } else {
                 sd
             };
-            let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, judged_sd, data, &joints) } else { plausible::Judgment::Finding };
+            let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, judged_sd, shape_sd, data, &joints) } else { plausible::Judgment::Finding };
             match judgment {
                 plausible::Judgment::Finding => keep(t.clone(), d.clone(), &(0..k).collect::<Vec<_>>(), &mut next),
                 plausible::Judgment::NoFinding(why) => {

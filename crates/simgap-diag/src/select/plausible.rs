@@ -59,8 +59,19 @@ fn on_bound(theta: f64, b: f64) -> bool {
 const MIN_TORQUE_SHARE: f64 = 0.01;
 
 /// Judges one selected term from its column coefficients `theta` and their standard deviations
-/// `std` (the design's coordinates, see [`TermDesign`]).
-pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64], data: &[crate::prepare::dataset::FitData], joints: &[String]) -> Judgment {
+/// (the design's coordinates, see [`TermDesign`]): `std`, the data's own spread, decides whether
+/// the term is there at all; `shape_std`, which may add the pipeline's shared error, whether a
+/// richer shape's extra parameters are resolved beyond the simpler nested term (a shape must
+/// stand out of the pipeline's own error, which trades one friction shape for another).
+pub(crate) fn judge(
+    term: &Term,
+    design: &TermDesign,
+    theta: &[f64],
+    std: &[f64],
+    shape_std: &[f64],
+    data: &[crate::prepare::dataset::FitData],
+    joints: &[String],
+) -> Judgment {
     // an inertial correction is judged by its physical consistency (its own solver), and a
     // term without free parameters (a grid member, the other formulation of C) by prediction
     if design.inertial.is_some() || design.cols.is_empty() || theta.len() != design.cols.len() {
@@ -102,7 +113,7 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
     if let Some(nested) = simpler(term, data) {
         let why = match nested.unresolved {
             Some(u) => Some(u),
-            None if nested.extra.iter().all(|&c| c < theta.len() && holds_zero(theta[c], std[c])) => {
+            None if nested.extra.iter().all(|&c| c < theta.len() && c < shape_std.len() && holds_zero(theta[c], shape_std[c])) => {
                 Some("the 95 % intervals of its extra parameters hold the values of the simpler effect".to_string())
             }
             None => None,
@@ -204,23 +215,23 @@ mod tests {
 
     #[test]
     fn an_armature_at_the_edge_of_its_range_is_no_finding() {
-        let j = judge(&Term::Armature(0), &design(0.0, 2.0), &[2.0], &[0.1], &[], &["a".into()]);
+        let j = judge(&Term::Armature(0), &design(0.0, 2.0), &[2.0], &[0.1], &[0.1], &[], &["a".into()]);
         assert!(matches!(j, Judgment::NoFinding(ref w) if w.contains("edge")), "{j:?}");
-        let j = judge(&Term::Armature(0), &design(0.0, 2.0), &[1.0], &[0.1], &[], &["a".into()]);
+        let j = judge(&Term::Armature(0), &design(0.0, 2.0), &[1.0], &[0.1], &[0.1], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
 
     #[test]
     fn an_interval_that_holds_the_neutral_value_is_no_finding() {
-        let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[0.2], &[], &["a".into()]);
+        let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[0.2], &[0.2], &[], &["a".into()]);
         assert!(matches!(j, Judgment::NoFinding(ref w) if w.contains("neutral")), "{j:?}");
-        let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.5], &[0.2], &[], &["a".into()]);
+        let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.5], &[0.2], &[0.2], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
 
     #[test]
     fn an_unknown_spread_decides_nothing() {
-        let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[f64::NAN], &[], &["a".into()]);
+        let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[f64::NAN], &[f64::NAN], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
 }
