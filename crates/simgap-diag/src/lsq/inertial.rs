@@ -275,9 +275,15 @@ pub(crate) fn project_reach(phi: &mut [f64], reach: f64) {
 ///
 /// Levenberg–Marquardt on (linear parameters, log-Cholesky φ), started from the URDF; linear
 /// parameters are kept in their box (a parameter at a bound whose gradient points out is held),
-/// centres of mass are projected into their balls. Returns θ and the number of directions of `G`
-/// above 1e-10 of its largest eigenvalue.
-pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64]) -> (DVector<f64>, usize) {
+/// centres of mass are projected into their balls. Returns θ and the iterate x = (linear
+/// parameters, φ) it came from.
+///
+/// `start`: the iterate of an earlier solution of a nearby problem (the same terms on other
+/// data: a cross-validation fold, a resample), to start from in place of the URDF. The problem is
+/// convex in the inertial parameters over a convex set, so the start changes how many
+/// iterations reach the minimum, not the minimum; when the iterations stop before it (they are
+/// capped), a start near it ends nearer.
+pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &DVector<f64>, lo: &[f64], hi: &[f64], start: Option<&[f64]>) -> (DVector<f64>, Vec<f64>) {
     let k = g.nrows();
     let nl = prior.links();
     let w = PARAMS_PER_LINK * nl;
@@ -332,9 +338,16 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         xlo.extend([f64::NEG_INFINITY; 6]);
         xhi.extend([f64::INFINITY; 6]);
     }
-    let mut x: Vec<f64> = z.iter().chain(&phi).copied().collect();
+    let mut x: Vec<f64> = match start {
+        Some(x0) if x0.len() == nx && x0.iter().all(|v| v.is_finite()) => x0.to_vec(),
+        _ => z.iter().chain(&phi).copied().collect(),
+    };
     for (a, v) in x.iter_mut().enumerate() {
         *v = v.clamp(xlo[a], xhi[a]);
+    }
+    for l in 0..nl {
+        let o = lin.len() + 10 * l;
+        project_reach(&mut x[o..o + 10], prior.reach[l]);
     }
     let split = |x: &[f64]| -> (Vec<f64>, Vec<f64>) { (x[..lin.len()].to_vec(), x[lin.len()..].to_vec()) };
     let (z0, phi0) = split(&x);
@@ -402,10 +415,7 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
             break;
         }
     }
-    let eig = g.clone().symmetric_eigen();
-    let max = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
-    let rank = eig.eigenvalues.iter().filter(|&&l| l > 1e-10 * max && l > 0.0).count();
-    (th, rank)
+    (th, x)
 }
 
 #[cfg(test)]

@@ -145,15 +145,29 @@ pub(crate) struct Grams {
 impl Grams {
     /// Minimises `½ θᵀ g θ − cᵀ θ` (a sum of these Grams' blocks) under the physical constraints
     /// of the terms: bounds on linear parameters ([`solve_bounded`]) and, with an inertial
-    /// correction, physically consistent links ([`crate::lsq::inertial::solve`]). Returns θ and the
-    /// effective rank.
-    pub(crate) fn solve(&self, g: &DMatrix<f64>, c: &DVector<f64>) -> (DVector<f64>, usize) {
+    /// correction, physically consistent links ([`crate::lsq::inertial::solve`]). Returns θ.
+    pub(crate) fn solve(&self, g: &DMatrix<f64>, c: &DVector<f64>) -> DVector<f64> {
+        self.solve_from(g, c, None).0
+    }
+
+    /// [`Grams::solve`] started from `start`, the [`Start`] of an earlier solution of the same
+    /// terms on other data (a fold, a resample); returns θ and its own start for the next.
+    pub(crate) fn solve_from(&self, g: &DMatrix<f64>, c: &DVector<f64>, start: Option<&Start>) -> (DVector<f64>, Option<Start>) {
         match &self.inertial {
-            Some((first, prior)) => crate::lsq::inertial::solve(prior, *first, g, c, &self.lo, &self.hi),
-            None => solve_bounded(g, c, &self.lo, &self.hi),
+            Some((first, prior)) => {
+                let (theta, x) = crate::lsq::inertial::solve(prior, *first, g, c, &self.lo, &self.hi, start.map(|s| s.0.as_slice()));
+                (theta, Some(Start(x)))
+            }
+            None => (solve_bounded(g, c, &self.lo, &self.hi).0, None),
         }
     }
 }
+
+/// Where the iterative solve of an inertial correction stands after a solution: started from it,
+/// a nearby problem (the same terms fitted on a fold or a resample of the data) converges in a
+/// few iterations instead of from the URDF. Only terms with an inertial correction have one.
+#[derive(Clone, Debug)]
+pub(crate) struct Start(Vec<f64>);
 
 /// Builds the Gram matrices of `terms` (their designs given) against the nominal residual
 /// minus their fixed offsets.
@@ -307,19 +321,52 @@ fn sse(g: &DMatrix<f64>, c: &DVector<f64>, s: f64, theta: &DVector<f64>) -> f64 
 }
 
 /// Fits and cross-validates, every fit (all data and each fold) under the terms' physical
-/// constraints (see [`Grams::solve`]).
+/// constraints (see [`Grams::solve`]); the folds start from the fit on all data.
 pub(crate) fn fit(p: &Problem, gr: &Grams) -> Fit {
-    let (g, c, _) = sum_blocks(gr, |_, _| true);
-    let (theta, _) = gr.solve(&g, &c);
     let folds = p.blocks / BLOCKS_PER_FOLD;
-    let mut cv_joint = vec![0.0; p.dof];
+    // per fold, the sum over its blocks of every joint's cells and of each joint's; the blocks
+    // after the last whole fold are in every training set
+    let (k, dof) = (gr.k, p.dof);
+    let mut fold_g = vec![DMatrix::zeros(k, k); folds];
+    let mut fold_c = vec![DVector::zeros(k); folds];
+    let mut cell: Vec<(DMatrix<f64>, DVector<f64>, f64)> = vec![(DMatrix::zeros(k, k), DVector::zeros(k), 0.0); folds * dof];
+    let (mut rest_g, mut rest_c) = (DMatrix::zeros(k, k), DVector::zeros(k));
+    for b in 0..gr.g.len() {
+        let (block, j) = (b / dof, b % dof);
+        let f = block / BLOCKS_PER_FOLD;
+        if f < folds {
+            let e = &mut cell[f * dof + j];
+            e.0 += &gr.g[b];
+            e.1 += &gr.c[b];
+            e.2 += gr.s[b];
+        } else {
+            rest_g += &gr.g[b];
+            rest_c += &gr.c[b];
+        }
+    }
     for f in 0..folds {
-        let in_fold = |b: usize| b / BLOCKS_PER_FOLD == f;
-        let (gt, ct, _) = sum_blocks(gr, |b, _| !in_fold(b));
-        let (th, _) = gr.solve(&gt, &ct);
+        for j in 0..dof {
+            fold_g[f] += &cell[f * dof + j].0;
+            fold_c[f] += &cell[f * dof + j].1;
+        }
+    }
+    let (mut g, mut c) = (rest_g.clone(), rest_c.clone());
+    for f in 0..folds {
+        g += &fold_g[f];
+        c += &fold_c[f];
+    }
+    let (theta, start) = gr.solve_from(&g, &c, None);
+    let mut cv_joint = vec![0.0; dof];
+    for f in 0..folds {
+        let (mut gt, mut ct) = (rest_g.clone(), rest_c.clone());
+        for o in (0..folds).filter(|&o| o != f) {
+            gt += &fold_g[o];
+            ct += &fold_c[o];
+        }
+        let (th, _) = gr.solve_from(&gt, &ct, start.as_ref());
         for (j, cv) in cv_joint.iter_mut().enumerate() {
-            let (gv, cvv, sv) = sum_blocks(gr, |b, jj| in_fold(b) && jj == j);
-            *cv += sse(&gv, &cvv, sv, &th);
+            let (gv, cvv, sv) = &cell[f * dof + j];
+            *cv += sse(gv, cvv, *sv, &th);
         }
     }
     let cv_mse = cv_joint.iter().sum::<f64>() / p.rows();
@@ -346,6 +393,11 @@ pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64>
             (g, c)
         })
         .collect();
+    // every draw starts from the fit on all the data
+    let start = gr.inertial.as_ref().and_then(|_| {
+        let (g, c, _) = sum_blocks(gr, |_, _| true);
+        gr.solve_from(&g, &c, None).1
+    });
     for _ in 0..draws {
         let mut g = DMatrix::zeros(gr.k, gr.k);
         let mut c = DVector::zeros(gr.k);
@@ -354,7 +406,7 @@ pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64>
             g += &blocks[b].0;
             c += &blocks[b].1;
         }
-        let (th, _) = gr.solve(&g, &c);
+        let (th, _) = gr.solve_from(&g, &c, start.as_ref());
         sum += &th;
         sum2 += th.component_mul(&th);
     }
@@ -366,14 +418,21 @@ pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64>
 /// each: a fifth of a fit run), under the terms' physical constraints (`|_| false`: all the fit
 /// data).
 pub(crate) fn theta_without(gr: &Grams, held: &dyn Fn(usize) -> bool) -> DVector<f64> {
-    let (g, c, _) = sum_blocks(gr, |b, _| !held(b / BLOCKS_PER_FOLD));
-    gr.solve(&g, &c).0
+    theta_without_from(gr, held, None).0
 }
 
-/// The parameters fitted without each contiguous fold ([`theta_without`]).
+/// [`theta_without`] started from an earlier solution's [`Start`].
+fn theta_without_from(gr: &Grams, held: &dyn Fn(usize) -> bool, start: Option<&Start>) -> (DVector<f64>, Option<Start>) {
+    let (g, c, _) = sum_blocks(gr, |b, _| !held(b / BLOCKS_PER_FOLD));
+    gr.solve_from(&g, &c, start)
+}
+
+/// The parameters fitted without each contiguous fold ([`theta_without`]), each started from
+/// the fit on all the data.
 pub(crate) fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
     let folds = gr.g.len() / gr.dof / BLOCKS_PER_FOLD;
-    (0..folds).map(|f| theta_without(gr, &|g| g == f)).collect()
+    let start = gr.inertial.as_ref().and_then(|_| theta_without_from(gr, &|_| false, None).1);
+    (0..folds).map(|f| theta_without_from(gr, &|g| g == f, start.as_ref()).0).collect()
 }
 
 /// The 97.5 % quantile of Student's t with `nu` degrees of freedom (the half-width of a

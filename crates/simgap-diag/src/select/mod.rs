@@ -141,6 +141,9 @@ pub(crate) struct Context<'a> {
     cache: std::sync::Mutex<std::collections::HashMap<crate::vocabulary::TermKey, std::sync::Arc<TermDesign>>>,
     /// The payload's basis, built at its first search.
     payload: std::sync::OnceLock<PayloadBasis>,
+    /// Fits already made, by the terms fitted in their order (exchange moves, polishing and
+    /// pruning fit the same sets again).
+    fits: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, Fit>>,
 }
 
 /// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
@@ -174,8 +177,18 @@ impl<'a> Context<'a> {
         let mut prior = prior.clone();
         prior.identifiable = inertial_basis.ncols();
         let dry_width = data.first().map_or_else(Vec::new, |d| d.dry_width.clone());
-        let mut ctx =
-            Context { data, problem, inertial_basis, prior: Arc::new(prior), saturation_floor, sample_period, dry_width, cache: Default::default(), payload: Default::default() };
+        let mut ctx = Context {
+            data,
+            problem,
+            inertial_basis,
+            prior: Arc::new(prior),
+            saturation_floor,
+            sample_period,
+            dry_width,
+            cache: Default::default(),
+            payload: Default::default(),
+            fits: Default::default(),
+        };
         if ctx.inertial_basis.ncols() > 0 {
             let w = ctx.choose_prior_weight();
             let mut prior = (*ctx.prior).clone();
@@ -401,7 +414,7 @@ impl<'a> Context<'a> {
             }
             g[(k, k)] = (0..PARAMS_PER_LINK).map(|i| pi[i] * (0..PARAMS_PER_LINK).map(|l| pi[l] * g_full[(k + i, k + l)]).sum::<f64>()).sum();
             c[k] = (0..PARAMS_PER_LINK).map(|i| pi[i] * c_full[k + i]).sum();
-            let (t, _) = solver.solve(&g, &c);
+            let t = solver.solve(&g, &c);
             s - 2.0 * t.dot(&c) + t.dot(&(&g * &t))
         };
         Term::Payload { com: within(&nelder_mead(&mut sse, c0, 0.02, 60)), max_mass }
@@ -419,6 +432,20 @@ impl<'a> Context<'a> {
 
     /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
     /// was built before.
+    /// The fit of `terms` on the torque residual ([`crate::lsq::fit`] of their Grams), whose
+    /// designs are `designs` (each the [`Context::design`] of its term), made once per set.
+    pub(crate) fn fit_set(&self, terms: &[Term], designs: &[TermDesign]) -> Fit {
+        debug_assert_eq!(terms.len(), designs.len());
+        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
+            return f.clone();
+        }
+        let refs: Vec<&TermDesign> = designs.iter().collect();
+        let f = fit(&self.problem, &grams(&self.problem, &refs));
+        self.fits.lock().expect("fit cache").insert(key, f.clone());
+        f
+    }
+
     pub(crate) fn design(&self, t: &Term) -> TermDesign {
         self.design_shared(t).as_ref().clone()
     }
@@ -544,7 +571,7 @@ fn screen_fit_known(p: &Problem, d: &TermDesign, resid: &Column, resid_squares: 
         c += &gr.c[b];
         s += gr.s[b];
     }
-    let (th, _) = gr.solve(&g, &c);
+    let th = gr.solve(&g, &c);
     let sse = s - 2.0 * th.dot(&c) + th.dot(&(&g * &th));
     (th, sse)
 }

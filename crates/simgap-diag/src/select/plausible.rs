@@ -63,15 +63,7 @@ const MIN_TORQUE_SHARE: f64 = 0.01;
 /// the term is there at all; `shape_std`, which may add the pipeline's shared error, whether a
 /// richer shape's extra parameters are resolved beyond the simpler nested term (a shape must
 /// stand out of the pipeline's own error, which trades one friction shape for another).
-pub(crate) fn judge(
-    term: &Term,
-    design: &TermDesign,
-    theta: &[f64],
-    std: &[f64],
-    shape_std: &[f64],
-    data: &[crate::prepare::dataset::FitData],
-    joints: &[String],
-) -> Judgment {
+pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64], shape_std: &[f64], data: &[crate::prepare::dataset::FitData], joints: &[String]) -> Judgment {
     // an inertial correction is judged by its physical consistency (its own solver), and a
     // term without free parameters (a grid member, the other formulation of C) by prediction
     if design.inertial.is_some() || design.cols.is_empty() || theta.len() != design.cols.len() {

@@ -42,8 +42,7 @@ fn exchange_by_residual(
             rest_terms.remove(i);
             let mut rest = designs_now.to_vec();
             rest.remove(i);
-            let refs: Vec<&TermDesign> = rest.iter().collect();
-            let f0 = fit(p, &grams(p, &refs));
+            let f0 = ctx.fit_set(&rest_terms, &rest);
             let resid = residual_after(p, &rest, &f0.theta);
             // (a family whose slot is taken is not searched: its best member could not join)
             let mut cands: Vec<Term> = fams
@@ -62,10 +61,9 @@ fn exchange_by_residual(
             for c in cands {
                 let mut ds = rest.clone();
                 ds.push(ctx.design(&c));
-                let refs: Vec<&TermDesign> = ds.iter().collect();
-                let f = fit(p, &grams(p, &refs));
                 let mut all = rest_terms.clone();
                 all.push(c.clone());
+                let f = ctx.fit_set(&all, &ds);
                 if !admissible(&ds, &all, &f.theta) {
                     continue;
                 }
@@ -140,10 +138,9 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
             .filter_map(|c| {
                 let mut ds = designs_now.clone();
                 ds.push(ctx.design(&c));
-                let refs: Vec<&TermDesign> = ds.iter().collect();
-                let f = fit(p, &grams(p, &refs));
                 let mut all = terms_now.clone();
                 all.push(c.clone());
+                let f = ctx.fit_set(&all, &ds);
                 admissible(&ds, &all, &f.theta).then_some((c, f, ds))
             })
             .collect();
@@ -203,10 +200,9 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         for i in 0..terms.len() {
             let mut ds = designs.clone();
             ds.remove(i);
-            let refs: Vec<&TermDesign> = ds.iter().collect();
-            let f = fit(p, &grams(p, &refs));
             let mut rest = terms.clone();
             rest.remove(i);
+            let f = ctx.fit_set(&rest, &ds);
             if !admissible(&ds, &rest, &f.theta) {
                 continue;
             }
@@ -233,11 +229,9 @@ pub(crate) fn repolish(ctx: &Context<'_>, terms: &[Term]) -> Vec<Term> {
     if !terms.iter().any(|t| family_of(t).is_some()) {
         return terms.to_vec();
     }
-    let p = &ctx.problem;
     let mut terms = terms.to_vec();
     let mut designs: Vec<TermDesign> = terms.iter().map(|t| ctx.design(t)).collect();
-    let refs: Vec<&TermDesign> = designs.iter().collect();
-    let mut current = fit(p, &grams(p, &refs));
+    let mut current = ctx.fit_set(&terms, &designs);
     polish(ctx, &mut terms, &mut designs, &mut current);
     terms
 }
@@ -264,16 +258,16 @@ fn polish(ctx: &Context<'_>, terms: &mut [Term], designs: &mut [TermDesign], cur
             let Some(family) = family_of(&terms[i]) else { continue };
             let mut rest = designs.to_vec();
             rest.remove(i);
-            let refs: Vec<&TermDesign> = rest.iter().collect();
-            let f0 = fit(p, &grams(p, &refs));
+            let mut rest_terms = terms.to_vec();
+            rest_terms.remove(i);
+            let f0 = ctx.fit_set(&rest_terms, &rest);
             let resid = residual_after(p, &rest, &f0.theta);
             let cand = ctx.best_of_with(&family, &resid, &rest);
             let mut ds = designs.to_vec();
             ds[i] = ctx.design(&cand);
-            let refs: Vec<&TermDesign> = ds.iter().collect();
-            let f = fit(p, &grams(p, &refs));
             let mut all = terms.to_vec();
             all[i] = cand.clone();
+            let f = ctx.fit_set(&all, &ds);
             if f.cv_mse < current.cv_mse && admissible(&ds, &all, &f.theta) {
                 terms[i] = cand;
                 designs[i] = ds.swap_remove(i);

@@ -139,6 +139,40 @@ fn inertial_fit_recovers_known_link_mass_from_synthetic_data() {
     assert!(r[0].description.contains("mass +"), "{}", r[0].description);
 }
 
+#[test]
+fn inertial_fit_of_a_fold_started_from_the_whole_fit_reaches_the_same_minimum() {
+    // the cross-validation folds and the resamples start from the fit on all data: the problem
+    // is convex in the inertial parameters, so the start must not change the minimum
+    let truth = LinkDelta { joint: 1, mass: 0.8, com: [0.0; 3], inertia: [0.0; 6] };
+    let (model, data, _, _) = paper_arm_data(&[Effect::InertialError { deltas: vec![truth] }]);
+    let prior = parameter_scales(&model);
+    let ctx = Context::new(&data, 0.0025, &prior);
+    let design = ctx.design(&ctx.inertial_term());
+    let gr = crate::lsq::grams(&ctx.problem, &[&design]);
+    let sum = |keep: &dyn Fn(usize) -> bool| {
+        let (mut g, mut c) = (nalgebra::DMatrix::zeros(gr.k, gr.k), nalgebra::DVector::zeros(gr.k));
+        for b in (0..gr.g.len()).filter(|b| keep(b / gr.dof)) {
+            g += &gr.g[b];
+            c += &gr.c[b];
+        }
+        (g, c)
+    };
+    let (g, c) = sum(&|_| true);
+    let (_, start) = gr.solve_from(&g, &c, None);
+    assert!(start.is_some(), "an inertial correction has a start");
+    let (gf, cf) = sum(&|b| b / crate::lsq::BLOCKS_PER_FOLD != 0);
+    let (cold, _) = gr.solve_from(&gf, &cf, None);
+    let (warm, _) = gr.solve_from(&gf, &cf, start.as_ref());
+    let objective = |th: &nalgebra::DVector<f64>| 0.5 * th.dot(&(&gf * th)) - cf.dot(th);
+    let (f_cold, f_warm) = (objective(&cold), objective(&warm));
+    assert!((f_warm - f_cold).abs() <= 1e-5 * f_cold.abs(), "fold objective from the URDF {f_cold}, from the whole fit {f_warm}");
+    // the mass-weighted directions the data see agree: the elbow's first moment
+    let h = |th: &nalgebra::DVector<f64>, i: usize| design.inertial.as_ref().unwrap().corrected(th.as_slice(), 1)[i];
+    for i in 1..4 {
+        assert!((h(&cold, i) - h(&warm, i)).abs() < 1e-3 * (1.0 + h(&cold, i).abs()), "elbow first moment {i}: {} from the URDF, {} from the whole fit", h(&cold, i), h(&warm, i));
+    }
+}
+
 /// Asserts that a reported effect is physically possible on `model`.
 fn assert_physical(model: &Model, e: &EffectReport, delivered: &[f64], what: &str) {
     let list = |k: &str| match e.parameters.get(k) {
