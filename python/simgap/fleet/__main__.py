@@ -141,6 +141,20 @@ def main(argv: list[str] | None = None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     client = None
+    # Ctrl-C is remembered as well as raised: code between here and the outputs that catches
+    # the KeyboardInterrupt (a library's wait loop, a generator's cleanup) cannot turn an
+    # interrupted run into a finished one
+    interrupted: list[bool] = []
+
+    def on_sigint(signum: int, frame: object) -> None:
+        interrupted.append(True)
+        raise KeyboardInterrupt
+
+    def check_interrupted() -> None:
+        if interrupted:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
     try:
         if args.scheduler:
             from distributed import Client
@@ -151,9 +165,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"simgap.fleet: cannot reach the scheduler {args.scheduler}: {err}", file=sys.stderr)
                 return 2
         result = diagnose_fleet(index, args.urdf, client, tip=args.tip, formulation=args.formulation, retries=args.retries, progress=not args.no_progress, n_workers=args.workers)
+        check_interrupted()
         findings = find(result.table, result.reports, **_thresholds(args))
         print(summary_text(result, findings))
         failed = _write(result, findings, tmp, args)
+        check_interrupted()
         _move_into(tmp, out)
         written = [n for n in ("fleet.parquet", "fleet.csv", "tasks.csv", "drift.csv", "outliers.csv", "flagged.csv", "fleet.html", "reports") if (out / n).exists()]
         print(f"wrote {out}/ ({', '.join(written)})")
@@ -165,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         print("\nsimgap.fleet: interrupted; no output written", file=sys.stderr)
         return 130
     finally:
+        signal.signal(signal.SIGINT, previous)
         shutil.rmtree(tmp, ignore_errors=True)
         if client is not None:
             client.close()
