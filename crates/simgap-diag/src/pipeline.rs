@@ -210,8 +210,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             // whether a richer shape is resolved beyond its simpler nested term is judged as
             // before: by shooting's own spread, or by the reported half-widths with the
             // pipeline's shared error
-            let shape_sd: &[f64] = if refined.is_some() && own.len() == k { &own } else { sd };
-            let judged_sd: &[f64] = if refined.is_some() && own.len() == k {
+            let shot = refined.is_some() && own.len() == k;
+            let shape_sd: &[f64] = if shot { &own } else { sd };
+            let judged_sd: &[f64] = if shot {
                 &own
             } else if resampled.len() == k {
                 &resampled

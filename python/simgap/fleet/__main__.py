@@ -181,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
         print("\nsimgap.fleet: interrupted; no output written", file=sys.stderr)
         return 130
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if previous is not None:  # None: a handler not installed from Python, which cannot be restored
+            signal.signal(signal.SIGINT, previous)
         shutil.rmtree(tmp, ignore_errors=True)
         if client is not None:
             client.close()

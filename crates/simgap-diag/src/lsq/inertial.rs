@@ -292,15 +292,6 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
     let mean_diag = (first..first + w).map(|i| g[(i, i)]).sum::<f64>() / w as f64;
     let mu = prior.weight * mean_diag.max(1e-300);
     let avg_mass = prior.nominal.iter().step_by(PARAMS_PER_LINK).sum::<f64>() / nl.max(1) as f64;
-    // start: the URDF, the linear parameters fitted with it
-    let phi: Vec<f64> = (0..nl)
-        .flat_map(|i| {
-            let p: [f64; PARAMS_PER_LINK] = std::array::from_fn(|a| prior.nominal[PARAMS_PER_LINK * i + a]);
-            let mut f = log_cholesky_of_parameters(&p, 1e-6 * avg_mass.max(1e-6));
-            project_reach(&mut f, prior.reach[i]);
-            f
-        })
-        .collect();
     let theta_of = |phi: &[f64], z: &[f64]| -> DVector<f64> {
         let mut th = DVector::zeros(k);
         for (a, &i) in lin.iter().enumerate() {
@@ -319,12 +310,22 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         let prior_term: f64 = (first..first + w).map(|i| th[i] * th[i]).sum();
         0.5 * th.dot(&(g * th)) - c.dot(th) + 0.5 * mu * prior_term
     };
-    let z: Vec<f64> = {
+    // the start without an earlier solution: the URDF, the linear parameters fitted with it
+    let urdf_start = || -> Vec<f64> {
+        let phi: Vec<f64> = (0..nl)
+            .flat_map(|i| {
+                let p: [f64; PARAMS_PER_LINK] = std::array::from_fn(|a| prior.nominal[PARAMS_PER_LINK * i + a]);
+                let mut f = log_cholesky_of_parameters(&p, 1e-6 * avg_mass.max(1e-6));
+                project_reach(&mut f, prior.reach[i]);
+                f
+            })
+            .collect();
         let th0 = theta_of(&phi, &vec![0.0; lin.len()]);
         let gl = DMatrix::from_fn(lin.len(), lin.len(), |a, b| g[(lin[a], lin[b])]);
         let rhs = DVector::from_fn(lin.len(), |a, _| c[lin[a]] - (first..first + w).map(|j| g[(lin[a], j)] * th0[j]).sum::<f64>());
         let (llo, lhi): (Vec<f64>, Vec<f64>) = lin.iter().map(|&i| (lo[i], hi[i])).unzip();
-        crate::lsq::bounded::solve_bounded(&gl, &rhs, &llo, &lhi).0.iter().copied().collect()
+        let z = crate::lsq::bounded::solve_bounded(&gl, &rhs, &llo, &lhi).0;
+        z.iter().chain(&phi).copied().collect()
     };
     let nx = lin.len() + 10 * nl;
     // bounds of x = (z, φ): the linear parameters' boxes; per link the mass within a factor
@@ -338,16 +339,13 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         xlo.extend([f64::NEG_INFINITY; 6]);
         xhi.extend([f64::INFINITY; 6]);
     }
+    // (an earlier solution of the same prior is within its bounds and reach already)
     let mut x: Vec<f64> = match start {
         Some(x0) if x0.len() == nx && x0.iter().all(|v| v.is_finite()) => x0.to_vec(),
-        _ => z.iter().chain(&phi).copied().collect(),
+        _ => urdf_start(),
     };
     for (a, v) in x.iter_mut().enumerate() {
         *v = v.clamp(xlo[a], xhi[a]);
-    }
-    for l in 0..nl {
-        let o = lin.len() + 10 * l;
-        project_reach(&mut x[o..o + 10], prior.reach[l]);
     }
     let split = |x: &[f64]| -> (Vec<f64>, Vec<f64>) { (x[..lin.len()].to_vec(), x[lin.len()..].to_vec()) };
     let (z0, phi0) = split(&x);

@@ -302,7 +302,7 @@ pub(crate) struct Fit {
 }
 
 /// Sums the Grams of the (block, joint) cells `keep(block, joint)` accepts.
-fn sum_blocks(gr: &Grams, keep: impl Fn(usize, usize) -> bool) -> (DMatrix<f64>, DVector<f64>, f64) {
+pub(crate) fn sum_blocks(gr: &Grams, keep: impl Fn(usize, usize) -> bool) -> (DMatrix<f64>, DVector<f64>, f64) {
     let mut g = DMatrix::zeros(gr.k, gr.k);
     let mut c = DVector::zeros(gr.k);
     let mut s = 0.0;
@@ -394,10 +394,7 @@ pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64>
         })
         .collect();
     // every draw starts from the fit on all the data
-    let start = gr.inertial.as_ref().and_then(|_| {
-        let (g, c, _) = sum_blocks(gr, |_, _| true);
-        gr.solve_from(&g, &c, None).1
-    });
+    let start = whole_fit_start(gr);
     for _ in 0..draws {
         let mut g = DMatrix::zeros(gr.k, gr.k);
         let mut c = DVector::zeros(gr.k);
@@ -418,21 +415,29 @@ pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64>
 /// each: a fifth of a fit run), under the terms' physical constraints (`|_| false`: all the fit
 /// data).
 pub(crate) fn theta_without(gr: &Grams, held: &dyn Fn(usize) -> bool) -> DVector<f64> {
-    theta_without_from(gr, held, None).0
+    theta_without_from(gr, held, None)
 }
 
 /// [`theta_without`] started from an earlier solution's [`Start`].
-fn theta_without_from(gr: &Grams, held: &dyn Fn(usize) -> bool, start: Option<&Start>) -> (DVector<f64>, Option<Start>) {
+fn theta_without_from(gr: &Grams, held: &dyn Fn(usize) -> bool, start: Option<&Start>) -> DVector<f64> {
     let (g, c, _) = sum_blocks(gr, |b, _| !held(b / BLOCKS_PER_FOLD));
-    gr.solve_from(&g, &c, start)
+    gr.solve_from(&g, &c, start).0
+}
+
+/// The [`Start`] of the fit on all the data, for the fits of its folds and resamples (`None`
+/// without an inertial correction, whose solve needs none).
+fn whole_fit_start(gr: &Grams) -> Option<Start> {
+    gr.inertial.as_ref()?;
+    let (g, c, _) = sum_blocks(gr, |_, _| true);
+    gr.solve_from(&g, &c, None).1
 }
 
 /// The parameters fitted without each contiguous fold ([`theta_without`]), each started from
 /// the fit on all the data.
 pub(crate) fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
     let folds = gr.g.len() / gr.dof / BLOCKS_PER_FOLD;
-    let start = gr.inertial.as_ref().and_then(|_| theta_without_from(gr, &|_| false, None).1);
-    (0..folds).map(|f| theta_without_from(gr, &|g| g == f, start.as_ref()).0).collect()
+    let start = whole_fit_start(gr);
+    (0..folds).map(|f| theta_without_from(gr, &|g| g == f, start.as_ref())).collect()
 }
 
 /// The 97.5 % quantile of Student's t with `nu` degrees of freedom (the half-width of a

@@ -430,8 +430,6 @@ impl<'a> Context<'a> {
         }
     }
 
-    /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
-    /// was built before.
     /// The fit of `terms` on the torque residual ([`crate::lsq::fit`] of their Grams), whose
     /// designs are `designs` (each the [`Context::design`] of its term), made once per set.
     pub(crate) fn fit_set(&self, terms: &[Term], designs: &[TermDesign]) -> Fit {
@@ -446,6 +444,8 @@ impl<'a> Context<'a> {
         f
     }
 
+    /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
+    /// was built before.
     pub(crate) fn design(&self, t: &Term) -> TermDesign {
         self.design_shared(t).as_ref().clone()
     }

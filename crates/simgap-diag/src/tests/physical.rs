@@ -149,18 +149,10 @@ fn inertial_fit_of_a_fold_started_from_the_whole_fit_reaches_the_same_minimum() 
     let ctx = Context::new(&data, 0.0025, &prior);
     let design = ctx.design(&ctx.inertial_term());
     let gr = crate::lsq::grams(&ctx.problem, &[&design]);
-    let sum = |keep: &dyn Fn(usize) -> bool| {
-        let (mut g, mut c) = (nalgebra::DMatrix::zeros(gr.k, gr.k), nalgebra::DVector::zeros(gr.k));
-        for b in (0..gr.g.len()).filter(|b| keep(b / gr.dof)) {
-            g += &gr.g[b];
-            c += &gr.c[b];
-        }
-        (g, c)
-    };
-    let (g, c) = sum(&|_| true);
+    let (g, c, _) = crate::lsq::sum_blocks(&gr, |_, _| true);
     let (_, start) = gr.solve_from(&g, &c, None);
     assert!(start.is_some(), "an inertial correction has a start");
-    let (gf, cf) = sum(&|b| b / crate::lsq::BLOCKS_PER_FOLD != 0);
+    let (gf, cf, _) = crate::lsq::sum_blocks(&gr, |b, _| b / crate::lsq::BLOCKS_PER_FOLD != 0);
     let (cold, _) = gr.solve_from(&gf, &cf, None);
     let (warm, _) = gr.solve_from(&gf, &cf, start.as_ref());
     let objective = |th: &nalgebra::DVector<f64>| 0.5 * th.dot(&(&gf * th)) - cf.dot(th);
