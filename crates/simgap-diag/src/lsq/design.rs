@@ -10,11 +10,18 @@ use crate::lsq::inertial::InertialPrior;
 pub(crate) struct Column {
     /// `Some(j)`: nonzero only on joint j's rows.
     pub joint: Option<usize>,
-    /// Values: length = samples (per-joint) or samples × dof (global).
-    pub values: Vec<f64>,
+    /// Values: length = samples (per-joint) or samples × dof (global). Shared: a clone of a
+    /// column (a design taken from the cache, a set refitted) copies no sample; change them
+    /// with `Arc::make_mut`, which copies a shared column first.
+    pub values: Arc<Vec<f64>>,
 }
 
 impl Column {
+    /// A column of `values` on joint `joint`'s rows (`None`: a global column).
+    pub(crate) fn new(joint: Option<usize>, values: Vec<f64>) -> Column {
+        Column { joint, values: Arc::new(values) }
+    }
+
     /// Value at (sample, joint).
     #[inline]
     pub(crate) fn at(&self, s: usize, j: usize, dof: usize) -> f64 {

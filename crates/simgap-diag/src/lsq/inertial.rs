@@ -358,24 +358,56 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         gp[(i, i)] += mu;
     }
     for _ in 0..MAX_ITERATIONS {
-        // Jacobian of θ with respect to x = (z, φ)
-        let mut jac = DMatrix::<f64>::zeros(k, nx);
+        // Jacobian of θ with respect to x = (z, φ): the identity on the linear parameters and,
+        // per link, the scaled 10 × 10 block B_l = diag(1/scales) ∂π/∂φ_l; the gradient Jᵀ r and
+        // the Gauss–Newton Hessian Jᵀ G J are formed block by block (no dense Jacobian)
+        let nlin = lin.len();
+        let blocks: Vec<nalgebra::SMatrix<f64, 10, 10>> = (0..nl)
+            .map(|l| {
+                let o = nlin + 10 * l;
+                let mut b = jacobian_log_cholesky(&x[o..o + 10]);
+                for r in 0..PARAMS_PER_LINK {
+                    let s = prior.scales[PARAMS_PER_LINK * l + r];
+                    for q in 0..10 {
+                        b[(r, q)] /= s;
+                    }
+                }
+                b
+            })
+            .collect();
+        let resid = &gp * &th - c;
+        let mut grad = DVector::<f64>::zeros(nx);
         for (a, &i) in lin.iter().enumerate() {
-            jac[(i, a)] = 1.0;
+            grad[a] = resid[i];
         }
-        for l in 0..nl {
-            let o = lin.len() + 10 * l;
-            let jl = jacobian_log_cholesky(&x[o..o + 10]);
-            for r in 0..PARAMS_PER_LINK {
-                let idx = PARAMS_PER_LINK * l + r;
-                for q in 0..10 {
-                    jac[(first + idx, o + q)] = jl[(r, q)] / prior.scales[idx];
+        for (l, b) in blocks.iter().enumerate() {
+            let r = resid.fixed_rows::<10>(first + PARAMS_PER_LINK * l);
+            grad.fixed_rows_mut::<10>(nlin + 10 * l).copy_from(&(b.transpose() * r));
+        }
+        let mut hess = DMatrix::<f64>::zeros(nx, nx);
+        for (a, &i) in lin.iter().enumerate() {
+            for (b, &j) in lin.iter().enumerate() {
+                hess[(a, b)] = gp[(i, j)];
+            }
+        }
+        for (l, bl) in blocks.iter().enumerate() {
+            let ol = first + PARAMS_PER_LINK * l;
+            // linear rows against link l: G[lin, I_l] B_l
+            for (a, &i) in lin.iter().enumerate() {
+                let row = gp.fixed_view::<1, 10>(i, ol) * bl;
+                hess.fixed_view_mut::<1, 10>(a, nlin + 10 * l).copy_from(&row);
+                hess.fixed_view_mut::<10, 1>(nlin + 10 * l, a).copy_from(&row.transpose());
+            }
+            // link l against link m ≥ l: B_lᵀ G[I_l, I_m] B_m
+            for (m, bm) in blocks.iter().enumerate().skip(l) {
+                let om = first + PARAMS_PER_LINK * m;
+                let h = bl.transpose() * gp.fixed_view::<10, 10>(ol, om) * bm;
+                hess.fixed_view_mut::<10, 10>(nlin + 10 * l, nlin + 10 * m).copy_from(&h);
+                if m != l {
+                    hess.fixed_view_mut::<10, 10>(nlin + 10 * m, nlin + 10 * l).copy_from(&h.transpose());
                 }
             }
         }
-        let resid = &gp * &th - c;
-        let grad = jac.transpose() * &resid;
-        let hess = jac.transpose() * &gp * &jac;
         // parameters held at a bound the gradient pushes against
         let free: Vec<usize> = (0..nx).filter(|&a| !((x[a] <= xlo[a] && grad[a] > 0.0) || (x[a] >= xhi[a] && grad[a] < 0.0))).collect();
         let hmax = free.iter().map(|&a| hess[(a, a)]).fold(0.0, f64::max).max(1e-300);

@@ -21,6 +21,26 @@ pub(crate) const BLOCKS_PER_FOLD: usize = 4;
 /// The inertial columns' scales and their block Grams.
 type InertialGram = (Vec<f64>, Vec<DMatrix<f64>>);
 
+/// At most this many products are kept by [`PairCache`] (8 bytes each: 64 MiB).
+const PAIR_CACHE_FLOATS: usize = 8 << 20;
+
+/// Block inner products of pairs of design columns already computed ([`Problem::dot_blocks`]):
+/// a selection fits hundreds of sets that share most of their columns. A column is named by the
+/// address of its shared values; the entry holds a weak reference to each, which keeps that
+/// address from being reused by another column (not the values) while the entry exists. Design
+/// columns are never changed in place.
+#[derive(Debug, Default)]
+struct PairCache {
+    map: std::collections::HashMap<PairKey, PairEntry>,
+    floats: usize,
+}
+
+/// A pair of columns: the address of each one's values and its joint.
+type PairKey = (usize, Option<usize>, usize, Option<usize>);
+
+/// The columns' values (held weakly) and their block products.
+type PairEntry = (std::sync::Weak<Vec<f64>>, std::sync::Weak<Vec<f64>>, Vec<f64>);
+
 /// The fitting problem: residuals of all runs, joint weights and sample blocks.
 #[derive(Clone, Debug)]
 pub(crate) struct Problem {
@@ -44,6 +64,8 @@ pub(crate) struct Problem {
     /// The block Grams of the inertial correction's columns with themselves, by their scales (the
     /// same columns recur in every fit of a selection).
     inertial_gram: std::sync::Arc<std::sync::Mutex<Option<InertialGram>>>,
+    /// The block products of design-column pairs computed so far.
+    pair_cache: std::sync::Arc<std::sync::Mutex<PairCache>>,
 }
 
 impl Problem {
@@ -59,7 +81,7 @@ impl Problem {
             }
             blocks += BLOCKS_PER_RUN;
         }
-        let y = Column { joint: None, values: data.iter().flat_map(|d| d.residual.iter().copied()).collect() };
+        let y = Column::new(None, data.iter().flat_map(|d| d.residual.iter().copied()).collect());
         let samples = block_of.len();
         let rms = |f: &dyn Fn(usize, usize) -> f64, j: usize| ((0..samples).map(|s| f(s, j).powi(2)).sum::<f64>() / samples.max(1) as f64).sqrt();
         let tau: Vec<f64> = data.iter().flat_map(|d| d.tau.iter().copied()).collect();
@@ -67,7 +89,7 @@ impl Problem {
         // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();
         let block_start = (0..=blocks).map(|b| block_of.partition_point(|&x| x < b)).collect();
-        Problem { dof, samples, block_of, block_start, blocks, weights, tau_rms, y, inertial_gram: Default::default() }
+        Problem { dof, samples, block_of, block_start, blocks, weights, tau_rms, y, inertial_gram: Default::default(), pair_cache: Default::default() }
     }
 
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
@@ -112,6 +134,22 @@ impl Problem {
                     }
                 }
             }
+        }
+    }
+
+    /// [`Problem::dot_blocks`] of two design columns, from the pair cache when computed before.
+    fn dot_blocks_cached(&self, a: &Column, b: &Column, out: &mut [f64]) {
+        use std::sync::Arc;
+        let key = (Arc::as_ptr(&a.values) as usize, a.joint, Arc::as_ptr(&b.values) as usize, b.joint);
+        if let Some((_, _, v)) = self.pair_cache.lock().expect("pair cache").map.get(&key) {
+            out.copy_from_slice(v);
+            return;
+        }
+        self.dot_blocks(a, b, out);
+        let mut cache = self.pair_cache.lock().expect("pair cache");
+        if cache.floats + out.len() <= PAIR_CACHE_FLOATS {
+            cache.floats += out.len();
+            cache.map.insert(key, (Arc::downgrade(&a.values), Arc::downgrade(&b.values), out.to_vec()));
         }
     }
 
@@ -196,11 +234,12 @@ pub(crate) fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesig
     let shifted;
     let y = if has_offset {
         let mut v = y.clone();
+        let values = std::sync::Arc::make_mut(&mut v.values);
         for d in designs {
             if let Some(off) = &d.offset {
                 for s in 0..p.samples {
                     for j in 0..p.dof {
-                        v.values[s * p.dof + j] -= off.at(s, j, p.dof);
+                        values[s * p.dof + j] -= off.at(s, j, p.dof);
                     }
                 }
             }
@@ -266,7 +305,7 @@ pub(crate) fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesig
             if (done[a] && done[b]) || zero[a] || zero[b] {
                 continue;
             }
-            p.dot_blocks(cols[a], cols[b], &mut buf);
+            p.dot_blocks_cached(cols[a], cols[b], &mut buf);
             for (bl, v) in buf.iter().enumerate() {
                 g[bl][(a, b)] = *v;
                 g[bl][(b, a)] = *v;

@@ -178,7 +178,7 @@ fn regressor_column(data: &[FitData], link: usize, v: &[f64; PARAMS_PER_LINK]) -
             }
         }
     }
-    Column { joint: None, values }
+    Column::new(None, values)
 }
 
 /// The model's gravity torque g(q) at the fit samples, as a global column.
@@ -193,7 +193,7 @@ fn gravity_column(model: &Model, data: &[FitData]) -> Column {
             values.extend_from_slice(&g);
         }
     }
-    Column { joint: None, values }
+    Column::new(None, values)
 }
 
 /// Mean of the diagonal of H(q) over the fit samples, per joint.

@@ -26,7 +26,7 @@ use std::sync::Arc;
 
 use crate::lsq::inertial::InertialPrior;
 use crate::lsq::{block_squares, fit, grams, grams_against_known, Fit, Grams, Problem};
-use crate::vocabulary::{contract_parameters, fit_terms};
+use crate::vocabulary::contract_parameters;
 use crate::vocabulary::{design, largest_command, n_params, payload_basis_rows, payload_mass_bound, physical, point_mass_parameters, Column, Slot, Term, TermDesign};
 
 /// Widths a Coulomb friction's grid tries on a joint (then refined within its range).
@@ -357,7 +357,7 @@ impl<'a> Context<'a> {
         // are then linear and quadratic forms in π(c) (equal to the column's own up to rounding)
         let basis = self.payload.get_or_init(|| {
             let rows = payload_basis_rows(self.data);
-            let cols: Vec<Column> = (0..PARAMS_PER_LINK).map(|i| Column { joint: None, values: rows.iter().skip(i).step_by(PARAMS_PER_LINK).copied().collect() }).collect();
+            let cols: Vec<Column> = (0..PARAMS_PER_LINK).map(|i| Column::new(None, rows.iter().skip(i).step_by(PARAMS_PER_LINK).copied().collect())).collect();
             let nonzero: Vec<usize> = (0..PARAMS_PER_LINK).filter(|&i| cols[i].values.iter().any(|v| *v != 0.0)).collect();
             let mut compact: Vec<(f64, Vec<f64>)> = rows
                 .chunks_exact(PARAMS_PER_LINK)
@@ -442,6 +442,17 @@ impl<'a> Context<'a> {
         let f = fit(&self.problem, &grams(&self.problem, &refs));
         self.fits.lock().expect("fit cache").insert(key, f.clone());
         f
+    }
+
+    /// The designs of `terms` (from the cache), their Grams and their fit
+    /// ([`crate::vocabulary::fit_terms`] with cached designs, whose column products the problem
+    /// keeps).
+    pub(crate) fn fit_terms(&self, terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
+        let designs: Vec<TermDesign> = terms.iter().map(|t| self.design(t)).collect();
+        let refs: Vec<&TermDesign> = designs.iter().collect();
+        let gr = grams(&self.problem, &refs);
+        let f = fit(&self.problem, &gr);
+        (designs, gr, f)
     }
 
     /// Designs a term (the inertial error uses the identifiable basis), from the cache when it
@@ -602,12 +613,13 @@ fn screen_best(ctx: &Context<'_>, cands: &[Term], resid: &Column) -> (Term, f64)
 pub(crate) fn residual_after(p: &Problem, designs: &[TermDesign], theta: &DVector<f64>) -> Column {
     let dof = p.dof;
     let mut r = p.y.clone();
+    let values = Arc::make_mut(&mut r.values);
     let mut c = 0;
     for d in designs {
         if let Some(off) = &d.offset {
             for s in 0..p.samples {
                 for j in 0..dof {
-                    r.values[s * dof + j] -= off.at(s, j, dof);
+                    values[s * dof + j] -= off.at(s, j, dof);
                 }
             }
         }
@@ -616,7 +628,7 @@ pub(crate) fn residual_after(p: &Problem, designs: &[TermDesign], theta: &DVecto
             c += 1;
             for s in 0..p.samples {
                 for j in 0..dof {
-                    r.values[s * dof + j] -= th * col.at(s, j, dof);
+                    values[s * dof + j] -= th * col.at(s, j, dof);
                 }
             }
         }
@@ -692,7 +704,7 @@ pub(crate) fn at_plausibility_bound(d: &TermDesign, theta: &[f64]) -> bool {
     })
 }
 
-/// Whether every term of a set (its designs and joint parameters, as [`fit_terms`] gives them)
+/// Whether every term of a set (its designs and joint parameters, as [`Context::fit_terms`] gives them)
 /// is physical and none stands at a plausibility bound.
 pub(crate) fn admissible(designs: &[TermDesign], terms: &[Term], theta: &DVector<f64>) -> bool {
     let mut c = 0;

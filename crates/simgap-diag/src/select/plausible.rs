@@ -202,7 +202,7 @@ mod tests {
     use crate::lsq::design::Column;
 
     fn design(lo: f64, hi: f64) -> TermDesign {
-        TermDesign { cols: vec![Column { joint: Some(0), values: vec![1.0] }], lo: vec![lo], hi: vec![hi], ..Default::default() }
+        TermDesign { cols: vec![Column::new(Some(0), vec![1.0])], lo: vec![lo], hi: vec![hi], ..Default::default() }
     }
 
     #[test]

@@ -11,8 +11,8 @@ use crate::prepare::{prepare, sample_period};
 use crate::select::scorer::Scorer;
 use crate::select::uncertainty;
 use crate::select::{self, Context};
+use crate::vocabulary::fitted_terms;
 use crate::vocabulary::{effects, EffectReport, Term};
-use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Removing a term keeps it out when prediction worsens by less than this (relative).
 pub(crate) const PRUNE_TOLERANCE: f64 = 0.02;
@@ -291,7 +291,7 @@ pub(crate) fn null_ratio(scorer: &Scorer<'_>, base: &[Term], with: &[Term], opti
     let effects = if base.is_empty() {
         Vec::new()
     } else {
-        let (designs, _, f) = fit_terms(&scorer.ctx.problem, scorer.ctx.data, base);
+        let (designs, _, f) = scorer.ctx.fit_terms(base);
         effects::to_effects(scorer.model, &fitted_terms(base, &designs, &f.theta, None))
     };
     let synthetic = uncertainty::synthetic_runs(scorer.model, scorer.formulation, &effects, &scorer.prep.fit_runs);

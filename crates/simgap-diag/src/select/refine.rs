@@ -11,8 +11,8 @@ use crate::prediction::kstep::{self, FOLDS_PER_RUN};
 use crate::select::prediction::{ADD_GAIN, PRUNE_TOLERANCE};
 use crate::select::scorer::Scorer;
 use crate::select::shooting;
+use crate::vocabulary::fitted_terms;
 use crate::vocabulary::{effects, Term, TermDesign};
-use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// A set of terms whose parameters multiple shooting fitted.
 pub(crate) struct Refined {
@@ -164,7 +164,7 @@ pub(crate) fn refine_by_shooting(
     for (si, (name, terms)) in sets.iter().enumerate() {
         progress(Progress { stage: "refining by multiple shooting", done: si, total: sets.len() + 1 });
         check_stop(options)?;
-        let (designs, gr, _) = fit_terms(&ctx.problem, ctx.data, terms);
+        let (designs, gr, _) = ctx.fit_terms(terms);
         let mut merged: Vec<kstep::Errors> =
             prep.fit_pred.iter().map(|pr| kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: vec![f64::NAN; pr.windows() * prep.horizons.len() * n] }).collect();
         let mut halves = Vec::new();
@@ -224,7 +224,7 @@ pub(crate) fn refine_by_shooting(
     progress(Progress { stage: "refining by multiple shooting", done: sets.len(), total: sets.len() + 1 });
     let best = tried.swap_remove(bi);
     let keep = |_: usize, _: usize| true;
-    let (_, _, f) = fit_terms(&ctx.problem, ctx.data, &best.terms);
+    let (_, _, f) = ctx.fit_terms(&best.terms);
     let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: &shoot_runs, keep: &keep, options: &sopts };
     // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
     let mut from = starts(&best.designs, f.theta.clone());

@@ -4,12 +4,12 @@
 use simgap_core::{Formulation, Model};
 use simgap_sim::Effect;
 
-use crate::lsq::{self, Grams};
+use crate::lsq::{self, design::TermDesign};
 use crate::prediction::kstep::{self, FOLDS_PER_RUN};
 use crate::prepare::Prepared;
 use crate::select::{self, Context};
+use crate::vocabulary::fitted_terms;
 use crate::vocabulary::{effects, Term, TermKey};
-use crate::vocabulary::{fit_terms, fitted_terms};
 
 /// Scores sets of terms by cross-validated prediction on the fit runs: the one helper for
 /// "fit → effects → predict → combine".
@@ -59,14 +59,19 @@ impl Scorer<'_> {
         if terms.is_empty() {
             return kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new()).ok();
         }
-        let (designs, gr, all) = fit_terms(&self.ctx.problem, self.ctx.data, terms);
+        let designs: Vec<TermDesign> = terms.iter().map(|t| self.ctx.design(t)).collect();
+        let all = self.ctx.fit_set(terms, &designs);
         // a set whose fit on all the fit data leaves an effect at a plausibility bound (a
         // payload at its largest mass) is no answer, however well it predicts
         if !select::admissible(&designs, terms, &all.theta) {
             return None;
         }
+        // each fold predicted by the parameters fitted without it (the same contiguous fifths
+        // of the runs as the torque fit's folds)
+        let refs: Vec<&TermDesign> = designs.iter().collect();
+        let gr = lsq::grams(&self.ctx.problem, &refs);
         let effects_of = |f: usize| -> Vec<Effect> {
-            let theta = fold_theta(&gr, f);
+            let theta = lsq::theta_without(&gr, &|g| g == f);
             effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
         };
         kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of).ok()
@@ -95,10 +100,4 @@ impl Scorer<'_> {
     pub(crate) fn score(&self, terms: &[Term]) -> f64 {
         kstep::score(&self.cv(terms), &self.nominal)
     }
-}
-
-/// Parameters fitted without fold `f` (contiguous fifth of a fit run), under the terms'
-/// physical constraints.
-pub(crate) fn fold_theta(gr: &Grams, f: usize) -> nalgebra::DVector<f64> {
-    lsq::theta_without(gr, &|g| g == f)
 }

@@ -2,7 +2,6 @@
 //! alone.
 
 use crate::select::{families, Context, Selection};
-use crate::vocabulary::fit_terms;
 use crate::vocabulary::{Column, Term};
 
 /// Removes torque gain, offset and saturation terms of passive joints (nothing drives them).
@@ -11,7 +10,7 @@ pub(crate) fn drop_passive_actuator_terms(terms: &mut Vec<Term>, passive: &[bool
 }
 
 pub(crate) fn select_nothing(ctx: &Context<'_>) -> Selection {
-    let (designs, _, f) = fit_terms(&ctx.problem, ctx.data, &[]);
+    let (designs, _, f) = ctx.fit_terms(&[]);
     Selection { terms: vec![], nominal_cv_mse: f.cv_mse, fit: f, designs, log: vec![] }
 }
 

@@ -502,8 +502,8 @@ mod tests {
         let model = Model::paper_arm();
         let prior = Arc::new(InertialPrior::new(&model));
         let w = PARAMS_PER_LINK * model.dof();
-        let lin = TermDesign { cols: vec![Column { joint: Some(0), values: vec![] }], lo: vec![0.0], hi: vec![f64::INFINITY], inertial: None, offset: None };
-        let inert = TermDesign { cols: (0..w).map(|_| Column { joint: None, values: vec![] }).collect(), inertial: Some(prior.clone()), ..Default::default() };
+        let lin = TermDesign { cols: vec![Column::new(Some(0), vec![])], lo: vec![0.0], hi: vec![f64::INFINITY], inertial: None, offset: None };
+        let inert = TermDesign { cols: (0..w).map(|_| Column::new(None, vec![])).collect(), inertial: Some(prior.clone()), ..Default::default() };
         let layout = Layout::new(&[lin, inert]);
         assert_eq!(layout.k, 1 + w);
         assert_eq!(layout.nx(), 1 + 10 * model.dof());

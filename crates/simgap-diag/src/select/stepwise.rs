@@ -117,7 +117,7 @@ fn describe(t: &Term) -> String {
 /// Forward stepwise selection with cross-validation, then backward pruning.
 pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     let p = &ctx.problem;
-    let (_, _, nominal) = fit_terms(p, ctx.data, &[]);
+    let (_, _, nominal) = ctx.fit_terms(&[]);
     let mut terms: Vec<Term> = Vec::new();
     let mut current = nominal.clone();
     let mut designs: Vec<TermDesign> = Vec::new();

@@ -42,7 +42,7 @@ fn bounded_fit_keeps_coulomb_non_negative() {
     assert!((f.theta[0] - 7.17).abs() < 0.1 * 7.17 && (f.theta[1] - 1.734).abs() < 0.1 * 1.734, "fc = {}", f.theta);
     // the same residual with the opposite sign (friction that would feed energy in): the
     // unconstrained fit is negative, the bounded one stops at fc = 0
-    for v in &mut p.y.values {
+    for v in std::sync::Arc::make_mut(&mut p.y.values).iter_mut() {
         *v = -*v;
     }
     let (_, gr, f) = fit_terms(&p, &data, &terms);
@@ -56,7 +56,7 @@ fn bounded_fit_keeps_coulomb_non_negative() {
 fn bounded_fits_keep_viscous_armature_stribeck_and_payload_physical() {
     let (model, data, _, _) = paper_arm_data(&[Effect::ViscousFriction { b: vec![2.288, 0.175] }, Effect::CoulombFriction { fc: vec![7.17, 1.734], w: vec![0.01; 2] }]);
     let mut p = Problem::new(&data);
-    for v in &mut p.y.values {
+    for v in std::sync::Arc::make_mut(&mut p.y.values).iter_mut() {
         *v = -*v;
     }
     let terms =

@@ -37,7 +37,7 @@ pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
                 });
                 v.extend((0..d.len()).map(|s| m[s * dof + joint]));
             }
-            TermDesign::fixed(Column { joint: Some(joint), values: v })
+            TermDesign::fixed(Column::new(Some(joint), v))
         }
         _ => TermDesign::default(),
     }

@@ -7,7 +7,7 @@ use crate::prepare::dataset::FitData;
 /// The fixed column of the other formulation of C.
 pub(super) fn design(data: &[FitData]) -> TermDesign {
     let v = data.iter().flat_map(|d| d.coriolis_delta.iter().copied()).collect();
-    TermDesign::fixed(Column { joint: None, values: v })
+    TermDesign::fixed(Column::new(None, v))
 }
 
 /// The structure in words.

@@ -18,7 +18,7 @@ pub(super) fn design(delay: f64, data: &[FitData]) -> TermDesign {
         });
         v.extend(m);
     }
-    TermDesign::fixed(Column { joint: None, values: v })
+    TermDesign::fixed(Column::new(None, v))
 }
 
 /// The delay in words.

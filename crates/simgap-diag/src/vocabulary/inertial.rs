@@ -19,17 +19,18 @@ pub(super) fn design(prior: &Arc<InertialPrior>, data: &[FitData]) -> TermDesign
     let dof = data[0].dof;
     // every stacked parameter, in units of its scale
     let width = PARAMS_PER_LINK * dof;
-    let mut cols: Vec<Column> = (0..width).map(|_| Column { joint: None, values: Vec::new() }).collect();
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); width];
     for d in data {
         for s in 0..d.len() {
             for j in 0..dof {
                 let row = &d.regressor[(s * dof + j) * width..(s * dof + j + 1) * width];
-                for (p, col) in cols.iter_mut().enumerate() {
-                    col.values.push(row[p] * prior.scales[p]);
+                for (p, col) in values.iter_mut().enumerate() {
+                    col.push(row[p] * prior.scales[p]);
                 }
             }
         }
     }
+    let cols = values.into_iter().map(|v| Column::new(None, v)).collect();
     TermDesign { cols, inertial: Some(prior.clone()), ..Default::default() }
 }
 

@@ -256,7 +256,7 @@ pub(crate) fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) 
             v.push(f(d, s * d.dof + j));
         }
     }
-    Column { joint: Some(j), values: v }
+    Column::new(Some(j), v)
 }
 
 /// The design of a term over all runs: its columns and the bounds physics puts on them.

@@ -56,7 +56,7 @@ pub(crate) fn point_mass_parameters(com: [f64; 3]) -> [f64; PARAMS_PER_LINK] {
 pub(crate) fn payload_column(data: &[FitData], com: [f64; 3]) -> Column {
     let pi = point_mass_parameters(com);
     let rows = payload_basis_rows(data);
-    Column { joint: None, values: rows.chunks_exact(PARAMS_PER_LINK).map(|row| row.iter().zip(&pi).map(|(a, b)| a * b).sum()).collect() }
+    Column::new(None, rows.chunks_exact(PARAMS_PER_LINK).map(|row| row.iter().zip(&pi).map(|(a, b)| a * b).sum()).collect())
 }
 
 /// The last link's ten regressor entries of every row (sample × joint, over runs), row-major:
@@ -105,7 +105,7 @@ pub(crate) fn payload_linear_design(data: &[FitData]) -> TermDesign {
                     }
                 }
             }
-            Column { joint: None, values: v }
+            Column::new(None, v)
         })
         .collect();
     TermDesign::free(cols)
