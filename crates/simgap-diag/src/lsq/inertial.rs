@@ -358,56 +358,9 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         gp[(i, i)] += mu;
     }
     for _ in 0..MAX_ITERATIONS {
-        // Jacobian of θ with respect to x = (z, φ): the identity on the linear parameters and,
-        // per link, the scaled 10 × 10 block B_l = diag(1/scales) ∂π/∂φ_l; the gradient Jᵀ r and
-        // the Gauss–Newton Hessian Jᵀ G J are formed block by block (no dense Jacobian)
-        let nlin = lin.len();
-        let blocks: Vec<nalgebra::SMatrix<f64, 10, 10>> = (0..nl)
-            .map(|l| {
-                let o = nlin + 10 * l;
-                let mut b = jacobian_log_cholesky(&x[o..o + 10]);
-                for r in 0..PARAMS_PER_LINK {
-                    let s = prior.scales[PARAMS_PER_LINK * l + r];
-                    for q in 0..10 {
-                        b[(r, q)] /= s;
-                    }
-                }
-                b
-            })
-            .collect();
+        // gradient and Gauss–Newton Hessian of the objective in x
         let resid = &gp * &th - c;
-        let mut grad = DVector::<f64>::zeros(nx);
-        for (a, &i) in lin.iter().enumerate() {
-            grad[a] = resid[i];
-        }
-        for (l, b) in blocks.iter().enumerate() {
-            let r = resid.fixed_rows::<10>(first + PARAMS_PER_LINK * l);
-            grad.fixed_rows_mut::<10>(nlin + 10 * l).copy_from(&(b.transpose() * r));
-        }
-        let mut hess = DMatrix::<f64>::zeros(nx, nx);
-        for (a, &i) in lin.iter().enumerate() {
-            for (b, &j) in lin.iter().enumerate() {
-                hess[(a, b)] = gp[(i, j)];
-            }
-        }
-        for (l, bl) in blocks.iter().enumerate() {
-            let ol = first + PARAMS_PER_LINK * l;
-            // linear rows against link l: G[lin, I_l] B_l
-            for (a, &i) in lin.iter().enumerate() {
-                let row = gp.fixed_view::<1, 10>(i, ol) * bl;
-                hess.fixed_view_mut::<1, 10>(a, nlin + 10 * l).copy_from(&row);
-                hess.fixed_view_mut::<10, 1>(nlin + 10 * l, a).copy_from(&row.transpose());
-            }
-            // link l against link m ≥ l: B_lᵀ G[I_l, I_m] B_m
-            for (m, bm) in blocks.iter().enumerate().skip(l) {
-                let om = first + PARAMS_PER_LINK * m;
-                let h = bl.transpose() * gp.fixed_view::<10, 10>(ol, om) * bm;
-                hess.fixed_view_mut::<10, 10>(nlin + 10 * l, nlin + 10 * m).copy_from(&h);
-                if m != l {
-                    hess.fixed_view_mut::<10, 10>(nlin + 10 * m, nlin + 10 * l).copy_from(&h.transpose());
-                }
-            }
-        }
+        let (grad, hess) = normal_equations(prior, first, &lin, &gp, &resid, &x);
         // parameters held at a bound the gradient pushes against
         let free: Vec<usize> = (0..nx).filter(|&a| !((x[a] <= xlo[a] && grad[a] > 0.0) || (x[a] >= xhi[a] && grad[a] < 0.0))).collect();
         let hmax = free.iter().map(|&a| hess[(a, a)]).fold(0.0, f64::max).max(1e-300);
@@ -446,6 +399,63 @@ pub(crate) fn solve(prior: &InertialPrior, first: usize, g: &DMatrix<f64>, c: &D
         }
     }
     (th, x)
+}
+
+/// The gradient `Jᵀ r` and the Gauss–Newton Hessian `Jᵀ G J` of `½ θᵀ G θ − cᵀ θ` in the
+/// coordinates x = (linear parameters `lin`, log-Cholesky φ of every link) of [`solve`], with
+/// `r = G θ − c` and J = ∂θ/∂x: the identity on the linear parameters and, per link l, the
+/// scaled block `B_l = diag(1 / scales) ∂π/∂φ_l` (10 × 10) on the inertial columns from
+/// `first`. Formed block by block (`G[lin, I_l] B_l`, `B_lᵀ G[I_l, I_m] B_m`), never through
+/// the dense Jacobian.
+fn normal_equations(prior: &InertialPrior, first: usize, lin: &[usize], g: &DMatrix<f64>, resid: &DVector<f64>, x: &[f64]) -> (DVector<f64>, DMatrix<f64>) {
+    let (nlin, nl) = (lin.len(), prior.links());
+    let nx = nlin + 10 * nl;
+    // the scaled Jacobian block of every link
+    let blocks: Vec<nalgebra::SMatrix<f64, 10, 10>> = (0..nl)
+        .map(|l| {
+            let o = nlin + 10 * l;
+            let mut b = jacobian_log_cholesky(&x[o..o + 10]);
+            for r in 0..PARAMS_PER_LINK {
+                let s = prior.scales[PARAMS_PER_LINK * l + r];
+                for q in 0..10 {
+                    b[(r, q)] /= s;
+                }
+            }
+            b
+        })
+        .collect();
+    // gradient: r on the linear parameters, B_lᵀ r_l per link
+    let mut grad = DVector::<f64>::zeros(nx);
+    for (a, &i) in lin.iter().enumerate() {
+        grad[a] = resid[i];
+    }
+    for (l, b) in blocks.iter().enumerate() {
+        let r = resid.fixed_rows::<10>(first + PARAMS_PER_LINK * l);
+        grad.fixed_rows_mut::<10>(nlin + 10 * l).copy_from(&(b.transpose() * r));
+    }
+    // Hessian: G on the linear parameters, then each link against them and against the links
+    let mut hess = DMatrix::<f64>::zeros(nx, nx);
+    for (a, &i) in lin.iter().enumerate() {
+        for (b, &j) in lin.iter().enumerate() {
+            hess[(a, b)] = g[(i, j)];
+        }
+    }
+    for (l, bl) in blocks.iter().enumerate() {
+        let ol = first + PARAMS_PER_LINK * l;
+        for (a, &i) in lin.iter().enumerate() {
+            let row = g.fixed_view::<1, 10>(i, ol) * bl;
+            hess.fixed_view_mut::<1, 10>(a, nlin + 10 * l).copy_from(&row);
+            hess.fixed_view_mut::<10, 1>(nlin + 10 * l, a).copy_from(&row.transpose());
+        }
+        for (m, bm) in blocks.iter().enumerate().skip(l) {
+            let h = bl.transpose() * g.fixed_view::<10, 10>(ol, first + PARAMS_PER_LINK * m) * bm;
+            hess.fixed_view_mut::<10, 10>(nlin + 10 * l, nlin + 10 * m).copy_from(&h);
+            if m != l {
+                hess.fixed_view_mut::<10, 10>(nlin + 10 * m, nlin + 10 * l).copy_from(&h.transpose());
+            }
+        }
+    }
+    (grad, hess)
 }
 
 #[cfg(test)]
@@ -497,5 +507,38 @@ mod tests {
             let com = s.first_moment / s.mass;
             assert!((com - Vector3::new(phi[7], phi[8], phi[9])).norm() < 1e-9 * (1.0 + com.norm()), "the COM is t");
         }
+    }
+
+    #[test]
+    fn block_normal_equations_equal_the_dense_jacobian_products() {
+        // a 3-link chain's prior, two linear columns before the inertial ones and one after
+        let prior = InertialPrior::new(&simgap_core::Model::random_chain(3, 5));
+        let (first, nl) = (2, prior.links());
+        let k = first + PARAMS_PER_LINK * nl + 1;
+        let lin: Vec<usize> = (0..k).filter(|&i| i < first || i >= first + PARAMS_PER_LINK * nl).collect();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let a = DMatrix::from_fn(k + 5, k, |_, _| rng.random_range(-1.0..1.0));
+        let g = a.transpose() * a;
+        let resid = DVector::from_fn(k, |_, _| rng.random_range(-1.0..1.0));
+        let x: Vec<f64> = (0..lin.len() + 10 * nl).map(|_| rng.random_range(-1.0..1.0)).collect();
+        // the dense J = ∂θ/∂x
+        let mut jac = DMatrix::<f64>::zeros(k, x.len());
+        for (a, &i) in lin.iter().enumerate() {
+            jac[(i, a)] = 1.0;
+        }
+        for l in 0..nl {
+            let o = lin.len() + 10 * l;
+            let jl = jacobian_log_cholesky(&x[o..o + 10]);
+            for r in 0..PARAMS_PER_LINK {
+                let idx = PARAMS_PER_LINK * l + r;
+                for q in 0..10 {
+                    jac[(first + idx, o + q)] = jl[(r, q)] / prior.scales[idx];
+                }
+            }
+        }
+        let (grad, hess) = normal_equations(&prior, first, &lin, &g, &resid, &x);
+        let (grad_dense, hess_dense) = (jac.transpose() * &resid, jac.transpose() * &g * &jac);
+        assert!((&grad - &grad_dense).amax() <= 1e-9 * grad_dense.amax(), "gradient differs by {}", (&grad - &grad_dense).amax());
+        assert!((&hess - &hess_dense).amax() <= 1e-9 * hess_dense.amax(), "Hessian differs by {}", (&hess - &hess_dense).amax());
     }
 }

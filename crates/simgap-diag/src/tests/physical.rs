@@ -22,7 +22,7 @@ use simgap_core::{inertial_parameters, Formulation, Model, SpatialInertia};
 use simgap_sim::{Effect, LinkDelta, Run};
 
 /// Fit data of the paper arm's demo runs with hidden `effects`.
-fn paper_arm_data(effects: &[Effect]) -> (Model, Vec<FitData>, Vec<Run>, Vec<Run>) {
+pub(super) fn paper_arm_data(effects: &[Effect]) -> (Model, Vec<FitData>, Vec<Run>, Vec<Run>) {
     let model = Model::paper_arm();
     let (fit, hold) = demo_specs(1);
     let gen = |s| generate(&model, Formulation::EulerLagrange, effects, s, 0.0025, 1_024_000.0).unwrap();
