@@ -26,7 +26,7 @@ use std::sync::Arc;
 
 use crate::lsq::inertial::InertialPrior;
 use crate::lsq::{block_squares, fit, grams, grams_against_known, Fit, Grams, Problem};
-use crate::vocabulary::contract_parameters;
+use crate::vocabulary::{contract_parameters, fit_designs};
 use crate::vocabulary::{design, largest_command, n_params, payload_basis_rows, payload_mass_bound, physical, point_mass_parameters, Column, Slot, Term, TermDesign};
 
 /// Widths a Coulomb friction's grid tries on a joint (then refined within its range).
@@ -434,12 +434,20 @@ impl<'a> Context<'a> {
     /// designs are `designs` (each the [`Context::design`] of its term), made once per set.
     pub(crate) fn fit_set(&self, terms: &[Term], designs: &[TermDesign]) -> Fit {
         debug_assert_eq!(terms.len(), designs.len());
+        self.fit_set_with(terms, || {
+            let refs: Vec<&TermDesign> = designs.iter().collect();
+            fit(&self.problem, &grams(&self.problem, &refs))
+        })
+    }
+
+    /// [`Context::fit_set`] with the fit made by `fit_of` (called only when the set was not
+    /// fitted before: a caller that needs the set's Grams anyway builds them once).
+    pub(crate) fn fit_set_with(&self, terms: &[Term], fit_of: impl FnOnce() -> Fit) -> Fit {
         let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
         if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
             return f.clone();
         }
-        let refs: Vec<&TermDesign> = designs.iter().collect();
-        let f = fit(&self.problem, &grams(&self.problem, &refs));
+        let f = fit_of();
         self.fits.lock().expect("fit cache").insert(key, f.clone());
         f
     }
@@ -448,11 +456,7 @@ impl<'a> Context<'a> {
     /// ([`crate::vocabulary::fit_terms`] with cached designs, whose column products the problem
     /// keeps).
     pub(crate) fn fit_terms(&self, terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
-        let designs: Vec<TermDesign> = terms.iter().map(|t| self.design(t)).collect();
-        let refs: Vec<&TermDesign> = designs.iter().collect();
-        let gr = grams(&self.problem, &refs);
-        let f = fit(&self.problem, &gr);
-        (designs, gr, f)
+        fit_designs(&self.problem, terms.iter().map(|t| self.design(t)).collect())
     }
 
     /// Designs a term (the inertial error uses the identifiable basis), from the cache when it

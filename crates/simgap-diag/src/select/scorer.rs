@@ -60,7 +60,15 @@ impl Scorer<'_> {
             return kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new()).ok();
         }
         let designs: Vec<TermDesign> = terms.iter().map(|t| self.ctx.design(t)).collect();
-        let all = self.ctx.fit_set(terms, &designs);
+        // the set's Grams, built at most once (for its fit when not cached, and its folds)
+        let gr = std::cell::OnceCell::new();
+        let grams = || {
+            gr.get_or_init(|| {
+                let refs: Vec<&TermDesign> = designs.iter().collect();
+                lsq::grams(&self.ctx.problem, &refs)
+            })
+        };
+        let all = self.ctx.fit_set_with(terms, || lsq::fit(&self.ctx.problem, grams()));
         // a set whose fit on all the fit data leaves an effect at a plausibility bound (a
         // payload at its largest mass) is no answer, however well it predicts
         if !select::admissible(&designs, terms, &all.theta) {
@@ -68,10 +76,9 @@ impl Scorer<'_> {
         }
         // each fold predicted by the parameters fitted without it (the same contiguous fifths
         // of the runs as the torque fit's folds)
-        let refs: Vec<&TermDesign> = designs.iter().collect();
-        let gr = lsq::grams(&self.ctx.problem, &refs);
+        let gr = grams();
         let effects_of = |f: usize| -> Vec<Effect> {
-            let theta = lsq::theta_without(&gr, &|g| g == f);
+            let theta = lsq::theta_without(gr, &|g| g == f);
             effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
         };
         kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &effects_of).ok()

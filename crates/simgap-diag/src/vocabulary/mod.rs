@@ -422,7 +422,11 @@ pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVect
 
 /// Designs and fits a list of terms in one go.
 pub(crate) fn fit_terms(p: &Problem, data: &[FitData], terms: &[Term]) -> (Vec<TermDesign>, Grams, Fit) {
-    let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, data)).collect();
+    fit_designs(p, terms.iter().map(|t| design(t, data)).collect())
+}
+
+/// The Grams of `designs` and their fit, with the designs.
+pub(crate) fn fit_designs(p: &Problem, designs: Vec<TermDesign>) -> (Vec<TermDesign>, Grams, Fit) {
     let refs: Vec<&TermDesign> = designs.iter().collect();
     let gr = grams(p, &refs);
     let f = fit(p, &gr);
