@@ -74,7 +74,8 @@ pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matri
 pub use algorithms::crba::{mass_matrix, mass_matrix_into};
 pub use algorithms::energy::{kinetic_energy, potential_energy};
 pub use algorithms::forward_dynamics::{
-    forward_dynamics, forward_dynamics_armature_into, forward_dynamics_crba_into, forward_dynamics_into, solve_spd_in_place, try_solve_spd_in_place, ABA_MIN_DOF,
+    forward_dynamics, forward_dynamics_armature_into, forward_dynamics_crba_into, forward_dynamics_into, solve_spd_in_place, try_forward_dynamics_into, try_solve_spd_in_place,
+    ABA_MIN_DOF,
 };
 pub use algorithms::kinematics::forward_kinematics;
 pub use algorithms::regressor::{inertia_from_parameters, inertial_parameters, inverse_dynamics_regressor, inverse_dynamics_regressor_into, PARAMS_PER_LINK};

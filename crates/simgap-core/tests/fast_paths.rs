@@ -178,3 +178,25 @@ fn one_workspace_serves_two_joint_arms_of_other_parameters() {
     assert_close("g after set_gravity", after.gravity_torques.as_slice(), gravity_torques(&model, &mut Workspace::new(&model), &q).as_slice(), 1e-10);
     assert!((after.gravity_torques[0] - before.gravity_torques[0]).abs() > 1.0, "g did not follow the new gravity");
 }
+
+#[test]
+fn a_singular_mass_matrix_is_reported_by_every_forward_dynamics_path_without_a_panic() {
+    // a massless tail link: its joint moves no inertia, H is singular at every q
+    for n in [1usize, 2, 3, 7] {
+        let mut model = Model::random_chain(n, 5 * n as u64);
+        model.set_link_inertia(n - 1, simgap_core::SpatialInertia::from_com(0.0, Vector3::zeros(), nalgebra::Matrix3::zeros())).unwrap();
+        let mut ws = Workspace::new(&model);
+        let mut out = vec![0.0; n];
+        let [q, qd, tau] = state(n, 1);
+        for f in Formulation::ALL {
+            assert!(!simgap_core::try_forward_dynamics_into(&model, &mut ws, &q, &qd, &tau, f, &mut out), "{n} dof, {f}: a singular H must be reported");
+        }
+        // and a physical one is solved as by the panicking form
+        let model = Model::random_chain(n, 5 * n as u64);
+        let mut ws = Workspace::new(&model);
+        let mut want = vec![0.0; n];
+        assert!(simgap_core::try_forward_dynamics_into(&model, &mut ws, &q, &qd, &tau, Formulation::EulerLagrange, &mut out));
+        forward_dynamics_into(&model, &mut ws, &q, &qd, &tau, Formulation::EulerLagrange, &mut want);
+        assert_eq!(out, want);
+    }
+}

@@ -1,7 +1,7 @@
 //! The plant: the nominal model plus unmodelled [`Effect`]s, as the simulator integrates it.
 
 use nalgebra::DMatrix;
-use simgap_core::{forward_dynamics_armature_into, forward_dynamics_into, mass_matrix, mass_matrix_into, Formulation, Model, Workspace};
+use simgap_core::{forward_dynamics_armature_into, mass_matrix, mass_matrix_into, try_forward_dynamics_into, Formulation, Model, Workspace};
 
 use crate::effects::{apply_inertial_effects, armature, friction_torque, friction_torque_smooth, total_delay, Effect};
 use crate::error::Result;
@@ -22,7 +22,8 @@ pub struct Plant {
     effects: Vec<Effect>,
     armature: Vec<f64>,
     /// H is positive definite at q = 0 and no armature is added: the one-pass
-    /// `forward_dynamics_into` can be used (it panics on a singular H).
+    /// `try_forward_dynamics_into` can be used (a model whose inertia is not physical can still
+    /// lose definiteness elsewhere: the acceleration is then NaN).
     fast_path: bool,
     delay: f64,
     effort_limits: Vec<f64>,
@@ -149,7 +150,11 @@ impl Plant {
             for i in 0..n {
                 pws.friction[i] += tau_applied[i];
             }
-            forward_dynamics_into(&self.model, &mut pws.ws, q, qd, &pws.friction, self.formulation, out);
+            // a model whose inertia is not physical (a fitted correction) cannot accelerate: NaN,
+            // which the caller reads as divergence
+            if !try_forward_dynamics_into(&self.model, &mut pws.ws, q, qd, &pws.friction, self.formulation, out) {
+                out.fill(f64::NAN);
+            }
             return;
         }
         // τ + friction, then q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics

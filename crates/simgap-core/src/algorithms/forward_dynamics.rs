@@ -41,17 +41,29 @@ pub const ABA_MIN_DOF: usize = 2;
 /// # Panics
 /// As [`forward_dynamics`].
 pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
+    assert!(try_forward_dynamics_into(model, ws, q, qd, tau, formulation, out), "matrix is not positive definite");
+}
+
+/// [`forward_dynamics_into`] that returns false instead of panicking when H is not positive
+/// definite (a model whose inertial parameters are not physical, such as a link corrected to a
+/// negative mass); `out` is then unspecified.
+///
+/// # Panics
+/// If a length or `ws` does not match the model.
+pub fn try_forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
     let n = model.dof();
     if let Some(arm) = closed_forms::two_joint(model, ws) {
         check_len(model, "q", q);
         check_len(model, "qd", qd);
         check_len(model, "tau", tau);
         check_len(model, "out", out);
-        arm.forward_dynamics(q, qd, tau, formulation, out);
+        arm.forward_dynamics(q, qd, tau, formulation, out)
     } else if n >= ABA_MIN_DOF {
-        crate::algorithms::aba::forward_dynamics_aba_into(model, ws, q, qd, tau, formulation, out);
+        check_len(model, "tau", tau);
+        crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, &[], formulation, out)
     } else {
-        forward_dynamics_crba_into(model, ws, q, qd, tau, formulation, out);
+        check_len(model, "tau", tau);
+        crba_solve(model, ws, q, qd, tau, &[], formulation, out)
     }
 }
 

@@ -95,20 +95,21 @@ impl TwoJoint {
         g[1] = t.g[1];
     }
 
-    /// q̈ = H⁻¹ (τ − C q̇ − g) into `out`.
-    ///
-    /// # Panics
-    /// If H is not positive definite.
+    /// q̈ = H⁻¹ (τ − C q̇ − g) into `out`; false (and `out` untouched) when H is not positive
+    /// definite.
     #[inline]
-    pub(crate) fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) {
+    pub(crate) fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
         let t = self.terms(q, qd, formulation);
         let r1 = tau[0] - (t.c[0] * qd[0] + t.c[1] * qd[1] + t.g[0]);
         let r2 = tau[1] - (t.c[2] * qd[0] + t.c[3] * qd[1] + t.g[1]);
         let [h11, h12, h22] = t.h;
         let det = h11 * h22 - h12 * h12;
-        assert!(h11 > 0.0 && det > 0.0, "matrix is not positive definite");
+        if !(h11 > 0.0 && det > 0.0) {
+            return false;
+        }
         let inv = 1.0 / det;
         out[0] = (h22 * r1 - h12 * r2) * inv;
         out[1] = (h11 * r2 - h12 * r1) * inv;
+        true
     }
 }
