@@ -79,6 +79,9 @@ pub struct FitData {
     pub enabled: Vec<f64>,
     /// A servo's nominal back-EMF `kt²/R` per joint [N·m·s/rad] (0 for other drives).
     pub back_emf: Vec<f64>,
+    /// `en q̇`, the drive's enable times the velocity at every sample, filtered like the torque
+    /// (the velocity a back-EMF torque follows) [rad/s or m/s].
+    pub enabled_qd: Vec<f64>,
     /// Delivered (measured) torque filtered likewise; empty when the log has none.
     pub tau_measured: Vec<f64>,
     /// Nominal residual `τ − (H q̈ + C q̇ + g)` with the model's formulation.
@@ -96,6 +99,9 @@ pub struct FitData {
     pub dry_width: Vec<DryWidth>,
     /// The aligned raw run.
     pub raw: Run,
+    /// Smoothed velocities at every sample of the raw run (`len × dof`; at the first and last
+    /// samples, whose window is incomplete, those of the nearest sample that has one).
+    qd_every: Vec<f64>,
     smoother: Smoother,
     kept: Vec<usize>,
 }
@@ -124,13 +130,23 @@ impl FitData {
         let stride = valid.len().div_ceil(options.max_samples).max(1);
         let kept: Vec<usize> = valid.clone().step_by(stride).collect();
         let qs = smoother.apply(&run.q, n, 0);
-        let qds = smoother.apply(&run.q, n, 1);
+        let mut qds = smoother.apply(&run.q, n, 1);
+        // the velocity of every sample, for columns filtered like the torque: at the first and
+        // last samples (no full window) that of the nearest sample that has one
+        for k in (0..valid.start).chain(valid.end..run.len()) {
+            let nearest = k.clamp(valid.start, valid.end - 1);
+            qds.copy_within(nearest * n..(nearest + 1) * n, k * n);
+        }
         let qdds = smoother.apply(&run.q, n, 2);
         let taus = smoother.apply_zoh(&run.tau, n);
         let taus_measured = if run.tau_measured.len() == run.tau.len() { smoother.apply_zoh(&run.tau_measured, n) } else { Vec::new() };
         let pick = |m: &[f64]| -> Vec<f64> { kept.iter().flat_map(|&k| m[k * n..(k + 1) * n].iter().copied()).collect() };
         let (q, qd, qdd, mut tau) = (pick(&qs), pick(&qds), pick(&qdds), pick(&taus));
-        let enabled = if run.drive.torque_enable.len() == run.len() * n { pick(&smoother.apply_zoh(&run.drive.torque_enable, n)) } else { vec![1.0; tau.len()] };
+        let logged_enable = run.drive.torque_enable.len() == run.len() * n;
+        let enabled = if logged_enable { pick(&smoother.apply_zoh(&run.drive.torque_enable, n)) } else { vec![1.0; tau.len()] };
+        // en q̇ at every sample, filtered like the torque (the back-EMF torque's velocity)
+        let en_qd: Vec<f64> = if logged_enable { qds.iter().zip(&run.drive.torque_enable).map(|(v, e)| v * e).collect() } else { qds.clone() };
+        let enabled_qd = pick(&smoother.apply_zoh(&en_qd, n));
         // a servo's own back-EMF, en kt²/R q̇, is part of its nominal drive torque
         let mut back_emf = vec![0.0; n];
         if let Some(p) = run.experiment.as_ref().filter(|_| crate::prepare::servo::is_servo(&run)).and_then(|e| simgap_sim::ServoParams::from_experiment(e).ok()) {
@@ -140,7 +156,7 @@ impl FitData {
                 }
                 for i in 0..tau.len() {
                     let j = i % n;
-                    tau[i] -= enabled[i] * kt[j] * kt[j] / r[j] * qd[i];
+                    tau[i] -= kt[j] * kt[j] / r[j] * enabled_qd[i];
                 }
             }
         }
@@ -189,6 +205,7 @@ impl FitData {
             tau,
             enabled,
             back_emf,
+            enabled_qd,
             tau_measured,
             residual,
             coriolis_delta,
@@ -196,6 +213,7 @@ impl FitData {
             h_max,
             dry_width: Vec::new(),
             raw: run,
+            qd_every: qds,
             smoother,
             kept,
         };
@@ -225,6 +243,37 @@ impl FitData {
         }
         let s = self.smoother.apply_zoh(&mapped, n);
         self.kept.iter().flat_map(|&k| s[k * n..(k + 1) * n].iter().copied()).collect()
+    }
+
+    /// `f(q̇_j)` of joint `j`'s velocity at every sample, filtered like the torque, at the kept
+    /// samples.
+    ///
+    /// The torque side of the fit is the command filtered by [`Smoother::apply_zoh`], so a
+    /// friction torque `f(q̇)` in it arrives through that kernel: at a velocity reversal the
+    /// filtered `fc sign(q̇)` ramps over the whole window. A column `f` of the smoothed velocity
+    /// instead steps within the dry-friction width; least squares would fit the ramp with a
+    /// smaller fc and make up the loss at speed with a larger viscous b. Filtering the column
+    /// like the torque keeps both sides of the equation under one filter.
+    pub fn filtered_velocity_map(&self, j: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
+        let n = self.dof;
+        let x: Vec<f64> = self.qd_every.iter().skip(j).step_by(n).map(|v| f(*v)).collect();
+        self.smoother.apply_zoh_at(&x, &self.kept)
+    }
+
+    /// `f(τ_drive, q̇)` of joint `j`'s drive torque and velocity at every sample, filtered like
+    /// the torque, at the kept samples ([`FitData::filtered_velocity_map`]). `τ_drive` is the
+    /// command, less a servo's nominal back-EMF `en kt²/R q̇` (as in [`FitData::tau`]).
+    pub fn filtered_drive_map(&self, j: usize, f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
+        let (n, raw) = (self.dof, &self.raw);
+        let logged_enable = raw.drive.torque_enable.len() == raw.len() * n;
+        let x: Vec<f64> = (0..raw.len())
+            .map(|k| {
+                let (tau, v) = (raw.tau[k * n + j], self.qd_every[k * n + j]);
+                let en = if logged_enable { raw.drive.torque_enable[k * n + j] } else { 1.0 };
+                f(tau - en * self.back_emf[j] * v, v)
+            })
+            .collect();
+        self.smoother.apply_zoh_at(&x, &self.kept)
     }
 
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the

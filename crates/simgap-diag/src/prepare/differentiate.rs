@@ -106,6 +106,24 @@ impl Smoother {
         self.apply(x, dof, 3)
     }
 
+    /// The zero-order-hold filter of [`Smoother::apply_zoh`] at each sample of `at` (each in
+    /// [`Smoother::valid`]) of a one-channel signal `x` (one value per sample).
+    pub(crate) fn apply_zoh_at(&self, x: &[f64], at: &[usize]) -> Vec<f64> {
+        let h = self.half;
+        let filter = |w: &[f64], k: usize| -> f64 { w.iter().zip(&x[k - h..=k + h]).map(|(w, x)| w * x).sum() };
+        at.iter()
+            .map(|&k| {
+                if self.uniform {
+                    filter(&self.weights[0][3], k)
+                } else if !self.weights.is_empty() {
+                    filter(&self.weights[k - h][3], k)
+                } else {
+                    filter(&self.compute_weights(k)[3], k)
+                }
+            })
+            .collect()
+    }
+
     /// Applies the filter to a row-major `len × dof` signal: `deriv` 0 = smoothed value,
     /// 1 = first derivative, 2 = second derivative (3 = [`Smoother::apply_zoh`]). Samples
     /// outside [`Smoother::valid`] are 0.
@@ -150,6 +168,21 @@ impl Smoother {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn filtering_at_chosen_samples_equals_filtering_every_sample() {
+        let uniform: Vec<f64> = (0..300).map(|i| i as f64 * 0.002).collect();
+        let jittered: Vec<f64> = (0..300).map(|i| i as f64 * 0.002 + 0.0004 * ((i * 7 % 5) as f64)).collect();
+        for t in [uniform, jittered] {
+            let s = Smoother::new(&t, 0.05);
+            let x: Vec<f64> = t.iter().map(|&t| (7.0 * t).sin().signum() + 0.3 * t).collect();
+            let every = s.apply_zoh(&x, 1);
+            let at: Vec<usize> = s.valid().step_by(3).collect();
+            for (k, v) in at.iter().zip(s.apply_zoh_at(&x, &at)) {
+                assert!((every[*k] - v).abs() < 1e-12, "k = {k}: {v} against {}", every[*k]);
+            }
+        }
+    }
 
     #[test]
     fn differentiates_a_cubic_exactly_on_nonuniform_stamps() {

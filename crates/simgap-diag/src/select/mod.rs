@@ -253,7 +253,8 @@ impl<'a> Context<'a> {
             Family::LoadFriction(j) => self.dry_width[j].grid(DRY_WIDTH_GRID).into_iter().map(|w| Term::LoadFriction { joint: j, w }).collect(),
             Family::Stribeck(j) => {
                 let widths = self.dry_width[j].grid(STRIBECK_WIDTH_GRID);
-                (0..12).flat_map(|i| widths.iter().map(move |&w| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i), w })).collect()
+                let terms = (0..12).flat_map(|i| widths.iter().map(move |&w| Term::Stribeck { joint: j, vs: 0.01 * 1.6f64.powi(i), w }));
+                terms.filter(|t| matches!(*t, Term::Stribeck { vs, w, .. } if crate::vocabulary::stribeck_resolvable(vs, w))).collect()
             }
             Family::Saturation(j) => {
                 let max = self.max_command(j);
@@ -297,7 +298,8 @@ impl<'a> Context<'a> {
                 screen_best(self, &cands, resid).0
             }
             Term::Stribeck { joint, vs, w } => {
-                let cands: Vec<Term> = (-5..=5).map(|i| Term::Stribeck { joint, vs: vs * 1.1f64.powi(i), w }).collect();
+                let near = (-5..=5).map(|i| vs * 1.1f64.powi(i));
+                let cands: Vec<Term> = near.filter(|&v| v == vs || crate::vocabulary::stribeck_resolvable(v, w)).map(|vs| Term::Stribeck { joint, vs, w }).collect();
                 screen_best(self, &cands, resid).0
             }
             Term::LoadFriction { joint, w } => {

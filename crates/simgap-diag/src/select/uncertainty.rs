@@ -14,9 +14,14 @@
 //! state, sample times and inferred sensors; [`crate::prediction::resim::resimulate`]), so that the fitted
 //! parameters are the truth of these synthetic runs; the same terms are fitted to them through
 //! the same preparation; the difference `b = θ* − θ̂` is the pipeline's error on data like these.
-//! The reported half-width is `1.96 · sqrt(σ² + b²)`, with `σ` the larger of the bootstrap and
-//! jackknife spreads: the bias magnitude counts as one more independent error component (it is
-//! itself estimated from one synthetic draw, so it is not subtracted from θ̂).
+//! The reported half-width is `1.96 · max(σ, |b|)`, with `σ` the larger of the bootstrap and
+//! jackknife spreads. `b` is itself estimated from one synthetic draw, so it is not subtracted
+//! from θ̂, and it carries that draw's own scatter, of about σ: where the pipeline has no
+//! shared error, `|b|` is of the order of σ and adding it in quadrature (`sqrt(σ² + b²)`, this
+//! module's rule until the dry-friction columns were filtered like the torque) widened every
+//! interval by about √2 for nothing. Measured with that rule, 99.5 % of the true parameters of
+//! a synthetic fleet lay inside its 95 % intervals. The larger of the two is a shared error
+//! where one shows beyond the scatter, and the scatter where none does.
 //!
 //! What this does not hold: an effect the vocabulary lacks, or a wrong selection, biases the
 //! parameters in ways no refit of the selected model shows.
@@ -64,13 +69,13 @@ pub(crate) fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: 
 }
 
 /// The standard deviations the report's 95 % intervals use (±1.96 of them):
-/// `sqrt(σ² + b²)` with `σ` the larger of the block-bootstrap (`boot`) and delete-one-fold
+/// `max(σ, |b|)` with `σ` the larger of the block-bootstrap (`boot`) and delete-one-fold
 /// jackknife (`jack`) spreads and `b` the pipeline's error ([`pipeline_bias`]; taken as 0 where
-/// unknown).
+/// unknown). See the module documentation for why not `sqrt(σ² + b²)`.
 pub(crate) fn interval_std(boot: &DVector<f64>, jack: &DVector<f64>, bias: Option<&DVector<f64>>) -> DVector<f64> {
     let spread = larger_spread(boot, jack);
     DVector::from_fn(boot.len(), |i, _| {
         let b = bias.and_then(|b| b.get(i).copied()).filter(|b| b.is_finite()).unwrap_or(0.0);
-        spread[i].hypot(b)
+        spread[i].max(b.abs())
     })
 }

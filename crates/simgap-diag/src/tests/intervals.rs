@@ -15,12 +15,16 @@ fn student_quantile_matches_tables() {
 }
 
 #[test]
-fn interval_adds_the_pipeline_error_to_the_larger_resampling_spread() {
+fn interval_takes_the_pipeline_error_where_it_exceeds_the_larger_resampling_spread() {
+    let boot = DVector::from_vec(vec![1.0, 3.0, 2.0, 1.0]);
+    let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN, 0.5]);
+    let bias = DVector::from_vec(vec![0.0, 4.0, f64::NAN, -1.5]);
+    let s = interval_std(&boot, &jack, Some(&bias));
+    // the pipeline error (of either sign) where it shows beyond the scatter, else the scatter:
+    // one synthetic refit carries a scatter of about σ itself, so |b| ≤ σ is no shared error
+    assert_eq!(s.as_slice(), &[2.0, 4.0, 2.0, 1.5]);
     let boot = DVector::from_vec(vec![1.0, 3.0, 2.0]);
     let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN]);
-    let bias = DVector::from_vec(vec![0.0, 4.0, f64::NAN]);
-    let s = interval_std(&boot, &jack, Some(&bias));
-    assert_eq!(s.as_slice(), &[2.0, 5.0, 2.0]);
     // no bias known: the resampling spread alone
     let s = interval_std(&boot, &jack, None);
     assert_eq!(s.as_slice(), &[2.0, 3.0, 2.0]);

@@ -2,6 +2,7 @@
 
 mod common;
 mod delay_line;
+mod friction_filter;
 mod gram_cache;
 mod intervals;
 mod link_side;

@@ -2,7 +2,8 @@
 //! (absent with torque off: the bridge is open). A servo's own motor law holds `kt²/R` of it;
 //! this term is what the logs show beyond (or short of) that.
 //!
-//! The residual holds `kb en_j q̇_j` (column `en q̇`, `en` the drive's enable); with the drive
+//! The residual holds `kb en_j q̇_j` (column `en q̇`, `en` the drive's enable, filtered like the
+//! torque as viscous friction's column is: [`FitData::enabled_qd`]); with the drive
 //! never disabled it is viscous friction's column, so the term is a candidate only on joints
 //! whose drive some fit run disables. Physical range: the total back-EMF stays ≥ 0, so `kb ≥
 //! −kt²/R` of the servo's nominal law (≥ 0 on another drive).
@@ -16,7 +17,7 @@ use crate::prepare::dataset::FitData;
 /// The column of a back-EMF on joint `j`: `en q̇`, bounded below by minus the nominal back-EMF.
 pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
     let nominal = data.iter().map(|d| d.back_emf[j]).fold(0.0f64, f64::max);
-    TermDesign { cols: vec![per_joint(data, j, |d, i| d.enabled[i] * d.qd[i])], lo: vec![-nominal], hi: vec![f64::INFINITY], ..Default::default() }
+    TermDesign { cols: vec![per_joint(data, j, |d, i| d.enabled_qd[i])], lo: vec![-nominal], hi: vec![f64::INFINITY], ..Default::default() }
 }
 
 /// Whether some fit run disables the drive of joint `j` (back-EMF is then told from viscous

@@ -12,18 +12,20 @@ use simgap_sim::effects::smooth_sign;
 use simgap_sim::Effect;
 
 use super::effects::{per_joint as reported, sig3, unit_of, Entry, FittedTerm};
-use super::{per_joint, EffectReport, Term, TermDesign};
+use super::{filtered_per_joint, EffectReport, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
 /// The columns of a directional friction on `joint` with width `w`.
 pub(super) fn design(joint: usize, w: f64, data: &[FitData]) -> TermDesign {
+    // each column filtered like the torque (see `friction.rs`); the filter is linear and keeps
+    // constants, so equal levels and slopes give exactly the Coulomb and viscous columns
     let pos = move |v: f64| 0.5 * (1.0 + smooth_sign(v, w));
     let neg = move |v: f64| 0.5 * (1.0 - smooth_sign(v, w));
     let cols = vec![
-        per_joint(data, joint, |d, i| pos(d.qd[i])),
-        per_joint(data, joint, |d, i| -neg(d.qd[i])),
-        per_joint(data, joint, |d, i| pos(d.qd[i]) * d.qd[i]),
-        per_joint(data, joint, |d, i| neg(d.qd[i]) * d.qd[i]),
+        filtered_per_joint(data, joint, pos),
+        filtered_per_joint(data, joint, |v| -neg(v)),
+        filtered_per_joint(data, joint, |v| pos(v) * v),
+        filtered_per_joint(data, joint, |v| neg(v) * v),
     ];
     TermDesign::at_least(cols, 0.0)
 }

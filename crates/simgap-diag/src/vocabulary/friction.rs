@@ -6,25 +6,26 @@
 //!
 //! Columns: `b_j q̇_j`; `fc_j tanh(q̇_j / w)`; `fc tanh(q̇/w) + (fs − fc) e^{−(q̇/vs)²} tanh(q̇/w)`,
 //! with b, fc ≥ 0 and fs − fc ≥ 0 (friction dissipates; a Stribeck hump rises above fc).
-//! The Stribeck velocity vs is searched on a grid.
+//! The Stribeck velocity vs is searched on a grid. Every column is evaluated at every sample
+//! and filtered like the torque ([`FitData::filtered_velocity_map`]): the step of dry friction
+//! at each velocity reversal reaches the fit through the same kernel on both sides.
 
 use simgap_sim::effects::smooth_sign;
 use simgap_sim::Effect;
 
 use super::effects::{list_per_joint, per_joint as reported, sig3, unit_of, Entry, FittedTerm};
-use super::{per_joint, EffectReport, Term, TermDesign};
+use super::{filtered_per_joint, EffectReport, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
 /// The columns of a friction term.
 pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     match *term {
-        Term::Viscous(j) => TermDesign::at_least(vec![per_joint(data, j, |d, i| d.qd[i])], 0.0),
-        Term::Coulomb { joint, w } => TermDesign::at_least(vec![per_joint(data, joint, |d, i| smooth_sign(d.qd[i], w))], 0.0),
+        Term::Viscous(j) => TermDesign::at_least(vec![filtered_per_joint(data, j, |v| v)], 0.0),
+        Term::Coulomb { joint, w } => TermDesign::at_least(vec![filtered_per_joint(data, joint, |v| smooth_sign(v, w))], 0.0),
         Term::Stribeck { joint, vs, w } => {
-            let tanh = |v: f64| smooth_sign(v, w);
             // fc tanh + (fs − fc) e tanh, with fc ≥ 0 and fs − fc ≥ 0
             let e = |v: f64| (-(v / vs).powi(2)).exp();
-            TermDesign::at_least(vec![per_joint(data, joint, |d, i| tanh(d.qd[i])), per_joint(data, joint, |d, i| e(d.qd[i]) * tanh(d.qd[i]))], 0.0)
+            TermDesign::at_least(vec![filtered_per_joint(data, joint, |v| smooth_sign(v, w)), filtered_per_joint(data, joint, |v| e(v) * smooth_sign(v, w))], 0.0)
         }
         _ => TermDesign::default(),
     }
@@ -34,15 +35,24 @@ pub(super) fn design(term: &Term, data: &[FitData]) -> TermDesign {
 /// resolve the Stribeck hump: it is Coulomb friction seen through a handful of samples.
 pub(crate) const RESOLVED_SHARE: f64 = 0.02;
 
+/// Whether a Stribeck hump of velocity `vs` stands apart from the smoothed sign of width `w`:
+/// `vs > 2 w`. Within twice the width, the hump only reshapes the smoothed step, and its
+/// column (filtered like the torque, a few samples wide at each reversal) takes any
+/// coefficient the fit needs, however unphysical: such a Stribeck velocity is neither searched
+/// nor reported.
+pub(crate) fn resolvable(vs: f64, w: f64) -> bool {
+    vs > 2.0 * w
+}
+
 /// The Coulomb friction nested in a Stribeck friction (fs = fc), its extra column (fs − fc),
 /// and why the runs cannot resolve the hump where they cannot: a Stribeck velocity within
-/// twice the smoothing width of the sign, or slower than all but [`RESOLVED_SHARE`] of the fit
-/// samples.
+/// twice the smoothing width of the sign (see [`resolvable`]), or slower than all but
+/// [`RESOLVED_SHARE`] of the fit samples.
 pub(super) fn simpler(term: &Term, data: &[FitData]) -> Option<super::Nested> {
     let Term::Stribeck { joint, vs, w } = *term else { return None };
     let (slower, total) = data.iter().fold((0usize, 0usize), |(s, n), d| (s + (0..d.len()).filter(|&i| d.qd[i * d.dof + joint].abs() < vs).count(), n + d.len()));
     let share = if total > 0 { slower as f64 / total as f64 } else { 0.0 };
-    let unresolved = if vs <= 2.0 * w {
+    let unresolved = if !resolvable(vs, w) {
         Some(format!(
             "its Stribeck velocity vs is {} times the width w over which the sign of the velocity is smoothed (the runs cannot resolve a hump within twice that width)",
             sig3(vs / w)

@@ -37,6 +37,7 @@ mod spring;
 pub use effects::{EffectReport, Param};
 
 pub(crate) use crate::lsq::design::{Column, TermDesign};
+pub(crate) use friction::resolvable as stribeck_resolvable;
 pub(crate) use payload::{largest_command, payload_basis_rows, payload_linear_design, payload_mass_bound, point_mass_parameters};
 
 use std::sync::Arc;
@@ -257,6 +258,13 @@ pub(crate) fn per_joint(data: &[FitData], j: usize, f: impl Fn(&FitData, usize) 
         }
     }
     Column::new(Some(j), v)
+}
+
+/// Concatenation over runs of a function of joint `j`'s velocity filtered like the torque
+/// ([`FitData::filtered_velocity_map`]): the column of a torque that steps with the direction
+/// of motion.
+pub(crate) fn filtered_per_joint(data: &[FitData], j: usize, f: impl Fn(f64) -> f64) -> Column {
+    Column::new(Some(j), data.iter().flat_map(|d| d.filtered_velocity_map(j, &f)).collect())
 }
 
 /// The design of a term over all runs: its columns and the bounds physics puts on them.
