@@ -144,8 +144,15 @@ impl FitData {
         let (q, qd, qdd, mut tau) = (pick(&qs), pick(&qds), pick(&qdds), pick(&taus));
         let logged_enable = run.drive.torque_enable.len() == run.len() * n;
         let enabled = if logged_enable { pick(&smoother.apply_zoh(&run.drive.torque_enable, n)) } else { vec![1.0; tau.len()] };
-        // en q̇ at every sample, filtered like the torque (the back-EMF torque's velocity)
-        let en_qd: Vec<f64> = if logged_enable { qds.iter().zip(&run.drive.torque_enable).map(|(v, e)| v * e).collect() } else { qds.clone() };
+        // en q̇ over every sample interval (its midpoint velocity, see
+        // `filtered_velocity_map`), filtered like the torque: the back-EMF torque's velocity
+        let en_qd: Vec<f64> = (0..qds.len())
+            .map(|i| {
+                let next = (i + n).min(qds.len() - n + i % n);
+                let en = if logged_enable { run.drive.torque_enable[i] } else { 1.0 };
+                en * 0.5 * (qds[i] + qds[next])
+            })
+            .collect();
         let enabled_qd = pick(&smoother.apply_zoh(&en_qd, n));
         // a servo's own back-EMF, en kt²/R q̇, is part of its nominal drive torque
         let mut back_emf = vec![0.0; n];
@@ -254,10 +261,22 @@ impl FitData {
     /// instead steps within the dry-friction width; least squares would fit the ramp with a
     /// smaller fc and make up the loss at speed with a larger viscous b. Filtering the column
     /// like the torque keeps both sides of the equation under one filter.
+    ///
+    /// The kernel takes each value as held over its sample interval `[t_k, t_k+1)` (as the
+    /// command is), so `f` is evaluated at the interval's midpoint velocity
+    /// `(q̇_k + q̇_k+1) / 2`: the sample's own velocity would lag the column by half a period,
+    /// and a lagged viscous column trades with the inertia.
     pub fn filtered_velocity_map(&self, j: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
-        let n = self.dof;
-        let x: Vec<f64> = self.qd_every.iter().skip(j).step_by(n).map(|v| f(*v)).collect();
+        let x: Vec<f64> = (0..self.raw.len()).map(|k| f(self.midpoint_velocity(k, j))).collect();
         self.smoother.apply_zoh_at(&x, &self.kept)
+    }
+
+    /// Joint `j`'s smoothed velocity at the middle of sample interval `k` (at the last sample,
+    /// its own).
+    fn midpoint_velocity(&self, k: usize, j: usize) -> f64 {
+        let n = self.dof;
+        let next = (k + 1).min(self.raw.len() - 1);
+        0.5 * (self.qd_every[k * n + j] + self.qd_every[next * n + j])
     }
 
     /// `f(τ_drive, q̇)` of joint `j`'s drive torque and velocity at every sample, filtered like
@@ -268,7 +287,7 @@ impl FitData {
         let logged_enable = raw.drive.torque_enable.len() == raw.len() * n;
         let x: Vec<f64> = (0..raw.len())
             .map(|k| {
-                let (tau, v) = (raw.tau[k * n + j], self.qd_every[k * n + j]);
+                let (tau, v) = (raw.tau[k * n + j], self.midpoint_velocity(k, j));
                 let en = if logged_enable { raw.drive.torque_enable[k * n + j] } else { 1.0 };
                 f(tau - en * self.back_emf[j] * v, v)
             })
