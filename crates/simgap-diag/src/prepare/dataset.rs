@@ -279,22 +279,6 @@ impl FitData {
         0.5 * (self.qd_every[k * n + j] + self.qd_every[next * n + j])
     }
 
-    /// `f(τ_drive, q̇)` of joint `j`'s drive torque and velocity at every sample, filtered like
-    /// the torque, at the kept samples ([`FitData::filtered_velocity_map`]). `τ_drive` is the
-    /// command, less a servo's nominal back-EMF `en kt²/R q̇` (as in [`FitData::tau`]).
-    pub fn filtered_drive_map(&self, j: usize, f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
-        let (n, raw) = (self.dof, &self.raw);
-        let logged_enable = raw.drive.torque_enable.len() == raw.len() * n;
-        let x: Vec<f64> = (0..raw.len())
-            .map(|k| {
-                let (tau, v) = (raw.tau[k * n + j], self.midpoint_velocity(k, j));
-                let en = if logged_enable { raw.drive.torque_enable[k * n + j] } else { 1.0 };
-                f(tau - en * self.back_emf[j] * v, v)
-            })
-            .collect();
-        self.smoother.apply_zoh_at(&x, &self.kept)
-    }
-
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the
     /// simulator applies it: with `delay = m T + r`, `(1 − r/T) τ_{k−m} + (r/T) τ_{k−m−1}`
     /// (before the first sample, the first command; see [`simgap_sim::DelayLine`]).

@@ -3,7 +3,7 @@
 //! BAM's load-dependent model). `τ_drive` is the nominal drive torque (for a servo, its motor
 //! law with back-EMF; 0 while the drive is disabled).
 //!
-//! Columns, each evaluated at every sample and filtered like the torque (see `friction.rs`):
+//! Columns (of the smoothed velocity and the filtered drive torque; see [`design`]):
 //! `tanh(q̇_j / w)` (fc ≥ 0) and `|τ_drive,j| tanh(q̇_j / w)` (0 ≤ mu ≤ 1: a gearbox
 //! that ate more than the torque it carries would never move). With mu = 0 it is Coulomb
 //! friction (the nested, simpler effect, see [`simpler`]); it occupies the dry-friction slot.
@@ -12,7 +12,7 @@ use simgap_sim::effects::smooth_sign;
 use simgap_sim::Effect;
 
 use super::effects::{per_joint as reported, sig3, unit_of, Entry, FittedTerm};
-use super::{filtered_per_joint, Column, EffectReport, Nested, Term, TermDesign};
+use super::{per_joint, EffectReport, Nested, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
 /// Largest plausible friction per unit of drive torque.
@@ -21,8 +21,12 @@ pub(crate) const MU_MAX: f64 = 1.0;
 /// The columns of a load friction on `joint` with width `w`.
 pub(super) fn design(joint: usize, w: f64, data: &[FitData]) -> TermDesign {
     // both filtered like the torque (the first is Coulomb friction's column, which this nests)
-    let load = Column::new(Some(joint), data.iter().flat_map(|d| d.filtered_drive_map(joint, |tau, v| tau.abs() * smooth_sign(v, w))).collect());
-    let cols = vec![filtered_per_joint(data, joint, |v| smooth_sign(v, w)), load];
+    // of the smoothed velocity, not filtered like the torque as the other friction columns are:
+    // filtered (`|τ_cmd| tanh(q̇/w)` at every sample through the torque's kernel), this column
+    // of the unclamped command stood in for a torque saturation on the demo arm's logs (two
+    // fit runs of three: a payload, torque gains, a delay and a 28.6 N·m limit for a 15 N·m
+    // one), where this one does not
+    let cols = vec![per_joint(data, joint, |d, i| smooth_sign(d.qd[i], w)), per_joint(data, joint, |d, i| d.tau[i].abs() * smooth_sign(d.qd[i], w))];
     TermDesign { cols, lo: vec![0.0, 0.0], hi: vec![f64::INFINITY, MU_MAX], ..Default::default() }
 }
 
