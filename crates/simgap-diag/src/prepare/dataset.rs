@@ -79,8 +79,9 @@ pub struct FitData {
     pub enabled: Vec<f64>,
     /// A servo's nominal back-EMF `kt²/R` per joint [N·m·s/rad] (0 for other drives).
     pub back_emf: Vec<f64>,
-    /// `en q̇`, the drive's enable times the velocity at every sample, filtered like the torque
-    /// (the velocity a back-EMF torque follows) [rad/s or m/s].
+    /// `en q̇`, the drive's enable times the velocity over every sample interval, filtered like
+    /// the torque (the velocity a back-EMF torque follows; see
+    /// [`FitData::filtered_velocity_map`]) [rad/s or m/s].
     pub enabled_qd: Vec<f64>,
     /// Delivered (measured) torque filtered likewise; empty when the log has none.
     pub tau_measured: Vec<f64>,
@@ -148,9 +149,8 @@ impl FitData {
         // `filtered_velocity_map`), filtered like the torque: the back-EMF torque's velocity
         let en_qd: Vec<f64> = (0..qds.len())
             .map(|i| {
-                let next = (i + n).min(qds.len() - n + i % n);
                 let en = if logged_enable { run.drive.torque_enable[i] } else { 1.0 };
-                en * 0.5 * (qds[i] + qds[next])
+                en * midpoint_velocity(&qds, n, i / n, i % n)
             })
             .collect();
         let enabled_qd = pick(&smoother.apply_zoh(&en_qd, n));
@@ -267,16 +267,8 @@ impl FitData {
     /// `(q̇_k + q̇_k+1) / 2`: the sample's own velocity would lag the column by half a period,
     /// and a lagged viscous column trades with the inertia.
     pub fn filtered_velocity_map(&self, j: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
-        let x: Vec<f64> = (0..self.raw.len()).map(|k| f(self.midpoint_velocity(k, j))).collect();
+        let x: Vec<f64> = (0..self.raw.len()).map(|k| f(midpoint_velocity(&self.qd_every, self.dof, k, j))).collect();
         self.smoother.apply_zoh_at(&x, &self.kept)
-    }
-
-    /// Joint `j`'s smoothed velocity at the middle of sample interval `k` (at the last sample,
-    /// its own).
-    fn midpoint_velocity(&self, k: usize, j: usize) -> f64 {
-        let n = self.dof;
-        let next = (k + 1).min(self.raw.len() - 1);
-        0.5 * (self.qd_every[k * n + j] + self.qd_every[next * n + j])
     }
 
     /// The command of joint `j` held over sample `k` after a delay of `delay` seconds, as the
@@ -285,4 +277,11 @@ impl FitData {
     pub fn delayed_torque(&self, k: usize, delay: f64, period: f64, j: usize) -> f64 {
         DelayLine::new(delay, period).delayed(k, |i| self.raw.tau[i * self.dof + j])
     }
+}
+
+/// Joint `j`'s velocity at the middle of sample interval `k`, from the row-major `len × dof`
+/// velocities `qd` of every sample (at the last sample, its own).
+fn midpoint_velocity(qd: &[f64], dof: usize, k: usize, j: usize) -> f64 {
+    let next = (k + 1).min(qd.len() / dof - 1);
+    0.5 * (qd[k * dof + j] + qd[next * dof + j])
 }
