@@ -276,8 +276,10 @@ def check_kstep(model: simgap.Model, run: simgap.Run, report_effects: list[dict[
     print(f"{label}: k-step RMS [rad] at {HORIZONS} s: simgap nominal {nominal}, simgap corrected {corrected}, MuJoCo corrected MJCF {ours}")
     for h, n, c, mj in zip(HORIZONS, nominal, corrected, ours):
         # MuJoCo predicts what simgap predicts, within the difference of its constraint dry
-        # friction and simgap's tanh (5-23 % measured, docs/export.md)
-        assert abs(mj - c) <= 0.35 * c, f"h = {h} s: MuJoCo {mj:.3e} rad, simgap {c:.3e} rad, nominal {n:.3e} rad"
+        # friction and simgap's tanh (4-37 % measured, docs/export.md: 37 % on the demo at 0.1 s
+        # since simgap's friction columns are filtered like the torque, which improved simgap's
+        # prediction more than MuJoCo's; 5-23 % before)
+        assert abs(mj - c) <= 0.45 * c, f"h = {h} s: MuJoCo {mj:.3e} rad, simgap {c:.3e} rad, nominal {n:.3e} rad"
         assert mj < 0.2 * n, f"h = {h} s: MuJoCo {mj:.3e} rad is not better than the nominal model's {n:.3e} rad"
 
 
