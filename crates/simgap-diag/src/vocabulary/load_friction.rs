@@ -20,7 +20,6 @@ pub(crate) const MU_MAX: f64 = 1.0;
 
 /// The columns of a load friction on `joint` with width `w`.
 pub(super) fn design(joint: usize, w: f64, data: &[FitData]) -> TermDesign {
-    // both filtered like the torque (the first is Coulomb friction's column, which this nests)
     // of the smoothed velocity, not filtered like the torque as the other friction columns are:
     // filtered (`|τ_cmd| tanh(q̇/w)` at every sample through the torque's kernel), this column
     // of the unclamped command stood in for a torque saturation on the demo arm's logs (two
