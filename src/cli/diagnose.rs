@@ -77,6 +77,9 @@ pub(crate) struct Args {
     /// gearboxes.
     #[arg(long = "directional-friction")]
     directional_friction: bool,
+    /// Print the wall time spent in each stage of the diagnosis to stderr when it ends.
+    #[arg(long)]
+    timings: bool,
 }
 
 /// Parses `--topic`.
@@ -101,6 +104,8 @@ pub(crate) struct Job<'a> {
     pub(crate) export_mjcf: Option<&'a Path>,
     /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
     pub(crate) directional_friction: bool,
+    /// Print the wall time of each stage to stderr.
+    pub(crate) timings: bool,
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
@@ -119,6 +124,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         export_urdf: args.export_urdf.as_deref(),
         export_mjcf: args.export_mjcf.as_deref(),
         directional_friction: args.directional_friction,
+        timings: args.timings,
     })?;
     Ok(())
 }
@@ -154,7 +160,11 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
 
     // diagnose with a progress bar naming the stage (hidden when stderr is not a terminal)
     let bar = super::progress_bar(1, "{spinner} {msg:<24} [{bar:30}] {pos}/{len}  {elapsed}");
+    let mut stages = StageTimes::default();
     let mut on_progress = |p: Progress| {
+        if job.timings {
+            stages.enter(p.stage);
+        }
         bar.set_message(p.stage);
         bar.set_length(p.total.max(1) as u64);
         bar.set_position(p.done as u64);
@@ -164,6 +174,10 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     let options = DiagnoseOptions { stop: Some(super::interrupt::STOP.clone()), directional_friction: job.directional_friction, ..DiagnoseOptions::default() };
     let result = diagnose(job.model, job.formulation, &fit, &holdout, &options, &mut on_progress);
     bar.finish_and_clear();
+    if job.timings {
+        stages.enter("");
+        eprint!("{stages}");
+    }
     let diagnosis = match result {
         Err(simgap::diag::Error::Interrupted) => return Err(super::Interrupted.into()),
         other => other?,
@@ -309,4 +323,43 @@ fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
     }
     w.finish()?;
     Ok(())
+}
+
+/// Wall time per stage of a diagnosis, in the order the stages were first entered (a stage
+/// entered again adds to its total).
+#[derive(Default)]
+struct StageTimes {
+    current: Option<(&'static str, std::time::Instant)>,
+    totals: Vec<(&'static str, f64)>,
+}
+
+impl StageTimes {
+    /// Closes the current stage and enters `stage` ("" to only close).
+    fn enter(&mut self, stage: &'static str) {
+        if self.current.is_some_and(|(s, _)| s == stage) {
+            return;
+        }
+        let now = std::time::Instant::now();
+        if let Some((s, since)) = self.current.take() {
+            let dt = now.duration_since(since).as_secs_f64();
+            match self.totals.iter_mut().find(|(name, _)| *name == s) {
+                Some(t) => t.1 += dt,
+                None => self.totals.push((s, dt)),
+            }
+        }
+        if !stage.is_empty() {
+            self.current = Some((stage, now));
+        }
+    }
+}
+
+impl std::fmt::Display for StageTimes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let total: f64 = self.totals.iter().map(|t| t.1).sum();
+        writeln!(f, "wall time by stage [s]:")?;
+        for (stage, dt) in &self.totals {
+            writeln!(f, "  {stage:<40} {dt:8.2}  {:5.1} %", 100.0 * dt / total.max(1e-12))?;
+        }
+        writeln!(f, "  {:<40} {total:8.2}", "total")
+    }
 }

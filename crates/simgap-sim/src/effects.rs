@@ -74,15 +74,61 @@ pub fn typical_width(kind: simgap_core::JointKind) -> f64 {
 /// # Panics
 /// If an effect's vector is shorter than `out`.
 pub fn friction_slope_bound(effects: &[Effect], out: &mut [f64]) {
+    slope_bound(effects, 1.0, 1.0, out);
+}
+
+/// Multiples of its width `w` beyond which a smoothed dry friction is no longer stiff: there
+/// `sech²(q̇/w) ≤ sech²(4) = 1.3e-3` of its slope at rest.
+pub const STIFF_WIDTHS: f64 = 4.0;
+
+/// Multiples of its Stribeck velocity `vs` beyond which the hump's slope is below `1e-3` of its
+/// bound `2 |fs − fc| / vs`.
+pub const STIFF_STRIBECK_VELOCITIES: f64 = 3.0;
+
+/// Per joint, the speed below which its smoothed dry frictions are stiff, `|q̇| <` `band` [rad/s
+/// or m/s]: the largest of [`STIFF_WIDTHS`] `· w` and [`STIFF_STRIBECK_VELOCITIES`] `· vs` over
+/// its Coulomb, Stribeck, directional and load frictions of width `w > 0` (0 without any), into `out`
+/// (overwritten). Above it, [`moving_friction_slope_bound`] bounds the friction's slope.
+///
+/// # Panics
+/// If an effect's vector is shorter than `out`.
+pub fn stiff_band(effects: &[Effect], out: &mut [f64]) {
     out.fill(0.0);
-    let over = |level: f64, w: f64| if w > 0.0 { level / w } else { 0.0 };
+    for e in effects {
+        for i in 0..out.len() {
+            let band = match e {
+                Effect::CoulombFriction { w, .. } | Effect::DirectionalFriction { w, .. } | Effect::LoadFriction { w, .. } if w[i] > 0.0 => STIFF_WIDTHS * w[i],
+                Effect::StribeckFriction { vs, w, .. } if w[i] > 0.0 => (STIFF_WIDTHS * w[i]).max(STIFF_STRIBECK_VELOCITIES * vs[i].max(0.0)),
+                _ => 0.0,
+            };
+            out[i] = out[i].max(band);
+        }
+    }
+}
+
+/// [`friction_slope_bound`] for joints moving faster than their [`stiff_band`]: the dry parts'
+/// slopes scaled by `sech²(4)` and the Stribeck hump's by `1e-3` (the smooth parts, viscous and
+/// back-EMF, as they are) [N·m·s/rad or N·s/m].
+///
+/// # Panics
+/// If an effect's vector is shorter than `out`.
+pub fn moving_friction_slope_bound(effects: &[Effect], out: &mut [f64]) {
+    let sech = 1.0 / STIFF_WIDTHS.cosh();
+    slope_bound(effects, sech * sech, 1e-3, out);
+}
+
+/// The slope bound of [`friction_slope_bound`] with the dry steps' slopes scaled by `dry` and
+/// the Stribeck humps' by `hump`.
+fn slope_bound(effects: &[Effect], dry: f64, hump_scale: f64, out: &mut [f64]) {
+    out.fill(0.0);
+    let over = |level: f64, w: f64| if w > 0.0 { dry * level / w } else { 0.0 };
     for e in effects {
         for i in 0..out.len() {
             out[i] += match e {
                 Effect::ViscousFriction { b } => b[i].abs(),
                 Effect::CoulombFriction { fc, w } => over(fc[i].abs(), w[i]),
                 Effect::StribeckFriction { fc, fs, vs, w } => {
-                    let hump = if vs[i] > 0.0 { 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
+                    let hump = if vs[i] > 0.0 { hump_scale * 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
                     over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
                 }
                 // the viscous parts, the dry step (fc_pos + fc_neg) / 2 over w, and the switch

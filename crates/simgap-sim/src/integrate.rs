@@ -37,8 +37,20 @@ impl Rk4 {
 
     /// One RK4 step of size `h` from `(t, y)`, overwriting `y`.
     pub fn step<F: FnMut(f64, &[f64], &mut [f64])>(&mut self, f: &mut F, t: f64, h: f64, y: &mut [f64]) {
-        let n = y.len();
+        self.derivative(f, t, y);
+        self.step_from_derivative(f, t, h, y);
+    }
+
+    /// The derivative `f(t, y)` (RK4's first stage), kept for [`Rk4::step_from_derivative`].
+    pub fn derivative<F: FnMut(f64, &[f64], &mut [f64])>(&mut self, f: &mut F, t: f64, y: &[f64]) -> &[f64] {
         f(t, y, &mut self.k1);
+        &self.k1
+    }
+
+    /// One RK4 step of size `h` from `(t, y)` whose first stage [`Rk4::derivative`] computed at
+    /// the same `(t, y)`, overwriting `y`.
+    pub fn step_from_derivative<F: FnMut(f64, &[f64], &mut [f64])>(&mut self, f: &mut F, t: f64, h: f64, y: &mut [f64]) {
+        let n = y.len();
         for i in 0..n {
             self.tmp[i] = y[i] + 0.5 * h * self.k1[i];
         }

@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use simgap_core::{mass_matrix, Formulation, Model, Workspace};
 
 use crate::controller::{controller_from_experiment, Controller};
-use crate::effects::{armature, friction_slope_bound, Effect};
+use crate::effects::{armature, friction_slope_bound, moving_friction_slope_bound, Effect};
 use crate::error::{Error, Result};
 use crate::integrate::Integrator;
 use crate::plant::Plant;
@@ -314,22 +314,69 @@ fn step_loop(
 /// Each dry friction counts with its own width `w`; one with `w = 0` (the exact sign) counts
 /// not at all (see [`friction_slope_bound`]).
 pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
-    let n = plant.dof();
-    let mut slope = vec![0.0; n];
+    let mut slope = vec![0.0; plant.dof()];
     friction_slope_bound(plant.effects(), &mut slope);
-    // a load friction's slope grows with the drive's torque: bounded by the effort limits
+    add_load_friction_slope(plant, &mut slope);
+    match stiffness_inverse(plant, params, &slope) {
+        Some(inv) => substeps_for_rate(params.sample_period, largest_rate(&inv, &slope), params.substeps),
+        None => params.substeps,
+    }
+}
+
+/// The stiffness of the frictions of `plant` that [`effective_substeps`] bounds, split for a
+/// step size chosen per sample interval ([`crate::Stepper::advance`]): the largest rate
+/// `λ_moving` while every joint moves faster than its [`stiff_band`](crate::effects::stiff_band)
+/// (slopes [`moving_friction_slope_bound`](crate::effects::moving_friction_slope_bound)), and
+/// per joint the rate its dry friction adds at rest, `(s_j − s_moving,j) (H⁻¹)_jj` [1/s]. Since
+/// `λ_max(A + B) ≤ λ_max(A) + trace(B)`, `λ_moving` plus the rates of the joints inside their
+/// bands bounds the rate of the interval (exactly so for one joint). `None` where
+/// [`effective_substeps`] does not raise the substeps (no friction, the adaptive integrator, a
+/// singular H).
+pub(crate) fn stiffness_rates(plant: &Plant, params: &SimParams) -> Option<(f64, Vec<f64>)> {
+    let n = plant.dof();
+    let mut full = vec![0.0; n];
+    friction_slope_bound(plant.effects(), &mut full);
+    let mut moving = vec![0.0; n];
+    moving_friction_slope_bound(plant.effects(), &mut moving);
+    add_load_friction_slope(plant, &mut full);
+    add_load_friction_slope(plant, &mut moving);
+    let inv = stiffness_inverse(plant, params, &full)?;
+    let lambda = largest_rate(&inv, &moving);
+    let rates = (0..n).map(|j| (full[j] - moving[j]).max(0.0) * inv[(j, j)].max(0.0)).collect();
+    Some((lambda, rates))
+}
+
+/// The substeps of a sample interval of `period` seconds for friction rates `lambda` [1/s]
+/// (`h · λ ≤ 2`, see [`effective_substeps`]): at least `base`, at most 10,000.
+pub(crate) fn substeps_for_rate(period: f64, lambda: f64, base: usize) -> usize {
+    let needed = (period * lambda / 2.0).ceil();
+    if needed.is_finite() {
+        base.max(needed.min(10_000.0) as usize)
+    } else {
+        base
+    }
+}
+
+/// A load friction's slope grows with the drive's torque: bounded from the effort limits.
+fn add_load_friction_slope(plant: &Plant, slope: &mut [f64]) {
     for e in plant.effects() {
         if let crate::effects::Effect::LoadFriction { mu, w, .. } = e {
-            for i in 0..n {
+            for (i, s) in slope.iter_mut().enumerate() {
                 let limit = plant.effort_limits()[i];
                 if w[i] > 0.0 && limit.is_finite() {
-                    slope[i] += mu[i] * limit / w[i];
+                    *s += mu[i] * limit / w[i];
                 }
             }
         }
     }
+}
+
+/// `(H + diag(ia))⁻¹` at `params.q0` when friction slopes `slope` make RK4's step matter
+/// (`None` without friction, with the adaptive integrator, or for a singular H).
+fn stiffness_inverse(plant: &Plant, params: &SimParams, slope: &[f64]) -> Option<nalgebra::DMatrix<f64>> {
+    let n = plant.dof();
     if slope.iter().all(|s| *s == 0.0) || !matches!(params.integrator, Integrator::Rk4) {
-        return params.substeps;
+        return None;
     }
     let q0 = if params.q0.len() == n { params.q0.clone() } else { vec![0.0; n] };
     let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), &q0);
@@ -338,17 +385,16 @@ pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
     for i in 0..n {
         h[(i, i)] += ia[i];
     }
-    let Some(inv) = h.try_inverse() else { return params.substeps };
-    // λ_max(H⁻¹ diag(s)) = λ_max(S^½ H⁻¹ S^½), a symmetric positive semi-definite matrix
+    h.try_inverse()
+}
+
+/// `λ_max(H⁻¹ diag(s)) = λ_max(S^½ H⁻¹ S^½)`, a symmetric positive semi-definite matrix, from
+/// `inv = H⁻¹`.
+fn largest_rate(inv: &nalgebra::DMatrix<f64>, slope: &[f64]) -> f64 {
+    let n = slope.len();
     let root: Vec<f64> = slope.iter().map(|s| s.max(0.0).sqrt()).collect();
     let m = nalgebra::DMatrix::from_fn(n, n, |i, j| root[i] * inv[(i, j)] * root[j]);
-    let lambda = m.symmetric_eigenvalues().iter().copied().fold(0.0f64, f64::max);
-    let needed = (params.sample_period * lambda / 2.0).ceil();
-    if needed.is_finite() {
-        params.substeps.max(needed.min(10_000.0) as usize)
-    } else {
-        params.substeps
-    }
+    m.symmetric_eigenvalues().iter().copied().fold(0.0f64, f64::max)
 }
 
 /// Simulates an experiment (`simgap.experiment`) into memory: the controller from

@@ -11,7 +11,8 @@
 //!    model's effort limits when [`SimParams::torque_limits_from_model`]), held constant
 //!    (zero-order hold) over `[t_k, t_k + Δt]`;
 //! 4. integrates the plant over that interval: `substeps` RK4 steps of `Δt / substeps` (for an
-//!    interval of the sample period), or the adaptive integrator ([`Stepper::advance`]).
+//!    interval of the sample period; where a dry friction raised them, only as many as the joints
+//!    near rest ask for), or the adaptive integrator ([`Stepper::advance`]).
 //!
 //! Drives whose torque depends on the motion within the interval are evaluated at every stage
 //! instead of held ([`drive_torque`]): a servo's back-EMF (`−en kt²/R q̇`, reported by
@@ -28,12 +29,12 @@
 
 use crate::controller::Controller;
 use crate::delay::DelayLine;
-use crate::effects::{applied_torque, drive_torque, exact_dry_levels, has_drive_effects, has_exact_dry_friction};
+use crate::effects::{applied_torque, drive_torque, exact_dry_levels, has_drive_effects, has_exact_dry_friction, stiff_band};
 use crate::error::Result;
 use crate::integrate::{Dopri5, Integrator, Rk4};
 use crate::plant::{Plant, PlantWorkspace};
 use crate::sensor::Sensor;
-use crate::simulate::{effective_substeps, SimParams};
+use crate::simulate::{effective_substeps, stiffness_rates, substeps_for_rate, SimParams};
 
 /// The per-sample step of the closed loop (see the [module docs](self)): sensors, delay ring,
 /// held torque and integrator workspace of one run of `plant`.
@@ -71,6 +72,15 @@ pub struct Stepper<'p> {
     period: f64,
     substeps: usize,
     h_max: f64,
+    /// The substeps asked for by `params` before friction raises them.
+    base_substeps: usize,
+    /// The friction rates of [`stiffness_rates`]: while every joint moves, and per joint at
+    /// rest (`None`: `substeps` throughout).
+    rates: Option<(f64, Vec<f64>)>,
+    /// Per joint, the speed below which its dry friction is stiff ([`stiff_band`]).
+    band: Vec<f64>,
+    /// Integration steps taken so far.
+    steps_taken: u64,
     divergence_bound: f64,
 }
 
@@ -90,6 +100,9 @@ impl<'p> Stepper<'p> {
         let line = DelayLine::new(plant.delay(), params.sample_period);
         let depth = line.whole().min(samples) + 2;
         let substeps = effective_substeps(plant, params);
+        let rates = if substeps > params.substeps { stiffness_rates(plant, params) } else { None };
+        let mut band = vec![0.0; n];
+        stiff_band(plant.effects(), &mut band);
         Ok(Stepper {
             plant,
             pws: plant.workspace(),
@@ -117,6 +130,10 @@ impl<'p> Stepper<'p> {
             period: params.sample_period,
             substeps,
             h_max: params.sample_period / substeps as f64,
+            base_substeps: params.substeps,
+            rates,
+            band,
+            steps_taken: 0,
             divergence_bound: params.divergence_bound,
         })
     }
@@ -126,7 +143,14 @@ impl<'p> Stepper<'p> {
         self.plant.dof()
     }
 
-    /// RK4 steps per sample period (after [`effective_substeps`]).
+    /// Integration steps taken so far (RK4 steps; one per sample interval for the adaptive
+    /// integrator): the cost of the run.
+    pub fn steps_taken(&self) -> u64 {
+        self.steps_taken
+    }
+
+    /// RK4 steps per sample period at most (after [`effective_substeps`]): near rest, where a
+    /// dry friction is stiff; fewer while every joint moves ([`Stepper::advance`]).
     pub fn substeps(&self) -> usize {
         self.substeps
     }
@@ -212,6 +236,12 @@ impl<'p> Stepper<'p> {
     /// RK4 steps; another (rounded log stamps) `⌈dt / h⌉` steps of at most the same size
     /// `h = T / substeps` (1 to 10,000).
     ///
+    /// Where the substeps were raised for a dry friction's stiffness near rest, an interval in
+    /// which a joint stays clear of its stiff band takes only the steps the other joints' rates
+    /// ask for (held torque; the rule of [`effective_substeps`] with the bound of
+    /// `stiffness_rates`): on a 7-DOF arm tracking sines with stiff dry friction on every joint,
+    /// 47 % of the steps (test `substeps_raised_only_near_rest_match_substeps_raised_throughout`).
+    ///
     /// # Panics
     /// If `y.len() != 2 · dof`.
     pub fn advance(&mut self, k: usize, t: f64, dt: f64, y: &mut [f64]) {
@@ -249,10 +279,26 @@ impl<'p> Stepper<'p> {
             match self.dopri.as_mut() {
                 Some(d) => {
                     d.integrate(&mut f, t, t + dt, y);
+                    self.steps_taken += 1;
                 }
                 None => {
+                    // the first stage tells which joints the interval keeps clear of their dry
+                    // friction's stiff band (their speed, less twice the change their
+                    // acceleration makes over the interval, above the band); the step then
+                    // bounds the stiffness of the others only
+                    let d = self.rk4.derivative(&mut f, t, y);
+                    let steps = match &self.rates {
+                        None => steps,
+                        Some((moving, at_rest)) => {
+                            let lambda = moving + (0..n).filter(|&i| self.band[i] > 0.0 && y[n + i].abs() - 2.0 * d[n + i].abs() * dt <= self.band[i]).map(|i| at_rest[i]).sum::<f64>();
+                            let base = if dt == self.period { self.base_substeps } else { ((dt / self.period * self.base_substeps as f64 * (1.0 - 1e-9)).ceil() as usize).max(1) };
+                            substeps_for_rate(dt, lambda, base).min(steps)
+                        }
+                    };
+                    self.steps_taken += steps as u64;
                     let h = dt / steps as f64;
-                    for s in 0..steps {
+                    self.rk4.step_from_derivative(&mut f, t, h, y);
+                    for s in 1..steps {
                         self.rk4.step(&mut f, t + s as f64 * h, h, y);
                     }
                 }
@@ -279,8 +325,10 @@ impl<'p> Stepper<'p> {
                     plant.acceleration(pws, q, qd, applied, ddq);
                 };
                 d.integrate(&mut f, t, t + dt, y);
+                self.steps_taken += 1;
             }
             None => {
+                self.steps_taken += steps as u64;
                 let h = dt / steps as f64;
                 let exact = self.exact_dry;
                 stick.fill(0.0);
