@@ -177,6 +177,7 @@ pub(crate) fn refine_by_prediction(
                 break;
             }
             progress(Progress { stage: "pruning by prediction", done: 0, total: terms.len() });
+            let before = terms.clone();
             let without: Vec<f64> = (0..terms.len())
                 .into_par_iter()
                 .map(|i| {
@@ -206,6 +207,27 @@ pub(crate) fn refine_by_prediction(
                 };
                 log.push(select::Step { term, cv_mse: f64::NAN, accepted: false, reason });
                 current = best;
+                // the other terms this pass found weak, in the order of their scores: each is
+                // scored again without the terms removed since, and removed while it stays weak
+                // (a full pass follows, so no weak term is left; it saves re-scoring every
+                // term after each removal)
+                if weak {
+                    let mut order: Vec<(usize, f64)> = without.iter().copied().enumerate().filter(|&(j, s)| j != i && s <= current * (1.0 + PRUNE_TOLERANCE)).collect();
+                    order.sort_by(|a, b| a.1.total_cmp(&b.1));
+                    for cand in order.iter().map(|&(j, _)| &before[j]) {
+                        check_stop(options)?;
+                        let Some(k) = terms.iter().position(|t| t == cand) else { continue };
+                        let mut rest = terms.clone();
+                        rest.remove(k);
+                        let s = scorer.score(&rest);
+                        if s > current * (1.0 + PRUNE_TOLERANCE) {
+                            break;
+                        }
+                        let term = terms.remove(k);
+                        log.push(select::Step { term, cv_mse: f64::NAN, accepted: false, reason: format!("pruned by prediction: without it the fit runs' cross-validated k-step error is {s:.4} of the nominal model's (with it {current:.4})") });
+                        current = s;
+                    }
+                }
             } else {
                 break;
             }
