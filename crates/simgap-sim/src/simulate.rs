@@ -323,16 +323,13 @@ pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
     }
 }
 
-/// The stiffness of the frictions of `plant` that [`effective_substeps`] bounds, split for a
-/// step size chosen per sample interval ([`crate::Stepper::advance`]): the largest rate
-/// `λ_moving` while every joint moves faster than its [`stiff_band`](crate::effects::stiff_band)
-/// (slopes [`moving_friction_slope_bound`](crate::effects::moving_friction_slope_bound)), and
-/// per joint the rate its dry friction adds at rest, `(s_j − s_moving,j) (H⁻¹)_jj` [1/s]. Since
-/// `λ_max(A + B) ≤ λ_max(A) + trace(B)`, `λ_moving` plus the rates of the joints inside their
-/// bands bounds the rate of the interval (exactly so for one joint). `None` where
-/// [`effective_substeps`] does not raise the substeps (no friction, the adaptive integrator, a
-/// singular H).
-pub(crate) fn stiffness_rates(plant: &Plant, params: &SimParams) -> Option<(f64, Vec<f64>)> {
+/// The largest rate of the friction stiffness of `plant` while every joint moves faster than
+/// its [`stiff_band`](crate::effects::stiff_band) [1/s]: [`effective_substeps`]'s `λ` with the
+/// slopes of [`moving_friction_slope_bound`](crate::effects::moving_friction_slope_bound). A
+/// sample interval clear of every band needs only the steps this rate asks for
+/// ([`crate::Stepper::advance`]). `None` where [`effective_substeps`] does not raise the
+/// substeps (no friction, the adaptive integrator, a singular H).
+pub(crate) fn moving_rate(plant: &Plant, params: &SimParams) -> Option<f64> {
     let n = plant.dof();
     let mut full = vec![0.0; n];
     friction_slope_bound(plant.effects(), &mut full);
@@ -341,9 +338,7 @@ pub(crate) fn stiffness_rates(plant: &Plant, params: &SimParams) -> Option<(f64,
     add_load_friction_slope(plant, &mut full);
     add_load_friction_slope(plant, &mut moving);
     let inv = stiffness_inverse(plant, params, &full)?;
-    let lambda = largest_rate(&inv, &moving);
-    let rates = (0..n).map(|j| (full[j] - moving[j]).max(0.0) * inv[(j, j)].max(0.0)).collect();
-    Some((lambda, rates))
+    Some(largest_rate(&inv, &moving))
 }
 
 /// The substeps of a sample interval of `period` seconds for friction rates `lambda` [1/s]

@@ -360,7 +360,8 @@ fn stiff_friction_run(substeps: usize) -> (Vec<f64>, u64) {
 #[test]
 fn substeps_raised_only_near_rest_match_substeps_raised_throughout() {
     // the stiff rate of the dry frictions asks for `full` RK4 steps per sample; the stepper
-    // takes them only in intervals where some joint is near rest, fewer elsewhere
+    // takes them only in intervals where some joint is near rest, fewer elsewhere, and is as
+    // accurate
     let model = arm7();
     let plant = Plant::new(&model, Formulation::EulerLagrange, &stiff_friction()).unwrap();
     let q0 = vec![0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0];
@@ -376,9 +377,7 @@ fn substeps_raised_only_near_rest_match_substeps_raised_throughout() {
     let swing = fine.chunks(7).map(|q| (q[0] - fine[0]).abs()).fold(0.0f64, f64::max);
     eprintln!("{full} substeps near rest: {taken} steps against {taken_full}; max position error {e_adaptive:e} rad against {e_full:e} rad with {full} throughout (shoulder swing {swing:.2} rad)");
     assert!(swing > 0.3, "the arm should move: {swing}");
-    assert!(taken < taken_full * 3 / 4, "{taken} steps against {taken_full}");
-    // near rest the steps resolve the joints inside their bands only (stable, h·λ ≤ 2), so the
-    // error is larger than with the worst case throughout (measured 4.0e-5 against 1.1e-5 rad),
-    // yet far below what k-step prediction resolves
-    assert!(e_adaptive < 1e-4 && e_adaptive < 5.0 * e_full, "positions off by {e_adaptive:e} rad ({e_full:e} with {full} throughout)");
+    // measured: 74 % of the steps, the same error (1.106e-5 rad against 1.107e-5)
+    assert!(taken < taken_full * 9 / 10, "{taken} steps against {taken_full}");
+    assert!(e_adaptive < 1.1 * e_full + 1e-9, "positions off by {e_adaptive:e} rad ({e_full:e} with {full} throughout)");
 }
