@@ -110,18 +110,20 @@ impl Smoother {
     /// [`Smoother::valid`]) of a one-channel signal `x` (one value per sample).
     pub(crate) fn apply_zoh_at(&self, x: &[f64], at: &[usize]) -> Vec<f64> {
         let h = self.half;
-        let filter = |w: &[f64], k: usize| -> f64 { w.iter().zip(&x[k - h..=k + h]).map(|(w, x)| w * x).sum() };
-        at.iter()
-            .map(|&k| {
-                if self.uniform {
-                    filter(&self.weights[0][3], k)
-                } else if !self.weights.is_empty() {
-                    filter(&self.weights[k - h][3], k)
-                } else {
-                    filter(&self.compute_weights(k)[3], k)
-                }
-            })
-            .collect()
+        at.iter().map(|&k| self.weights_at(k, 3).iter().zip(&x[k - h..=k + h]).map(|(w, x)| w * x).sum()).collect()
+    }
+
+    /// The weights of derivative `deriv` (3: the zero-order-hold kernel) of the window centred
+    /// on sample `k`: shared on uniform stamps, precomputed per sample, or computed here.
+    fn weights_at(&self, k: usize, deriv: usize) -> std::borrow::Cow<'_, [f64]> {
+        if self.uniform {
+            std::borrow::Cow::Borrowed(&self.weights[0][deriv])
+        } else if !self.weights.is_empty() {
+            std::borrow::Cow::Borrowed(&self.weights[k - self.half][deriv])
+        } else {
+            let mut all = self.compute_weights(k);
+            std::borrow::Cow::Owned(std::mem::take(&mut all[deriv]))
+        }
     }
 
     /// Applies the filter to a row-major `len × dof` signal: `deriv` 0 = smoothed value,
@@ -132,7 +134,6 @@ impl Smoother {
         assert_eq!(x.len(), n * dof, "signal length");
         let mut out = vec![0.0; x.len()];
         let h = self.half;
-        let mut local;
         // samples whose row is all zero; a window of them filters to zero (sparse signals,
         // such as the torque above a saturation limit, cost almost nothing)
         let mut zeros_before = Vec::with_capacity(n + 1);
@@ -145,14 +146,7 @@ impl Smoother {
             if zeros_before[k + h + 1] - zeros_before[k - h] == 2 * h + 1 {
                 continue;
             }
-            let w = if self.uniform {
-                &self.weights[0][deriv]
-            } else if !self.weights.is_empty() {
-                &self.weights[k - h][deriv]
-            } else {
-                local = self.compute_weights(k);
-                &local[deriv]
-            };
+            let w = self.weights_at(k, deriv);
             for j in 0..dof {
                 let mut acc = 0.0;
                 for (m, wi) in w.iter().enumerate() {
