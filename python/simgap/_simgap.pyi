@@ -453,6 +453,13 @@ class Report:
         """Effects the diagnosis concludes explain the gap: dicts ``{effect, joints, parameters,
         uncertainty}``; empty when nothing significant remains."""
     @property
+    def interval_variants(self) -> dict[str, list[dict[str, Any]]]:
+        """The selected effects with the 95 % half-widths of each interval method on its own:
+        ``{method: [effect dicts]}``; for a torque-residual fit ``block_bootstrap``,
+        ``fold_jackknife``, ``resampling`` (the larger of the two) and ``pipeline_error``
+        (1.96 |b|, the pipeline's shared error: the report's ``uncertainty`` is the larger of
+        it and ``resampling``); for a fit by multiple shooting ``multiple_shooting``."""
+    @property
     def candidates(self) -> list[dict[str, Any]]:
         """Every effect tried, ranked: dicts with ``rank``, ``effect``, ``joints``,
         ``parameters``, ``uncertainty``, ``cv_residual_reduction``, ``holdout_l2_after``,

@@ -380,6 +380,16 @@ impl PyReport {
         self.field(py, "selected_effects")
     }
 
+    /// The selected effects with the 95 % half-widths of each interval method on its own:
+    /// `{method: [effect dicts]}`; for a torque-residual fit `block_bootstrap`,
+    /// `fold_jackknife`, `resampling` (the larger of the two) and `pipeline_error` (1.96 |b|, the
+    /// pipeline's shared error: the report's `uncertainty` is the larger of it and
+    /// `resampling`); for a fit by multiple shooting `multiple_shooting`.
+    #[getter]
+    fn interval_variants<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("json")?.call_method1("loads", (self.diagnosis.interval_variants_json(),))
+    }
+
     /// Every effect tried, ranked: dicts with `rank`, `effect`, `joints`, `parameters`,
     /// `uncertainty`, `cv_residual_reduction`, `holdout_l2_after`, `holdout_ratio`,
     /// `selected`, `reason`.

@@ -70,6 +70,22 @@ def test_hidden_viscous_friction_is_recovered(report: simgap.Report) -> None:
     assert joints[0] in effect["joints"]
 
 
+def test_reported_half_width_is_the_larger_of_resampling_and_pipeline_error(report: simgap.Report) -> None:
+    variants = report.interval_variants
+    assert {"block_bootstrap", "fold_jackknife", "resampling", "pipeline_error"} <= set(variants), variants.keys()
+    for name, effects in variants.items():
+        assert [e["effect"] for e in effects] == [e["effect"] for e in report.selected_effects], name
+    for i, effect in enumerate(report.selected_effects):
+        for p, u in effect["uncertainty"].items():
+            if not isinstance(u, list) or p not in variants["resampling"][i]["uncertainty"]:
+                continue
+            boot, jack, res, bias = (variants[m][i]["uncertainty"][p] for m in ("block_bootstrap", "fold_jackknife", "resampling", "pipeline_error"))
+            if None in boot + jack + bias:
+                continue  # a spread the method could not measure
+            assert res == pytest.approx([max(a, b) for a, b in zip(boot, jack, strict=True)]), (effect["effect"], p)
+            assert u == pytest.approx([max(a, b) for a, b in zip(res, bias, strict=True)]), (effect["effect"], p)
+
+
 def test_gap_shrinks_on_held_out_run(report: simgap.Report) -> None:
     gap = report.gap
     assert 0 < gap["holdout_l2_after"] < gap["holdout_l2_before"]

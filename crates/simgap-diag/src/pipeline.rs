@@ -165,10 +165,12 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
                 // the same effects with the half-widths of each interval method alone, for the self-check
                 let resampling = lsq::larger_spread(&boot_std, &jack_std);
-                let variants: Vec<(&'static str, Vec<EffectReport>)> = [("block_bootstrap", &boot_std), ("fold_jackknife", &jack_std), ("resampling", &resampling)]
-                    .into_iter()
-                    .map(|(name, sd)| (name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd)))))
-                    .collect();
+                let pipeline_error = bias.as_ref().map(|b| b.map(f64::abs));
+                let variants: Vec<(&'static str, Vec<EffectReport>)> =
+                    [("block_bootstrap", Some(&boot_std)), ("fold_jackknife", Some(&jack_std)), ("resampling", Some(&resampling)), ("pipeline_error", pipeline_error.as_ref())]
+                        .into_iter()
+                        .filter_map(|(name, sd)| Some((name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd?))))))
+                        .collect();
                 (fitted, variants, sel_std, Some(resampling))
             }
         };

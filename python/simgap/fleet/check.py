@@ -50,6 +50,30 @@ def interval_coverage(table: pd.DataFrame, truth: dict[tuple[str, str], dict[tup
     return pd.DataFrame(rows, columns=["robot", "day", "effect", "joint", "parameter", "true", "value", "uncertainty", "inside", "z"])
 
 
+def variant_coverage(reports: dict[tuple[str, str], dict], truth: dict[tuple[str, str], dict[tuple[str, str, str], float]]) -> pd.DataFrame:
+    """Coverage of each interval method on its own (the reports' ``interval_variants``, see
+    :attr:`simgap.Report.interval_variants`) against the reported intervals, over the robot-days
+    whose parameters were fitted on the torque residual: one row per method (``reported`` for
+    the report's own) with ``n``, ``inside``, ``median_ratio`` and ``scale_for_95`` as in
+    :func:`coverage_summary`."""
+    from .result import report_rows
+
+    tables: dict[str, list[dict]] = {}
+    for (robot, day), report in sorted(reports.items()):
+        variants = report.get("interval_variants") or {}
+        if "resampling" not in variants:
+            continue  # fitted by multiple shooting: its own variant only
+        for name, effects in [("reported", report.get("selected_effects") or []), *variants.items()]:
+            tables.setdefault(name, []).extend(report_rows(robot, day, {**report, "selected_effects": effects}))
+    rows = []
+    for name, rws in tables.items():
+        cov = interval_coverage(pd.DataFrame(rws), truth)
+        if len(cov):
+            ratio = (cov["value"] - cov["true"]).abs() / cov["uncertainty"]
+            rows.append({"method": name, "n": len(cov), "inside": cov["inside"].mean(), "median_ratio": ratio.median(), "scale_for_95": float(np.quantile(ratio, 0.95))})
+    return pd.DataFrame(rows, columns=["method", "n", "inside", "median_ratio", "scale_for_95"])
+
+
 def coverage_summary(cov: pd.DataFrame) -> pd.DataFrame:
     """Per effect and parameter: ``n``, ``inside`` (fraction within the 95 % intervals),
     ``median_ratio`` (median |error| / half-width; 0.34 for calibrated Gaussian intervals) and
@@ -105,6 +129,8 @@ def main(argv: list[str] | None = None) -> int:
             print(coverage_summary(cov).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
             per_joint = cov.groupby(["effect", "joint", "parameter"], sort=True).agg(n=("inside", "size"), inside=("inside", "mean"), z_mean=("z", "mean"), z_std=("z", "std"))
             print(per_joint.to_string(float_format=lambda v: f"{v:.3g}"))
+            print("\neach interval method on its own (robot-days fitted on the torque residual):")
+            print(variant_coverage(result.reports, planted.truth).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
         t = result.tasks[result.tasks["status"] == "ok"]
         n, wall = len(t), result.wall_seconds
         print(

@@ -98,7 +98,8 @@ def diagnose_task(task: dict[str, Any], urdf: str, tip: str | None = None, formu
     :func:`simgap.diagnose`.
 
     Returns a dict of plain data: ``robot``, ``day``, ``status`` (``"ok"`` / ``"error"``),
-    ``error`` (``"LogError: …"`` or ``""``), ``report`` (the JSON report as a dict, or None),
+    ``error`` (``"LogError: …"`` or ``""``), ``report`` (the JSON report as a dict, or None; with
+    the key ``interval_variants``, :attr:`simgap.Report.interval_variants`),
     ``joint_types`` (joint name -> revolute / prismatic, from the URDF),
     ``seconds`` (wall time), ``cpu_seconds`` (the worker process's CPU time), ``rss_start_mb`` and ``peak_rss_mb`` (the worker's resident
     memory when the task started and its peak during the task: the difference is the task's
@@ -118,6 +119,8 @@ def diagnose_task(task: dict[str, Any], urdf: str, tip: str | None = None, formu
         holdout = [_read(p, model.joint_names, read_options or {}) for p in task["holdout"]]
         report = simgap.diagnose(model, fit, holdout, formulation=formulation)  # type: ignore[arg-type]
         out["report"] = json.loads(report.to_json())
+        # each interval method on its own, for the check's coverage comparison
+        out["report"]["interval_variants"] = report.interval_variants
     except simgap.SimgapError as err:
         out["status"] = "error"
         out["error"] = f"{type(err).__name__}: {err}"

@@ -413,9 +413,20 @@ pub struct Diagnosis {
     pub holdout_corrected: Vec<Option<Run>>,
     /// Fit data (smoothed states and residuals), for plots.
     pub fit_data: Vec<FitData>,
-    /// The selected effects with the 95 % half-widths of each interval method on its own
-    /// (`block_bootstrap`, `fold_jackknife`, `resampling` = the larger of the two; the report
-    /// adds the pipeline's shared error, [`uncertainty`]), for the self-check's coverage
-    /// comparison.
+    /// The selected effects with the 95 % half-widths of each interval method on its own, for
+    /// the self-check's coverage comparison: for a torque-residual fit `block_bootstrap`,
+    /// `fold_jackknife`, `resampling` (the larger of the two) and `pipeline_error` (1.96 |b|, the
+    /// pipeline's shared error; the report takes the larger of it and `resampling`, see
+    /// [`crate::select::uncertainty`]); for a fit by multiple shooting `multiple_shooting`.
     pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
+}
+
+impl Diagnosis {
+    /// [`Diagnosis::interval_variants`] as a JSON object: per method, the selected effects with
+    /// that method's 95 % half-widths in `uncertainty`.
+    pub fn interval_variants_json(&self) -> String {
+        let map: serde_json::Map<String, serde_json::Value> =
+            self.interval_variants.iter().map(|(name, reports)| (name.to_string(), serde_json::to_value(reports).unwrap_or(serde_json::Value::Null))).collect();
+        serde_json::Value::Object(map).to_string()
+    }
 }

@@ -224,7 +224,12 @@ pub(crate) fn refine_by_prediction(
                             break;
                         }
                         let term = terms.remove(k);
-                        log.push(select::Step { term, cv_mse: f64::NAN, accepted: false, reason: format!("pruned by prediction: without it the fit runs' cross-validated k-step error is {s:.4} of the nominal model's (with it {current:.4})") });
+                        log.push(select::Step {
+                            term,
+                            cv_mse: f64::NAN,
+                            accepted: false,
+                            reason: format!("pruned by prediction: without it the fit runs' cross-validated k-step error is {s:.4} of the nominal model's (with it {current:.4})"),
+                        });
                         current = s;
                     }
                 }
