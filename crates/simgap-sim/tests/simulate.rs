@@ -6,11 +6,11 @@ use std::sync::Arc;
 use simgap_core::robots::paper_arm;
 use simgap_core::{kinetic_energy, potential_energy, Formulation, Model, Workspace};
 use simgap_sim::paper;
+use simgap_sim::Effect;
 use simgap_sim::{
     reference_from_run, simulate, simulate_experiment, Controller, ControllerKind, Experiment, Integrator, MemorySink, Pd, Plant, Replay, Run, RunEnd, SensorParams, SimParams,
     Step, Stepper, ZeroTorque, DEFAULT_SUBSTEPS,
 };
-use simgap_sim::Effect;
 
 fn paper_pd() -> Pd {
     paper::controller()
