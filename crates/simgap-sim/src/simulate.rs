@@ -314,31 +314,30 @@ fn step_loop(
 /// Each dry friction counts with its own width `w`; one with `w = 0` (the exact sign) counts
 /// not at all (see [`friction_slope_bound`]).
 pub fn effective_substeps(plant: &Plant, params: &SimParams) -> usize {
-    let mut slope = vec![0.0; plant.dof()];
-    friction_slope_bound(plant.effects(), &mut slope);
-    add_load_friction_slope(plant, &mut slope);
-    match stiffness_inverse(plant, params, &slope) {
-        Some(inv) => substeps_for_rate(params.sample_period, largest_rate(&inv, &slope), params.substeps),
-        None => params.substeps,
-    }
+    substeps_and_moving_rate(plant, params).0
 }
 
-/// The largest rate of the friction stiffness of `plant` while every joint moves faster than
-/// its [`stiff_band`](crate::effects::stiff_band) [1/s]: [`effective_substeps`]'s `λ` with the
+/// [`effective_substeps`], and the largest rate of the friction stiffness while every joint
+/// moves faster than its [`stiff_band`](crate::effects::stiff_band) [1/s]: the same `λ` with the
 /// slopes of [`moving_friction_slope_bound`](crate::effects::moving_friction_slope_bound). A
-/// sample interval clear of every band needs only the steps this rate asks for
-/// ([`crate::Stepper::advance`]). `None` where [`effective_substeps`] does not raise the
-/// substeps (no friction, the adaptive integrator, a singular H).
-pub(crate) fn moving_rate(plant: &Plant, params: &SimParams) -> Option<f64> {
+/// sample interval clear of every band needs only the steps that rate asks for
+/// ([`crate::Stepper::advance`]). The rate is `None` where [`effective_substeps`] does not raise
+/// the substeps (no friction, the adaptive integrator, a singular H, or a stiffness the
+/// requested substeps already resolve).
+pub(crate) fn substeps_and_moving_rate(plant: &Plant, params: &SimParams) -> (usize, Option<f64>) {
     let n = plant.dof();
     let mut full = vec![0.0; n];
     friction_slope_bound(plant.effects(), &mut full);
+    add_load_friction_slope(plant, &mut full);
+    let Some(inv) = stiffness_inverse(plant, params, &full) else { return (params.substeps, None) };
+    let substeps = substeps_for_rate(params.sample_period, largest_rate(&inv, &full), params.substeps);
+    if substeps == params.substeps {
+        return (substeps, None);
+    }
     let mut moving = vec![0.0; n];
     moving_friction_slope_bound(plant.effects(), &mut moving);
-    add_load_friction_slope(plant, &mut full);
     add_load_friction_slope(plant, &mut moving);
-    let inv = stiffness_inverse(plant, params, &full)?;
-    Some(largest_rate(&inv, &moving))
+    (substeps, Some(largest_rate(&inv, &moving)))
 }
 
 /// The substeps of a sample interval of `period` seconds for friction rates `lambda` [1/s]

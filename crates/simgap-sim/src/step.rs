@@ -34,7 +34,7 @@ use crate::error::Result;
 use crate::integrate::{Dopri5, Integrator, Rk4};
 use crate::plant::{Plant, PlantWorkspace};
 use crate::sensor::Sensor;
-use crate::simulate::{effective_substeps, moving_rate, substeps_for_rate, SimParams};
+use crate::simulate::{substeps_and_moving_rate, substeps_for_rate, SimParams};
 
 /// The per-sample step of the closed loop (see the [module docs](self)): sensors, delay ring,
 /// held torque and integrator workspace of one run of `plant`.
@@ -74,8 +74,8 @@ pub struct Stepper<'p> {
     h_max: f64,
     /// The substeps asked for by `params` before friction raises them.
     base_substeps: usize,
-    /// The friction's rate while every joint moves ([`moving_rate`]; `None`: `substeps`
-    /// throughout).
+    /// The friction's rate while every joint moves ([`substeps_and_moving_rate`]; `None`:
+    /// `substeps` throughout).
     moving_rate: Option<f64>,
     /// Per joint, the speed below which its dry friction is stiff ([`stiff_band`]).
     band: Vec<f64>,
@@ -86,7 +86,7 @@ pub struct Stepper<'p> {
 
 impl<'p> Stepper<'p> {
     /// A stepper of `plant` under `params` (sample period, substeps raised by
-    /// [`effective_substeps`], integrator, sensors, effort limits, divergence
+    /// [`effective_substeps`](crate::effective_substeps), integrator, sensors, effort limits, divergence
     /// bound) for runs of at most `samples` samples (which bounds the delay ring: a delay longer
     /// than the run holds the first command throughout and allocates nothing more).
     ///
@@ -99,8 +99,7 @@ impl<'p> Stepper<'p> {
         let sensor = Sensor::new(&params.sensor, plant.model(), params.sample_period)?;
         let line = DelayLine::new(plant.delay(), params.sample_period);
         let depth = line.whole().min(samples) + 2;
-        let substeps = effective_substeps(plant, params);
-        let moving_rate = if substeps > params.substeps { moving_rate(plant, params) } else { None };
+        let (substeps, moving_rate) = substeps_and_moving_rate(plant, params);
         let mut band = vec![0.0; n];
         stiff_band(plant.effects(), &mut band);
         Ok(Stepper {
@@ -149,7 +148,7 @@ impl<'p> Stepper<'p> {
         self.steps_taken
     }
 
-    /// RK4 steps per sample period at most (after [`effective_substeps`]): near rest, where a
+    /// RK4 steps per sample period at most (after [`effective_substeps`](crate::effective_substeps)): near rest, where a
     /// dry friction is stiff; fewer while every joint moves ([`Stepper::advance`]).
     pub fn substeps(&self) -> usize {
         self.substeps
@@ -238,7 +237,7 @@ impl<'p> Stepper<'p> {
     ///
     /// Where the substeps were raised for a dry friction's stiffness near rest, an interval in
     /// which every joint stays clear of its stiff band takes only the steps the friction's rate
-    /// while moving asks for (`moving_rate`); an interval with a joint near rest takes them all,
+    /// while moving asks for (`substeps_and_moving_rate`); an interval with a joint near rest takes them all,
     /// so the friction's transitions are integrated as finely as before. (Raising the steps only
     /// for the joints near rest, by a bound of their own rates, stayed stable but shifted
     /// multiple shooting's answer on a real double pendulum enough to predict 12 % worse.)
