@@ -71,7 +71,6 @@ pub struct Stepper<'p> {
     adds_ff: bool,
     period: f64,
     substeps: usize,
-    h_max: f64,
     /// The substeps asked for by `params` before friction raises them.
     base_substeps: usize,
     /// The friction's rate while every joint moves ([`substeps_and_moving_rate`]; `None`:
@@ -86,8 +85,8 @@ pub struct Stepper<'p> {
 
 impl<'p> Stepper<'p> {
     /// A stepper of `plant` under `params` (sample period, substeps raised by
-    /// [`effective_substeps`](crate::effective_substeps), integrator, sensors, effort limits, divergence
-    /// bound) for runs of at most `samples` samples (which bounds the delay ring: a delay longer
+    /// [`effective_substeps`](crate::effective_substeps), integrator, sensors, effort limits,
+    /// divergence bound) for runs of at most `samples` samples (which bounds the delay ring: a delay longer
     /// than the run holds the first command throughout and allocates nothing more).
     ///
     /// # Errors
@@ -128,7 +127,6 @@ impl<'p> Stepper<'p> {
             adds_ff: true,
             period: params.sample_period,
             substeps,
-            h_max: params.sample_period / substeps as f64,
             base_substeps: params.substeps,
             moving_rate,
             band,
@@ -148,8 +146,9 @@ impl<'p> Stepper<'p> {
         self.steps_taken
     }
 
-    /// RK4 steps per sample period at most (after [`effective_substeps`](crate::effective_substeps)): near rest, where a
-    /// dry friction is stiff; fewer while every joint moves ([`Stepper::advance`]).
+    /// RK4 steps per sample period at most (after
+    /// [`effective_substeps`](crate::effective_substeps)): near rest, where a dry friction is
+    /// stiff; fewer while every joint moves ([`Stepper::advance`]).
     pub fn substeps(&self) -> usize {
         self.substeps
     }
@@ -237,8 +236,8 @@ impl<'p> Stepper<'p> {
     ///
     /// Where the substeps were raised for a dry friction's stiffness near rest, an interval in
     /// which every joint stays clear of its stiff band takes only the steps the friction's rate
-    /// while moving asks for (`substeps_and_moving_rate`); an interval with a joint near rest takes them all,
-    /// so the friction's transitions are integrated as finely as before. (Raising the steps only
+    /// while moving asks for (`substeps_and_moving_rate`); an interval with a joint near rest
+    /// takes them all, so the friction's transitions are integrated as finely as before. (Raising the steps only
     /// for the joints near rest, by a bound of their own rates, stayed stable but shifted
     /// multiple shooting's answer on a real double pendulum enough to predict 12 % worse.)
     ///
@@ -258,7 +257,7 @@ impl<'p> Stepper<'p> {
             let history = &*history;
             self.line.delayed_row(k, |i| &history[(i % depth) * n..(i % depth + 1) * n], &mut self.delayed);
         }
-        let steps = if dt == self.period { self.substeps } else { ((dt / self.h_max * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000) };
+        let steps = steps_over(self.period, dt, self.substeps);
         let drive = self.drive_effects || self.exact_dry || self.emf.iter().any(|e| *e != 0.0) || self.enabled.iter().any(|e| *e != 1.0);
         if !drive {
             // actuators: saturation, gain, offset, then the model's effort limits, held
@@ -289,8 +288,7 @@ impl<'p> Stepper<'p> {
                     let d = self.rk4.derivative(&mut f, t, y);
                     let steps = match self.moving_rate {
                         Some(lambda) if (0..n).all(|i| self.band[i] == 0.0 || y[n + i].abs() - 2.0 * d[n + i].abs() * dt > self.band[i]) => {
-                            let base = if dt == self.period { self.base_substeps } else { ((dt / self.period * self.base_substeps as f64 * (1.0 - 1e-9)).ceil() as usize).max(1) };
-                            substeps_for_rate(dt, lambda, base).min(steps)
+                            substeps_for_rate(dt, lambda, steps_over(self.period, dt, self.base_substeps)).min(steps)
                         }
                         _ => steps,
                     };
@@ -382,4 +380,15 @@ fn diverged_joint(q: &[f64], qd: &[f64], bound: f64) -> Option<usize> {
     }
     let (j, v) = qd.iter().map(|v| v.abs()).enumerate().fold((0, 0.0), |acc, (j, v)| if v > acc.1 { (j, v) } else { acc });
     (v > bound).then_some(j)
+}
+
+/// RK4 steps over an interval of `dt` seconds at `per_period` steps per sample `period`:
+/// `per_period` for the period itself, else `⌈dt / h⌉` steps of at most `h = period / per_period`
+/// (1 to 10,000; an interval that differs from the period by rounding of the stamps).
+fn steps_over(period: f64, dt: f64, per_period: usize) -> usize {
+    if dt == period {
+        per_period
+    } else {
+        ((dt * per_period as f64 / period * (1.0 - 1e-9)).ceil() as usize).clamp(1, 10_000)
+    }
 }

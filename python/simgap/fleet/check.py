@@ -65,13 +65,13 @@ def variant_coverage(reports: dict[tuple[str, str], dict], truth: dict[tuple[str
             continue  # fitted by multiple shooting: its own variant only
         for name, effects in [("reported", report.get("selected_effects") or []), *variants.items()]:
             tables.setdefault(name, []).extend(report_rows(robot, day, {**report, "selected_effects": effects}))
+    columns = ["n", "inside", "median_ratio", "scale_for_95"]
     rows = []
     for name, rws in tables.items():
         cov = interval_coverage(pd.DataFrame(rws), truth)
         if len(cov):
-            ratio = (cov["value"] - cov["true"]).abs() / cov["uncertainty"]
-            rows.append({"method": name, "n": len(cov), "inside": cov["inside"].mean(), "median_ratio": ratio.median(), "scale_for_95": float(np.quantile(ratio, 0.95))})
-    return pd.DataFrame(rows, columns=["method", "n", "inside", "median_ratio", "scale_for_95"])
+            rows.append({"method": name, **coverage_summary(cov).iloc[0][columns].to_dict()})  # the row of all parameters
+    return pd.DataFrame(rows, columns=["method", *columns])
 
 
 def coverage_summary(cov: pd.DataFrame) -> pd.DataFrame:
