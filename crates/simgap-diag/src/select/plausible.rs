@@ -4,7 +4,10 @@
 //!   richer named as an alternative: a Stribeck friction whose hump the runs do not resolve, or
 //!   whose prediction the Coulomb friction nested in it matches within the cross-validation's
 //!   tie tolerance, is Coulomb friction ([`parsimony`], on the prediction score, before the
-//!   parameters are refined).
+//!   parameters are refined). An inertial correction whose torque on some joints is mostly a
+//!   constant is, in the same way, torque offsets on those joints where they predict as well: a
+//!   torque sensor's bias on a gravity-loaded joint, which a shifted centre of mass mimics over a
+//!   motion of modest range, is one parameter, not a correction of every link.
 //! - **Plausibility.** Every family bounds its parameters by their physical range in its design
 //!   (an armature by a hundred times the link inertia its joint moves, an offset by the torques
 //!   commanded on its joint, a gain by [`crate::vocabulary`]'s gain range, a payload by the
@@ -164,8 +167,72 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         *terms = with;
         score = s;
     }
+    // an inertial correction whose torque is, on some joints, mostly a constant: torque offsets
+    // there may say the same with a parameter each (a sensor's bias on a gravity-loaded joint,
+    // which a shifted centre of mass mimics over a motion of modest range)
+    if let Some(i) = terms.iter().position(|t| matches!(t, Term::InertialError { .. })) {
+        let (designs, _, fit) = scorer.ctx.fit_terms(terms);
+        let c0: usize = designs[..i].iter().map(|d| d.cols.len()).sum();
+        let k = designs[i].cols.len();
+        let constant: Vec<usize> = if fit.theta.len() >= c0 + k {
+            constant_torque_joints(&designs[i], &fit.theta.as_slice()[c0..c0 + k], scorer.ctx.data).into_iter().filter(|&j| !scorer.prep.passive[j]).collect()
+        } else {
+            Vec::new()
+        };
+        let offsets: Vec<Term> = constant.iter().map(|&j| Term::Offset(j)).filter(|t| !terms.contains(t)).collect();
+        if !offsets.is_empty() {
+            let mut with: Vec<Term> = terms.clone();
+            let richer = with.remove(i);
+            with.extend(offsets.iter().cloned());
+            let s = scorer.score(&with);
+            if s <= score * (1.0 + TIE_TOLERANCE) {
+                let on: Vec<&str> = constant.iter().map(|&j| joints[j].as_str()).collect();
+                let why = format!(
+                    "its torque on {} is mostly a constant, and torque offsets there predict the fit runs as well or better (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %) with a parameter each",
+                    on.join(", "),
+                    100.0 * TIE_TOLERANCE
+                );
+                log.push(Step { term: richer.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by torque offsets: {why}") });
+                for t in &offsets {
+                    log.push(Step { term: t.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of the inertial correction: {why}") });
+                }
+                replacements.push((richer, offsets, why));
+                *terms = with;
+                score = s;
+            }
+        }
+    }
     (score, replacements)
 }
+
+/// The joints on which the torque of a fitted term (`design` at coefficients `theta`) is mostly
+/// a constant: over the fit samples its mean is at least [`CONSTANT_SHARE`] of its RMS, and its
+/// RMS at least [`MIN_TORQUE_SHARE`] of the joint's commanded torque.
+fn constant_torque_joints(design: &TermDesign, theta: &[f64], data: &[crate::prepare::dataset::FitData]) -> Vec<usize> {
+    let Some(dof) = data.first().map(|d| d.dof) else { return Vec::new() };
+    let samples = design.cols.first().map_or(0, |c| if c.joint.is_some() { c.values.len() } else { c.values.len() / dof.max(1) });
+    if samples == 0 {
+        return Vec::new();
+    }
+    (0..dof)
+        .filter(|&j| {
+            let (mut sum, mut sq) = (0.0, 0.0);
+            for s in 0..samples {
+                let v: f64 = design.cols.iter().zip(theta).map(|(c, th)| th * c.at(s, j, dof)).sum();
+                sum += v;
+                sq += v * v;
+            }
+            let (mean, rms) = (sum / samples as f64, (sq / samples as f64).sqrt());
+            let commanded = (data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(d.dof)).map(|t| t * t).sum::<f64>() / samples as f64).sqrt();
+            rms > 0.0 && mean.abs() >= CONSTANT_SHARE * rms && rms >= MIN_TORQUE_SHARE * commanded
+        })
+        .collect()
+}
+
+/// The share of its RMS a term's mean torque on a joint reaches for that torque to be "mostly a
+/// constant" ([`constant_torque_joints`]): a constant part of 0.9 leaves a varying part of
+/// √(1 − 0.9²) ≈ 0.44 of the RMS.
+const CONSTANT_SHARE: f64 = 0.9;
 
 /// The alternatives parsimony replacements leave: per richer effect, the final set `set` with
 /// the richer effect back in place of the simpler terms it was replaced by (`replacements`:
@@ -190,7 +257,7 @@ pub(crate) fn richer_alternatives(set: &[Term], replacements: &[Replacement]) ->
         simpler_names.dedup();
         let why = of.first().map_or("", |r| r.2.as_str());
         if out.iter().all(|a| a.effects != effects) {
-            out.push(Alternative { effects, why: format!("{richer} is the richer effect nested over the selected {}; the simpler is selected: {why}", simpler_names.join(" + ")) });
+            out.push(Alternative { effects, why: format!("{richer} is the richer effect in place of the selected {}; the simpler is selected: {why}", simpler_names.join(" + ")) });
         }
     }
     out
