@@ -159,7 +159,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 let jack_std = lsq::jackknife_std(&sel_grams);
                 let sel_effects = effects::to_effects(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, None));
                 // the pipeline's shared error, from the fit runs re-simulated with the fitted effects
-                let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs) };
+                let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs, true) };
                 let bias = uncertainty::pipeline_bias(model, formulation, &synthetic, &selection.terms, &selection.fit.theta, &options.prepare);
                 let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
                 let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));

@@ -126,6 +126,52 @@ pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Eff
     Ok(simulate_experiment_with_end(model, formulation, effects, exp, reference.as_ref(), &params, replay)?)
 }
 
+/// Natural frequency [Hz] of the weak tracking loop [`resimulate_tracked`] adds to an open-loop
+/// replay (damping 0.7, on the diagonal of H at the run's first position).
+pub(crate) const TRACKING_HZ: f64 = 2.0;
+
+/// A logged (model-aligned) run re-simulated with `effects` as [`resimulate`] does, except that
+/// an open-loop replay also tracks its own logged positions and velocities by a weak PD
+/// ([`TRACKING_HZ`]; none on a joint whose logged torque is zero throughout, a passive one), and
+/// the simulated log records the torque applied (the logged effort plus that correction) under the
+/// run's own experiment. Replayed open loop, a long arm's re-simulation drifts away from its log
+/// within seconds, into motions the real run never made; tracked, it stays near them, while the
+/// applied torque and the motion still obey the model with `effects` exactly. Other controllers
+/// are re-simulated as they are.
+///
+/// # Errors
+/// As [`resimulate`].
+pub(crate) fn resimulate_tracked(model: &Model, formulation: Formulation, effects: &[Effect], run: &Run) -> Result<(Run, RunEnd)> {
+    let exp = match run.experiment.as_ref() {
+        Some(e) if e.controller == simgap_sim::ControllerKind::Replay => e,
+        _ => return resimulate(model, formulation, effects, run),
+    };
+    let n = run.dof();
+    let rows = run.len();
+    if n == 0 || rows < 2 || run.q.len() != rows * n || run.tau.len() != rows * n {
+        return resimulate(model, formulation, effects, run);
+    }
+    let h = simgap_core::mass_matrix(model, &mut simgap_core::Workspace::new(model), &run.q[..n]);
+    let w = std::f64::consts::TAU * TRACKING_HZ;
+    let driven = |j: usize| (0..rows).any(|k| run.tau[k * n + j] != 0.0);
+    let kp: Vec<f64> = (0..n).map(|j| if driven(j) { w * w * h[(j, j)] } else { 0.0 }).collect();
+    let kv: Vec<f64> = (0..n).map(|j| if driven(j) { 2.0 * 0.7 * w * h[(j, j)] } else { 0.0 }).collect();
+    let tracking = simgap_sim::Experiment { controller: simgap_sim::ControllerKind::Pd, kp, kv, ..exp.clone() };
+    let reference = simgap_sim::Sampled { t: run.t.clone(), q: run.q.clone(), qd: if run.qd.len() == rows * n { run.qd.clone() } else { Vec::new() }, tau_ff: run.tau.clone() };
+    let params = SimParams {
+        t0: run.t[0],
+        duration: run.duration(),
+        sample_period: exp.sample_period,
+        sensor: sensor_for(run),
+        q0: run.q[..n].to_vec(),
+        qd0: if run.qd.len() >= n { run.qd[..n].to_vec() } else { vec![0.0; n] },
+        ..SimParams::default()
+    };
+    let (mut sim, end) = simulate_experiment_with_end(model, formulation, effects, &tracking, &reference, &params, None)?;
+    sim.experiment = Some(exp.clone());
+    Ok((sim, end))
+}
+
 /// Closed-loop L² of (simulation − measured) for one run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RunGap {

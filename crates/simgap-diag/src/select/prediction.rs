@@ -321,7 +321,9 @@ pub(crate) fn null_ratio(scorer: &Scorer<'_>, base: &[Term], with: &[Term], opti
         let (designs, _, f) = scorer.ctx.fit_terms(base);
         effects::to_effects(scorer.model, &fitted_terms(base, &designs, &f.theta, None))
     };
-    let synthetic = uncertainty::synthetic_runs(scorer.model, scorer.formulation, &effects, &scorer.prep.fit_runs);
+    // re-simulated as logged (an open-loop replay open loop): a tracking loop's correction holds
+    // what `base` lacks, and the recorded torque would carry it into these runs
+    let synthetic = uncertainty::synthetic_runs(scorer.model, scorer.formulation, &effects, &scorer.prep.fit_runs, false);
     if synthetic.len() != scorer.prep.fit_runs.len() {
         return None;
     }

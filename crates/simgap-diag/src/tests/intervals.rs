@@ -29,3 +29,37 @@ fn interval_takes_the_pipeline_error_where_it_exceeds_the_larger_resampling_spre
     let s = interval_std(&boot, &jack, None);
     assert_eq!(s.as_slice(), &[2.0, 3.0, 2.0]);
 }
+
+/// The synthetic runs of an open-loop replay stay near its logged motion, and the torque they
+/// record is the torque they applied: replayed open loop with the same effects, a synthetic run
+/// reproduces its own positions.
+#[test]
+fn a_tracked_replay_stays_near_its_log_and_records_the_torque_it_applied() {
+    use crate::check::bench::{gains_for, generate, random_fourier, RefSpec, RunSpec};
+    use crate::prediction::resim::{resimulate, resimulate_tracked};
+    use simgap_core::{Formulation, Model, UrdfOptions};
+    use simgap_sim::{l2_between, ControllerKind, Effect, RunEnd};
+
+    let model = Model::from_urdf_str_with(simgap_core::ARM7_URDF, "arm7.urdf", &UrdfOptions { tip: Some("panda_hand".into()) }).unwrap();
+    let n = model.dof();
+    let (kp, kv) = gains_for(&model, 2.0);
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+    let spec = RunSpec { name: "log".into(), controller: ControllerKind::PdGravity, kp, kv, reference: RefSpec::Fourier(random_fourier(n, 0.5, &mut rng)), duration: 8.0 };
+    let truth = vec![Effect::ViscousFriction { b: vec![0.6, 0.6, 0.5, 0.5, 0.2, 0.2, 0.1] }];
+    let mut log = generate(&model, Formulation::EulerLagrange, &truth, &spec, 0.005, 1_048_576.0).unwrap();
+    crate::check::selfcheck::as_replay(std::slice::from_mut(&mut log));
+    // the fitted effects of a diagnosis are never exactly the truth
+    let fitted = vec![Effect::ViscousFriction { b: vec![0.5, 0.7, 0.45, 0.55, 0.25, 0.15, 0.12] }];
+    let (open, open_end) = resimulate(&model, Formulation::EulerLagrange, &fitted, &log).unwrap();
+    let (tracked, end) = resimulate_tracked(&model, Formulation::EulerLagrange, &fitted, &log).unwrap();
+    assert_eq!(end, RunEnd::Completed);
+    let drift = if open_end == RunEnd::Completed { l2_between(&log, &open, None).unwrap().overall } else { f64::INFINITY };
+    let near = l2_between(&log, &tracked, None).unwrap().overall;
+    assert!(near < 0.2 * drift, "tracked L² {near} rad against open-loop {drift} rad");
+    // labelled as the log was, and its torque replayed open loop is its own motion
+    assert_eq!(tracked.experiment.as_ref().map(|e| e.controller), Some(ControllerKind::Replay));
+    let (again, again_end) = resimulate(&model, Formulation::EulerLagrange, &fitted, &tracked).unwrap();
+    assert_eq!(again_end, RunEnd::Completed);
+    let replayed = l2_between(&tracked, &again, None).unwrap().overall;
+    assert!(replayed <= 1e-9, "the recorded torque replayed open loop: L² {replayed} rad (tracking error {near} rad)");
+}
