@@ -100,6 +100,21 @@ pub(crate) fn sensor_for(run: &Run) -> SensorParams {
     infer_sensors(run).params()
 }
 
+/// The simulation parameters that re-simulate `run`: its start, span, sample
+/// period, inferred sensors and initial state.
+fn sim_params(run: &Run, sample_period: f64) -> SimParams {
+    let n = run.dof();
+    SimParams {
+        t0: run.t[0],
+        duration: run.duration(),
+        sample_period,
+        sensor: sensor_for(run),
+        q0: run.q[..n].to_vec(),
+        qd0: if run.qd.len() >= n { run.qd[..n].to_vec() } else { vec![0.0; n] },
+        ..SimParams::default()
+    }
+}
+
 /// Re-simulates a logged (model-aligned) run in closed loop: same experiment, reference,
 /// initial state and sample times. Returns the simulated run and how it ended.
 ///
@@ -111,16 +126,7 @@ pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Eff
         message: "no simgap.experiment metadata (controller, gains, sample period); cannot re-simulate the closed loop".into(),
     })?;
     let reference = reference_from_run_for(run, model)?;
-    let n = run.dof();
-    let params = SimParams {
-        t0: run.t[0],
-        duration: run.duration(),
-        sample_period: exp.sample_period,
-        sensor: sensor_for(run),
-        q0: run.q[..n].to_vec(),
-        qd0: if run.qd.len() >= n { run.qd[..n].to_vec() } else { vec![0.0; n] },
-        ..SimParams::default()
-    };
+    let params = sim_params(run, exp.sample_period);
     // a replay applies the run's efforts; a servo reads its logged voltage and torque enable
     let replay = if matches!(exp.controller, simgap_sim::ControllerKind::Replay | simgap_sim::ControllerKind::Servo) { Some(run) } else { None };
     Ok(simulate_experiment_with_end(model, formulation, effects, exp, reference.as_ref(), &params, replay)?)
@@ -158,15 +164,7 @@ pub(crate) fn resimulate_tracked(model: &Model, formulation: Formulation, effect
     let kv: Vec<f64> = (0..n).map(|j| if driven(j) { 2.0 * 0.7 * w * h[(j, j)] } else { 0.0 }).collect();
     let tracking = simgap_sim::Experiment { controller: simgap_sim::ControllerKind::Pd, kp, kv, ..exp.clone() };
     let reference = simgap_sim::Sampled { t: run.t.clone(), q: run.q.clone(), qd: if run.qd.len() == rows * n { run.qd.clone() } else { Vec::new() }, tau_ff: run.tau.clone() };
-    let params = SimParams {
-        t0: run.t[0],
-        duration: run.duration(),
-        sample_period: exp.sample_period,
-        sensor: sensor_for(run),
-        q0: run.q[..n].to_vec(),
-        qd0: if run.qd.len() >= n { run.qd[..n].to_vec() } else { vec![0.0; n] },
-        ..SimParams::default()
-    };
+    let params = sim_params(run, exp.sample_period);
     let (mut sim, end) = simulate_experiment_with_end(model, formulation, effects, &tracking, &reference, &params, None)?;
     sim.experiment = Some(exp.clone());
     Ok((sim, end))
