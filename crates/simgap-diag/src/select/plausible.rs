@@ -5,9 +5,11 @@
 //!   whose prediction the Coulomb friction nested in it matches within the cross-validation's
 //!   tie tolerance, is Coulomb friction ([`parsimony`], on the prediction score, before the
 //!   parameters are refined). An inertial correction whose torque on some joints is mostly a
-//!   constant is, in the same way, torque offsets on those joints where they predict as well: a
-//!   torque sensor's bias on a gravity-loaded joint, which a shifted centre of mass mimics over a
-//!   motion of modest range, is one parameter, not a correction of every link.
+//!   constant, or a constant and a multiple of the joint's acceleration, is, in the same way,
+//!   torque offsets (and rotor inertias) on those joints where they predict as well: a torque
+//!   sensor's bias on a gravity-loaded joint, which a shifted centre of mass mimics over a
+//!   motion of modest range, is one parameter, not a correction of every link; so is the first
+//!   link's inertia about a vertical first axis, which only a rotor inertia there shows.
 //! - **Plausibility.** Every family bounds its parameters by their physical range in its design
 //!   (an armature by a hundred times the link inertia its joint moves, an offset by the torques
 //!   commanded on its joint, a gain by [`crate::vocabulary`]'s gain range, a payload by the
@@ -167,67 +169,157 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         *terms = with;
         score = s;
     }
-    // an inertial correction whose torque is, on some joints, mostly a constant: torque offsets
-    // there may say the same with a parameter each (a sensor's bias on a gravity-loaded joint,
-    // which a shifted centre of mass mimics over a motion of modest range)
+    // an inertial correction whose torque is, on some joints, mostly a constant, or a constant
+    // and a multiple of the joint's own acceleration: torque offsets (a sensor's bias on a
+    // gravity-loaded joint, which a shifted centre of mass mimics over a motion of modest range)
+    // and rotor inertias (the first link's inertia about a vertical first axis is exactly one)
+    // may say the same with a parameter each
     if let Some(i) = terms.iter().position(|t| matches!(t, Term::InertialError { .. })) {
         let (designs, _, fit) = scorer.ctx.fit_terms(terms);
         let c0: usize = designs[..i].iter().map(|d| d.cols.len()).sum();
         let k = designs[i].cols.len();
-        let constant: Vec<usize> = if fit.theta.len() >= c0 + k {
-            constant_torque_joints(&designs[i], &fit.theta.as_slice()[c0..c0 + k], scorer.ctx.data).into_iter().filter(|&j| !scorer.prep.passive[j]).collect()
+        let parts: Vec<AffineTorque> = if fit.theta.len() >= c0 + k {
+            affine_torque_joints(&designs[i], &fit.theta.as_slice()[c0..c0 + k], scorer.ctx.data).into_iter().filter(|p| !scorer.prep.passive[p.joint]).collect()
         } else {
             Vec::new()
         };
-        let offsets: Vec<Term> = constant.iter().map(|&j| Term::Offset(j)).filter(|t| !terms.contains(t)).collect();
-        if !offsets.is_empty() {
+        // the offsets alone where the torque is mostly a constant; offsets and rotor inertias
+        // where it is mostly a constant and an acceleration term
+        let offsets_only: Vec<Term> = parts.iter().filter(|p| p.constant).map(|p| Term::Offset(p.joint)).collect();
+        let mut with_rotor: Vec<Term> = Vec::new();
+        for p in &parts {
+            if p.offset {
+                with_rotor.push(Term::Offset(p.joint));
+            }
+            if p.rotor {
+                with_rotor.push(Term::Armature(p.joint));
+            }
+        }
+        // and with a rotor inertia on every actuated joint (an inertial correction spreads a
+        // rotor inertia over the links the joint moves, so its torque shows it only in part)
+        let mut every_rotor = with_rotor.clone();
+        every_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature).filter(|t| !with_rotor.contains(t)));
+        // the simplest replacement that predicts as well, or a richer one that predicts better
+        // than it by more than the tie tolerance
+        let mut chosen: Option<(Vec<Term>, f64, &str)> = None;
+        let candidates = [
+            (offsets_only, "mostly a constant"),
+            (with_rotor, "mostly a constant and a multiple of the joint's acceleration"),
+            (every_rotor, "in part a constant and a multiple of a joint's acceleration"),
+        ];
+        let mut seen: Vec<Vec<Term>> = Vec::new();
+        for (replacing, shape) in candidates {
+            let replacing: Vec<Term> = replacing.into_iter().filter(|t| !terms.contains(t)).collect();
+            if replacing.is_empty() || seen.contains(&replacing) {
+                continue;
+            }
+            seen.push(replacing.clone());
+            let mut with: Vec<Term> = terms.clone();
+            with.remove(i);
+            with.extend(replacing.iter().cloned());
+            let s = scorer.score(&with);
+            let bar = chosen.as_ref().map_or(score * (1.0 + TIE_TOLERANCE), |c| c.1 * (1.0 - TIE_TOLERANCE));
+            if s <= bar {
+                chosen = Some((replacing, s, shape));
+            }
+        }
+        if let Some((replacing, s, shape)) = chosen {
+            let mut on: Vec<&str> = Vec::new();
+            for j in replacing.iter().filter_map(|t| t.joint()) {
+                if !on.contains(&joints[j].as_str()) {
+                    on.push(joints[j].as_str());
+                }
+            }
+            let by = if replacing.iter().any(|t| matches!(t, Term::Armature(_))) { "torque offsets and rotor inertias" } else { "torque offsets" };
+            let how = if s < score * (1.0 - TIE_TOLERANCE) {
+                format!("better (cross-validated k-step score {s:.4} against {score:.4})")
+            } else {
+                format!("as well (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %)", 100.0 * TIE_TOLERANCE)
+            };
+            let why = format!("its torque on {} is {shape}, and {by} there predict the fit runs {how} with a parameter each", on.join(", "));
             let mut with: Vec<Term> = terms.clone();
             let richer = with.remove(i);
-            with.extend(offsets.iter().cloned());
-            let s = scorer.score(&with);
-            if s <= score * (1.0 + TIE_TOLERANCE) {
-                let on: Vec<&str> = constant.iter().map(|&j| joints[j].as_str()).collect();
-                let why = format!(
-                    "its torque on {} is mostly a constant, and torque offsets there predict the fit runs as well or better (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %) with a parameter each",
-                    on.join(", "),
-                    100.0 * TIE_TOLERANCE
-                );
-                log.push(Step { term: richer.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by torque offsets: {why}") });
-                for t in &offsets {
-                    log.push(Step { term: t.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of the inertial correction: {why}") });
-                }
-                replacements.push((richer, offsets, why));
-                *terms = with;
-                score = s;
+            with.extend(replacing.iter().cloned());
+            log.push(Step { term: richer.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by {by}: {why}") });
+            for t in &replacing {
+                log.push(Step { term: t.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of the inertial correction: {why}") });
             }
+            replacements.push((richer, replacing, why));
+            *terms = with;
+            score = s;
         }
     }
     (score, replacements)
 }
 
+/// How a fitted term's torque on one joint decomposes ([`affine_torque_joints`]).
+struct AffineTorque {
+    joint: usize,
+    /// Mostly a constant: its mean is at least [`CONSTANT_SHARE`] of its RMS.
+    constant: bool,
+    /// The constant of its least-squares fit by `c + ia q̈_j` is at least [`PART_SHARE`] of its RMS.
+    offset: bool,
+    /// The acceleration term `ia q̈_j` of that fit, with `ia > 0`, is at least [`PART_SHARE`] of
+    /// its RMS.
+    rotor: bool,
+}
+
 /// The joints on which the torque of a fitted term (`design` at coefficients `theta`) is mostly
-/// a constant: over the fit samples its mean is at least [`CONSTANT_SHARE`] of its RMS, and its
-/// RMS at least [`MIN_TORQUE_SHARE`] of the joint's commanded torque.
-fn constant_torque_joints(design: &TermDesign, theta: &[f64], data: &[crate::prepare::dataset::FitData]) -> Vec<usize> {
+/// a constant, or a constant and a multiple of the joint's acceleration `q̈_j` (the column of a
+/// rotor inertia): its least-squares fit by `c + ia q̈_j` over the fit samples leaves at most
+/// `1 − CONSTANT_SHARE²` of its mean square (the share a constant alone leaves when it is
+/// [`CONSTANT_SHARE`] of the RMS), and its RMS reaches [`MIN_TORQUE_SHARE`] of the joint's
+/// commanded torque.
+fn affine_torque_joints(design: &TermDesign, theta: &[f64], data: &[crate::prepare::dataset::FitData]) -> Vec<AffineTorque> {
     let Some(dof) = data.first().map(|d| d.dof) else { return Vec::new() };
     let samples = design.cols.first().map_or(0, |c| if c.joint.is_some() { c.values.len() } else { c.values.len() / dof.max(1) });
     if samples == 0 {
         return Vec::new();
     }
-    (0..dof)
-        .filter(|&j| {
-            let (mut sum, mut sq) = (0.0, 0.0);
-            for s in 0..samples {
-                let v: f64 = design.cols.iter().zip(theta).map(|(c, th)| th * c.at(s, j, dof)).sum();
-                sum += v;
-                sq += v * v;
-            }
-            let (mean, rms) = (sum / samples as f64, (sq / samples as f64).sqrt());
-            let commanded = (data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(d.dof)).map(|t| t * t).sum::<f64>() / samples as f64).sqrt();
-            rms > 0.0 && mean.abs() >= CONSTANT_SHARE * rms && rms >= MIN_TORQUE_SHARE * commanded
-        })
-        .collect()
+    let mut out = Vec::new();
+    for j in 0..dof {
+        let rotor = crate::vocabulary::design(&Term::Armature(j), data);
+        let Some(acc) = rotor.cols.first().filter(|c| c.values.len() == samples) else { continue };
+        // sums of the normal equations of τ ≈ c + a x, x = q̈_j
+        let (mut st, mut stt, mut sx, mut sxx, mut sxt) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for s in 0..samples {
+            let v: f64 = design.cols.iter().zip(theta).map(|(c, th)| th * c.at(s, j, dof)).sum();
+            let x = acc.values[s];
+            st += v;
+            stt += v * v;
+            sx += x;
+            sxx += x * x;
+            sxt += x * v;
+        }
+        let m = samples as f64;
+        let (mean, rms) = (st / m, (stt / m).sqrt());
+        let commanded = (data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(d.dof)).map(|t| t * t).sum::<f64>() / m).sqrt();
+        if !(rms > 0.0 && rms >= MIN_TORQUE_SHARE * commanded) {
+            continue;
+        }
+        let det = m * sxx - sx * sx;
+        let (c, a) = if det > 0.0 { ((sxx * st - sx * sxt) / det, (m * sxt - sx * st) / det) } else { (mean, 0.0) };
+        // what the fit leaves: Σ(τ − c − a x)²
+        let left = stt - 2.0 * c * st - 2.0 * a * sxt + c * c * m + 2.0 * c * a * sx + a * a * sxx;
+        let constant = mean.abs() >= CONSTANT_SHARE * rms;
+        let affine = a > 0.0 && left <= (1.0 - CONSTANT_SHARE * CONSTANT_SHARE) * stt;
+        if constant || affine {
+            let rotor_part = a * (sxx / m).sqrt();
+            out.push(AffineTorque {
+                joint: j,
+                constant,
+                offset: constant || c.abs() >= PART_SHARE * rms,
+                rotor: affine && !constant && rotor_part >= PART_SHARE * rms,
+            });
+        }
+    }
+    out
 }
+
+/// The share of a term's RMS torque on a joint that the constant or the acceleration part of
+/// its decomposition ([`affine_torque_joints`]) reaches for a torque offset or a rotor inertia to
+/// stand for it.
+const PART_SHARE: f64 = 0.25;
 
 /// The share of its RMS a term's mean torque on a joint reaches for that torque to be "mostly a
 /// constant" ([`constant_torque_joints`]): a constant part of 0.9 leaves a varying part of
@@ -253,8 +345,12 @@ pub(crate) fn richer_alternatives(set: &[Term], replacements: &[Replacement]) ->
         if !effects.iter().any(|n| n == richer) {
             effects.push(richer.to_string());
         }
-        let mut simpler_names: Vec<&str> = replaced.iter().map(|t| t.effect_name()).collect();
-        simpler_names.dedup();
+        let mut simpler_names: Vec<&str> = Vec::new();
+        for t in &replaced {
+            if !simpler_names.contains(&t.effect_name()) {
+                simpler_names.push(t.effect_name());
+            }
+        }
         let why = of.first().map_or("", |r| r.2.as_str());
         if out.iter().all(|a| a.effects != effects) {
             out.push(Alternative { effects, why: format!("{richer} is the richer effect in place of the selected {}; the simpler is selected: {why}", simpler_names.join(" + ")) });
@@ -292,5 +388,39 @@ mod tests {
     fn an_unknown_spread_decides_nothing() {
         let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[f64::NAN], &[f64::NAN], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
+    }
+
+    #[test]
+    fn a_torque_that_is_a_constant_and_an_acceleration_term_is_an_offset_and_a_rotor_inertia() {
+        use crate::check::bench::{demo_specs, generate};
+        use crate::prepare::dataset::{align_run, FitData, PrepareOptions};
+        use simgap_core::{Formulation, Model};
+        let model = Model::paper_arm();
+        let (fit, _) = demo_specs(1);
+        let run = generate(&model, Formulation::EulerLagrange, &[], &fit[0], 0.0025, 1_024_000.0).unwrap();
+        let data = vec![FitData::new(&model, Formulation::EulerLagrange, align_run(&model, &run).unwrap(), &PrepareOptions::default()).unwrap()];
+        let qdd = |j: usize| crate::vocabulary::design(&Term::Armature(j), &data).cols[0].values.clone();
+        let (a0, a1) = (qdd(0), qdd(1));
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        // a term whose torque is, on the shoulder, an offset and a rotor inertia of equal RMS
+        // (plus 5 % of a term neither makes), and on the elbow a sinusoid of the shoulder's
+        // acceleration, which is no constant and not the elbow's own acceleration
+        let ia = 0.4 / rms(&a0);
+        let shoulder: Vec<f64> = a0.iter().enumerate().map(|(s, x)| 0.4 + ia * x + 0.02 * (s as f64 * 0.01).sin()).collect();
+        let elbow: Vec<f64> = a0.iter().map(|x| 0.5 * (x / rms(&a0)).sin()).collect();
+        let term = TermDesign { cols: vec![Column::new(Some(0), shoulder), Column::new(Some(1), elbow)], ..Default::default() };
+        let parts = affine_torque_joints(&term, &[1.0, 1.0], &data);
+        assert_eq!(parts.len(), 1, "only the shoulder decomposes");
+        let p = &parts[0];
+        assert!(p.joint == 0 && !p.constant && p.offset && p.rotor, "joint {} constant {} offset {} rotor {}", p.joint, p.constant, p.offset, p.rotor);
+        // a constant torque on the elbow is an offset alone
+        let term = TermDesign { cols: vec![Column::new(Some(1), vec![0.3; a1.len()])], ..Default::default() };
+        let parts = affine_torque_joints(&term, &[1.0], &data);
+        assert!(parts.len() == 1 && parts[0].joint == 1 && parts[0].constant && parts[0].offset && !parts[0].rotor);
+        // and a pure acceleration term a rotor inertia alone; a negative one nothing
+        let term = TermDesign { cols: vec![Column::new(Some(1), a1.to_vec())], ..Default::default() };
+        let parts = affine_torque_joints(&term, &[0.05], &data);
+        assert!(parts.len() == 1 && parts[0].rotor && !parts[0].offset);
+        assert!(affine_torque_joints(&term, &[-0.05], &data).is_empty());
     }
 }
