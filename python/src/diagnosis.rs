@@ -384,7 +384,8 @@ impl PyReport {
     /// `{method: [effect dicts]}`; for a torque-residual fit `block_bootstrap`,
     /// `fold_jackknife`, `resampling` (the larger of the two) and `pipeline_error` (1.96 |b|, the
     /// pipeline's shared error: the report's `uncertainty` is the larger of it and
-    /// `resampling`); for a fit by multiple shooting `multiple_shooting`.
+    /// `resampling`) and `bias_corrected` (the values less that error, with the `resampling`
+    /// half-widths); for a fit by multiple shooting `multiple_shooting`.
     #[getter]
     fn interval_variants<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         py.import("json")?.call_method1("loads", (self.diagnosis.interval_variants_json(),))

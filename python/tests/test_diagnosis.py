@@ -86,6 +86,27 @@ def test_reported_half_width_is_the_larger_of_resampling_and_pipeline_error(repo
             assert u == pytest.approx([max(a, b) for a, b in zip(res, bias, strict=True)]), (effect["effect"], p)
 
 
+def test_bias_corrected_variant_moves_each_value_by_the_pipeline_error(report: simgap.Report) -> None:
+    # the values less the pipeline's error b (|b| = pipeline_error / 1.96), with the resampling half-widths
+    variants = report.interval_variants
+    assert "bias_corrected" in variants, variants.keys()
+    # parameters that are one fitted coefficient each
+    single = {("viscous_friction", "b"), ("coulomb_friction", "fc"), ("torque_offset", "offset"), ("armature", "ia")}
+    checked = 0
+    for i, effect in enumerate(report.selected_effects):
+        corrected = variants["bias_corrected"][i]
+        for p, values in effect["parameters"].items():
+            if (effect["effect"], p) not in single or p not in variants["pipeline_error"][i]["uncertainty"]:
+                continue
+            bias = variants["pipeline_error"][i]["uncertainty"][p]
+            assert corrected["uncertainty"][p] == variants["resampling"][i]["uncertainty"][p], (effect["effect"], p)
+            for v, c, b in zip(values, corrected["parameters"][p], bias, strict=True):
+                if b is not None:
+                    assert abs(v - c) == pytest.approx(b / 1.96, rel=1e-6, abs=1e-12), (effect["effect"], p, v, c, b)
+                    checked += 1
+    assert checked > 0, report.summary()
+
+
 def test_gap_shrinks_on_held_out_run(report: simgap.Report) -> None:
     gap = report.gap
     assert 0 < gap["holdout_l2_after"] < gap["holdout_l2_before"]

@@ -171,6 +171,13 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                         .into_iter()
                         .filter_map(|(name, sd)| Some((name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd?))))))
                         .collect();
+                // and the values less the pipeline's error with the resampling spread (a
+                // parametric bootstrap's bias correction), measured beside the reported ones
+                let mut variants = variants;
+                if let Some(b) = bias.as_ref().filter(|b| b.len() == selection.fit.theta.len()) {
+                    let corrected = &selection.fit.theta - b;
+                    variants.push(("bias_corrected", effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &corrected, Some(&resampling)))));
+                }
                 (fitted, variants, sel_std, Some(resampling))
             }
         };

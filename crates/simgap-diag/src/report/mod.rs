@@ -417,7 +417,10 @@ pub struct Diagnosis {
     /// the self-check's coverage comparison: for a torque-residual fit `block_bootstrap`,
     /// `fold_jackknife`, `resampling` (the larger of the two) and `pipeline_error` (1.96 |b|, the
     /// pipeline's shared error; the report takes the larger of it and `resampling`, see
-    /// [`crate::select::uncertainty`]); for a fit by multiple shooting `multiple_shooting`.
+    /// [`crate::select::uncertainty`]) and `bias_corrected` (the values less that error `b`,
+    /// with the `resampling` half-widths: a parametric bootstrap's bias correction, measured
+    /// beside the reported intervals, not reported); for a fit by multiple shooting
+    /// `multiple_shooting`.
     pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
 }
 
