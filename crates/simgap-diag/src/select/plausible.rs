@@ -305,12 +305,7 @@ fn affine_torque_joints(design: &TermDesign, theta: &[f64], data: &[crate::prepa
         let affine = a > 0.0 && left <= (1.0 - CONSTANT_SHARE * CONSTANT_SHARE) * stt;
         if constant || affine {
             let rotor_part = a * (sxx / m).sqrt();
-            out.push(AffineTorque {
-                joint: j,
-                constant,
-                offset: constant || c.abs() >= PART_SHARE * rms,
-                rotor: affine && !constant && rotor_part >= PART_SHARE * rms,
-            });
+            out.push(AffineTorque { joint: j, constant, offset: constant || c.abs() >= PART_SHARE * rms, rotor: affine && !constant && rotor_part >= PART_SHARE * rms });
         }
     }
     out
