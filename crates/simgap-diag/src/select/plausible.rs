@@ -9,7 +9,8 @@
 //!   torque offsets (and rotor inertias) on those joints where they predict as well: a torque
 //!   sensor's bias on a gravity-loaded joint, which a shifted centre of mass mimics over a
 //!   motion of modest range, is one parameter, not a correction of every link; so is the first
-//!   link's inertia about a vertical first axis, which only a rotor inertia there shows.
+//!   link's inertia about a vertical first axis, which acts exactly as the first joint's rotor
+//!   inertia.
 //! - **Plausibility.** Every family bounds its parameters by their physical range in its design
 //!   (an armature by a hundred times the link inertia its joint moves, an offset by the torques
 //!   commanded on its joint, a gain by [`crate::vocabulary`]'s gain range, a payload by the
