@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use rand::{Rng, SeedableRng};
-use simgap_core::{inverse_dynamics_into, mass_matrix, Formulation, Model, Workspace};
+use simgap_core::{inverse_dynamics_into, Formulation, Model, Workspace};
 use simgap_sim::{
     simulate, simulate_experiment, ControllerKind, Effect, Experiment, Fourier, MemorySink, PiecewiseSetpoints, Plant, Reference, Run, RunEnd, Sampled, SensorParams, Servo,
     SimParams, Step,
@@ -209,12 +209,7 @@ pub fn zero_phase_lowpass(x: &mut [f64], dof: usize, hz: f64, period: f64) {
 
 /// PD gains giving each joint a natural frequency `hz` and damping 0.7 on the diagonal of H(0).
 pub fn gains_for(model: &Model, hz: f64) -> (Vec<f64>, Vec<f64>) {
-    let mut ws = Workspace::new(model);
-    let h = mass_matrix(model, &mut ws, &vec![0.0; model.dof()]);
-    let w = std::f64::consts::TAU * hz;
-    let kp = (0..model.dof()).map(|j| w * w * h[(j, j)]).collect();
-    let kv = (0..model.dof()).map(|j| 2.0 * 0.7 * w * h[(j, j)]).collect();
-    (kp, kv)
+    crate::prediction::resim::pd_gains_at(model, &vec![0.0; model.dof()], hz)
 }
 
 /// A random excitation: a sum of three sinusoids per joint.

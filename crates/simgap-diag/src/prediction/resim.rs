@@ -132,6 +132,16 @@ pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Eff
     Ok(simulate_experiment_with_end(model, formulation, effects, exp, reference.as_ref(), &params, replay)?)
 }
 
+/// PD gains [N·m/rad, N·m·s/rad] giving each joint a natural frequency `hz` and damping 0.7 on
+/// the diagonal of H(q): `kp = ω² H_jj`, `kv = 1.4 ω H_jj`, `ω = 2π hz`.
+pub(crate) fn pd_gains_at(model: &Model, q: &[f64], hz: f64) -> (Vec<f64>, Vec<f64>) {
+    let h = simgap_core::mass_matrix(model, &mut simgap_core::Workspace::new(model), q);
+    let w = std::f64::consts::TAU * hz;
+    let kp = (0..model.dof()).map(|j| w * w * h[(j, j)]).collect();
+    let kv = (0..model.dof()).map(|j| 2.0 * 0.7 * w * h[(j, j)]).collect();
+    (kp, kv)
+}
+
 /// Natural frequency [Hz] of the weak tracking loop [`resimulate_tracked`] adds to an open-loop
 /// replay (damping 0.7, on the diagonal of H at the run's first position).
 pub(crate) const TRACKING_HZ: f64 = 2.0;
@@ -157,11 +167,10 @@ pub(crate) fn resimulate_tracked(model: &Model, formulation: Formulation, effect
     if n == 0 || rows < 2 || run.q.len() != rows * n || run.tau.len() != rows * n {
         return resimulate(model, formulation, effects, run);
     }
-    let h = simgap_core::mass_matrix(model, &mut simgap_core::Workspace::new(model), &run.q[..n]);
-    let w = std::f64::consts::TAU * TRACKING_HZ;
-    let driven = |j: usize| (0..rows).any(|k| run.tau[k * n + j] != 0.0);
-    let kp: Vec<f64> = (0..n).map(|j| if driven(j) { w * w * h[(j, j)] } else { 0.0 }).collect();
-    let kv: Vec<f64> = (0..n).map(|j| if driven(j) { 2.0 * 0.7 * w * h[(j, j)] } else { 0.0 }).collect();
+    let (mut kp, mut kv) = pd_gains_at(model, &run.q[..n], TRACKING_HZ);
+    for j in (0..n).filter(|&j| (0..rows).all(|k| run.tau[k * n + j] == 0.0)) {
+        (kp[j], kv[j]) = (0.0, 0.0);
+    }
     let tracking = simgap_sim::Experiment { controller: simgap_sim::ControllerKind::Pd, kp, kv, ..exp.clone() };
     let reference = simgap_sim::Sampled { t: run.t.clone(), q: run.q.clone(), qd: if run.qd.len() == rows * n { run.qd.clone() } else { Vec::new() }, tau_ff: run.tau.clone() };
     let params = sim_params(run, exp.sample_period);

@@ -202,7 +202,7 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         every_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature).filter(|t| !with_rotor.contains(t)));
         // the simplest replacement that predicts as well, or a richer one that predicts better
         // than it by more than the tie tolerance
-        let mut chosen: Option<(Vec<Term>, f64, &str)> = None;
+        let mut chosen: Option<(Vec<Term>, Vec<Term>, f64, &str)> = None;
         let candidates = [
             (offsets_only, "mostly a constant"),
             (with_rotor, "mostly a constant and a multiple of the joint's acceleration"),
@@ -219,12 +219,12 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
             with.remove(i);
             with.extend(replacing.iter().cloned());
             let s = scorer.score(&with);
-            let bar = chosen.as_ref().map_or(score * (1.0 + TIE_TOLERANCE), |c| c.1 * (1.0 - TIE_TOLERANCE));
+            let bar = chosen.as_ref().map_or(score * (1.0 + TIE_TOLERANCE), |c| c.2 * (1.0 - TIE_TOLERANCE));
             if s <= bar {
-                chosen = Some((replacing, s, shape));
+                chosen = Some((replacing, with, s, shape));
             }
         }
-        if let Some((replacing, s, shape)) = chosen {
+        if let Some((replacing, with, s, shape)) = chosen {
             let mut on: Vec<&str> = Vec::new();
             for j in replacing.iter().filter_map(|t| t.joint()) {
                 if !on.contains(&joints[j].as_str()) {
@@ -238,9 +238,7 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
                 format!("as well (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %)", 100.0 * TIE_TOLERANCE)
             };
             let why = format!("its torque on {} is {shape}, and {by} there predict the fit runs {how} with a parameter each", on.join(", "));
-            let mut with: Vec<Term> = terms.clone();
-            let richer = with.remove(i);
-            with.extend(replacing.iter().cloned());
+            let richer = terms[i].clone();
             log.push(Step { term: richer.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("replaced by {by}: {why}") });
             for t in &replacing {
                 log.push(Step { term: t.clone(), cv_mse: f64::NAN, accepted: true, reason: format!("in place of the inertial correction: {why}") });

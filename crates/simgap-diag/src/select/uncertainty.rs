@@ -46,11 +46,12 @@ pub(crate) fn synthetic_runs(model: &Model, formulation: Formulation, effects: &
     fit_runs
         .par_iter()
         .filter_map(|r| {
-            match if track {
+            let resimulated = if track {
                 crate::prediction::resim::resimulate_tracked(model, formulation, effects, r)
             } else {
                 crate::prediction::resim::resimulate(model, formulation, effects, r)
-            } {
+            };
+            match resimulated {
                 Ok((mut sim, RunEnd::Completed)) => {
                     sim.source = format!("{} (re-simulated with the fitted effects)", r.source);
                     Some(sim)
