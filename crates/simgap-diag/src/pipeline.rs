@@ -141,6 +141,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // check finds no finding (at the edge of its physical range, or its interval holding its
     // neutral value) leaves the set, a richer one its extra parameters do not support becomes
     // the simpler nested in it, and the rest is fitted again (at most three rounds)
+    progress(Progress { stage: "intervals and plausibility", done: 0, total: 1 });
     let mut rounds = 0;
     let (fitted, interval_variants) = loop {
         let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
@@ -299,21 +300,31 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     };
     check_stop(options)?;
 
-    // screen: every candidate alone on the held-out runs (k-step and closed loop)
-    let mut candidates = Vec::new();
-    for (gi, (name, terms)) in groups.iter().enumerate() {
-        tick(progress, "screening candidates on held-out runs");
-        check_stop(options)?;
+    // screen: every candidate alone on the held-out runs (k-step and closed loop), as many at
+    // a time as there are threads (one held-out run predicts on one thread)
+    let screen_one = |terms: &[Term]| {
         let (designs, gr, f) = fit_terms(p, data, terms);
         // resampling spread only: the pipeline's shared error is measured for the selected set
         let std = lsq::resampling_std(&gr, &bootstrap_std(&gr, 50, 11));
         let fitted_c = fitted_terms(terms, &designs, &f.theta, Some(&std));
-        let rep = effects::to_reports(model, &fitted_c).into_iter().next();
         let eff = effects::to_effects(model, &fitted_c);
-        let unphysical: Vec<String> = fitted_c.iter().filter(|f| !crate::vocabulary::physical(&f.term, &f.theta)).map(|f| f.term.describe(&joints)).collect();
         let kstep_after = kstep::predict_all(model, formulation, &eff, &prep.hold_pred, &horizons).map(|e| e.0.rms()).unwrap_or_else(|_| vec![f64::NAN; horizons.len()]);
         let gaps: Vec<resim::RunGap> = prep.hold_runs.par_iter().map(|r| resim::gap(model, formulation, &eff, r).0).collect();
         let l2 = resim::combine(&gaps, &prep.hold_runs).0;
+        (fitted_c, f.cv_mse, kstep_after, l2)
+    };
+    let mut screened = Vec::with_capacity(groups.len());
+    for chunk in groups.chunks(rayon::current_num_threads().max(1)) {
+        for _ in chunk {
+            tick(progress, "screening candidates on held-out runs");
+        }
+        check_stop(options)?;
+        screened.par_extend(chunk.par_iter().map(|(_, terms)| screen_one(terms)));
+    }
+    let mut candidates = Vec::new();
+    for (gi, ((name, _), (fitted_c, cv_mse, kstep_after, l2))) in groups.iter().zip(screened).enumerate() {
+        let rep = effects::to_reports(model, &fitted_c).into_iter().next();
+        let unphysical: Vec<String> = fitted_c.iter().filter(|f| !crate::vocabulary::physical(&f.term, &f.theta)).map(|f| f.term.describe(&joints)).collect();
         let selected = selection.terms.iter().any(|t| t.effect_name() == *name);
         let reason = if selected {
             "selected".to_string()
@@ -338,7 +349,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             parameters,
             uncertainty,
             units,
-            cv_residual_reduction: if selection.nominal_cv_mse > 0.0 { 1.0 - f.cv_mse / selection.nominal_cv_mse } else { 0.0 },
+            cv_residual_reduction: if selection.nominal_cv_mse > 0.0 { 1.0 - cv_mse / selection.nominal_cv_mse } else { 0.0 },
             holdout_l2_after: l2,
             holdout_ratio: if before > 0.0 { l2 / before } else { f64::NAN },
             holdout_kstep_after: kstep_after,
@@ -359,6 +370,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let kinds: Vec<simgap_core::JointKind> = model.joints().iter().map(|j| j.kind).collect();
     let units = Units::of(&kinds);
     let (headline, headline_reason) = headline(&prep.hold_runs, &before_runs, &after_runs, before, &units.position);
+    progress(Progress { stage: "naming alternatives and notes", done: 0, total: 1 });
     let mut alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
     for a in plausible::richer_alternatives(&selection.terms, &replacements) {
         if !alternatives.iter().any(|b| b.effects == a.effects) {
@@ -417,6 +429,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     }
     notes.extend(residual_notes(&kstep_report, &final_cv, &scorer.nominal, &horizons, &units.position));
     // what is left: the torque residual after the selected effects, joint by joint
+    progress(Progress { stage: "testing what is left", done: 0, total: 1 });
     let residual_tests = if moving { residual::test(p, data, &select::residual_after(p, &selection.designs, &selection.fit.theta), &joints, &kinds) } else { Vec::new() };
     notes.extend(residual_tests.iter().filter(|t| t.kind != "negligible").map(|t| t.sentence()));
     let verdict = verdict(moving, &selected_effects, &headline, &kstep_report, (before, after), &before_runs, &units);
