@@ -60,6 +60,18 @@ fn on_bound(theta: f64, b: f64) -> bool {
     b.is_finite() && (theta - b).abs() <= 1e-6 * b.abs().max(1e-12)
 }
 
+/// Whether the 95 % intervals `std` of a term's coefficients `theta` hold its neutral value in
+/// every coefficient (the terms [`judge`] examines: not an inertial correction, with free
+/// parameters, and with some finite spread).
+pub(crate) fn interval_holds_no_effect(design: &TermDesign, theta: &[f64], std: &[f64]) -> bool {
+    design.inertial.is_none()
+        && !design.cols.is_empty()
+        && theta.len() == design.cols.len()
+        && std.len() == theta.len()
+        && std.iter().any(|s| s.is_finite())
+        && theta.iter().zip(std).all(|(t, s)| holds_zero(*t, *s))
+}
+
 /// The smallest share of its joint's commanded torque (RMS) a selected term explains to be a
 /// finding: [`crate::select::SelectOptions::min_torque_share`]'s default.
 const MIN_TORQUE_SHARE: f64 = 0.01;
@@ -376,6 +388,18 @@ mod tests {
         assert!(matches!(j, Judgment::NoFinding(ref w) if w.contains("neutral")), "{j:?}");
         let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.5], &[0.2], &[0.2], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
+    }
+
+    #[test]
+    fn a_reported_interval_holds_no_effect_only_when_every_coefficient_holds_zero() {
+        let two = TermDesign { cols: vec![Column::new(Some(0), vec![1.0]), Column::new(Some(0), vec![1.0])], lo: vec![0.0, 0.0], hi: vec![9.0, 9.0], ..Default::default() };
+        assert!(interval_holds_no_effect(&two, &[0.3, 0.1], &[0.2, 0.1]));
+        assert!(!interval_holds_no_effect(&two, &[0.3, 0.5], &[0.2, 0.1]), "one coefficient resolved");
+        assert!(!interval_holds_no_effect(&two, &[0.3, 0.1], &[f64::NAN, f64::NAN]), "an unknown spread decides nothing");
+        assert!(!interval_holds_no_effect(&design(0.0, 2.0), &[0.3, 0.1], &[0.2, 0.1]), "coefficients that are not the design's");
+        let prior = crate::lsq::inertial::InertialPrior::new(&simgap_core::Model::paper_arm());
+        let inertial = TermDesign { inertial: Some(std::sync::Arc::new(prior)), ..design(0.0, 2.0) };
+        assert!(!interval_holds_no_effect(&inertial, &[0.3], &[0.2]), "an inertial correction is judged by its consistency");
     }
 
     #[test]

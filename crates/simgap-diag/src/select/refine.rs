@@ -29,6 +29,12 @@ pub(crate) struct Refined {
     pub(crate) cv: Vec<f64>,
     /// Its score against the nominal model ([`kstep::score`]).
     pub(crate) score: f64,
+    /// Whether `score` is still the score of `terms` (false once a term left or was replaced
+    /// without a refit).
+    pub(crate) scored_as_is: bool,
+    /// The set as its two-fold cross-validation fitted it (terms, designs, each half's answer):
+    /// the leak-free starts of a set with a term more or less.
+    pub(crate) halves: (Vec<Term>, Vec<TermDesign>, Vec<nalgebra::DVector<f64>>),
 }
 
 /// A set tried by the shooting stage: its two-fold cross-validation.
@@ -70,7 +76,7 @@ pub(crate) fn refine_by_shooting(
     progress: &mut dyn FnMut(Progress),
     options: &DiagnoseOptions,
 ) -> Result<(Option<Refined>, Vec<String>)> {
-    let (model, formulation, ctx, prep) = (scorer.model, scorer.formulation, scorer.ctx, scorer.prep);
+    let (model, ctx, prep) = (scorer.model, scorer.ctx, scorer.prep);
     let n = model.dof();
     let has_inertial = ctx.inertial_basis.ncols() > 0;
     // open-loop replays, and servos (their firmware loop is known exactly: its prediction
@@ -123,78 +129,14 @@ pub(crate) fn refine_by_shooting(
     let sopts = shooting::Options::default();
     let shoot_runs = shooting::shooting_runs(&prep.fit_pred, options.prepare.window, &sopts);
     let stop = options.stop.as_deref();
-    // starts: the torque-residual fit, and the same with the URDF's inertia
-    let starts = |designs: &[TermDesign], theta: nalgebra::DVector<f64>| -> Vec<nalgebra::DVector<f64>> {
-        let mut c = 0;
-        let mut urdf = theta.clone();
-        let mut inertial = false;
-        for d in designs {
-            if d.inertial.is_some() {
-                urdf.rows_mut(c, d.cols.len()).fill(0.0);
-                inertial = true;
-            }
-            c += d.cols.len();
-        }
-        if inertial {
-            vec![theta, urdf]
-        } else {
-            vec![theta]
-        }
-    };
-    // θ of `to` from the answer `theta` of the set `from`: shared terms keep their values, the
-    // others start at 0 (no friction, no rotor inertia, the URDF's inertia), so that a larger set
-    // starts where a smaller one ended
-    let transfer = |from: &Tried, theta: &nalgebra::DVector<f64>, to: &[Term], to_designs: &[TermDesign]| -> nalgebra::DVector<f64> {
-        let k: usize = to_designs.iter().map(|d| d.cols.len()).sum();
-        let mut out = nalgebra::DVector::zeros(k);
-        let mut c = 0;
-        for (t, d) in to.iter().zip(to_designs) {
-            let mut cf = 0;
-            for (tf, df) in from.terms.iter().zip(&from.designs) {
-                if tf == t && df.cols.len() == d.cols.len() {
-                    out.rows_mut(c, d.cols.len()).copy_from(&theta.rows(cf, d.cols.len()));
-                }
-                cf += df.cols.len();
-            }
-            c += d.cols.len();
-        }
-        out
-    };
     let mut tried: Vec<Tried> = Vec::new();
     for (si, (name, terms)) in sets.iter().enumerate() {
         progress(Progress { stage: "refining by multiple shooting", done: si, total: sets.len() + 1 });
         check_stop(options)?;
-        let (designs, gr, _) = ctx.fit_terms(terms);
-        let mut merged: Vec<kstep::Errors> =
-            prep.fit_pred.iter().map(|pr| kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: vec![f64::NAN; pr.windows() * prep.horizons.len() * n] }).collect();
-        let mut halves = Vec::new();
-        for half in 0..2 {
-            let held = |f: usize| (f % FOLDS_PER_RUN) % 2 == half;
-            let keep = |r: usize, w: usize| !held(shoot_runs[r].fold[w]);
-            let problem = shooting::Problem { model, formulation, terms, designs: &designs, runs: &shoot_runs, keep: &keep, options: &sopts };
-            let mut from = starts(&designs, lsq::theta_without(&gr, &held));
-            from.extend(tried.iter().map(|t| transfer(t, &t.halves[half], terms, &designs)));
-            let shot = shooting::fit(&problem, &from, stop)?;
-            let eff = effects::to_effects(model, &fitted_terms(terms, &designs, &shot.theta, None));
-            let errs: Vec<kstep::Errors> =
-                prep.fit_pred.par_iter().map(|pr| kstep::predict(model, formulation, &eff, pr, &prep.horizons, &|w| held(pr.fold[w]))).collect::<Result<_>>()?;
-            for (m, e) in merged.iter_mut().zip(&errs) {
-                for (a, v) in m.sq.iter_mut().zip(&e.sq) {
-                    if v.is_finite() {
-                        *a = *v;
-                    }
-                }
-            }
-            halves.push(shot.theta);
-        }
-        let mut all = kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: Vec::new() };
-        for m in &merged {
-            all.sq.extend_from_slice(&m.sq);
-        }
-        let cv = all.rms();
-        let score = kstep::score(&cv, &scorer.nominal);
-        let test = scorer.against_nominal(&all);
-        tried.push(Tried { name: name.clone(), terms: terms.clone(), designs, halves, cv, score, test });
+        // a larger set starts where the smaller ones tried before it ended
+        let earlier = |half: usize, designs: &[TermDesign]| -> Vec<nalgebra::DVector<f64>> { tried.iter().map(|t| transfer(t, &t.halves[half], terms, designs)).collect() };
+        let t = try_set(scorer, &shoot_runs, &sopts, name, terms, &earlier, stop)?;
+        tried.push(t);
     }
     let mut notes: Vec<String> = tried
         .iter()
@@ -223,9 +165,117 @@ pub(crate) fn refine_by_shooting(
     // the chosen set on all fit runs
     progress(Progress { stage: "refining by multiple shooting", done: sets.len(), total: sets.len() + 1 });
     let best = tried.swap_remove(bi);
+    let (refined, more) = finish(scorer, &shoot_runs, &sopts, best, stop)?;
+    notes.extend(more);
+    Ok((Some(refined), notes))
+}
+
+/// θ of the set `to` from the answer `theta` of the set `from`: shared terms keep their values,
+/// the others start at 0 (no friction, no rotor inertia, the URDF's inertia), so that a larger
+/// set starts where a smaller one ended.
+fn transfer(from: &Tried, theta: &nalgebra::DVector<f64>, to: &[Term], to_designs: &[TermDesign]) -> nalgebra::DVector<f64> {
+    let k: usize = to_designs.iter().map(|d| d.cols.len()).sum();
+    let mut out = nalgebra::DVector::zeros(k);
+    let mut c = 0;
+    for (t, d) in to.iter().zip(to_designs) {
+        let mut cf = 0;
+        for (tf, df) in from.terms.iter().zip(&from.designs) {
+            if tf == t && df.cols.len() == d.cols.len() {
+                out.rows_mut(c, d.cols.len()).copy_from(&theta.rows(cf, d.cols.len()));
+            }
+            cf += df.cols.len();
+        }
+        c += d.cols.len();
+    }
+    out
+}
+
+/// Starts of a shooting fit: the torque-residual fit `theta`, and the same with the URDF's
+/// inertia where the set corrects it.
+fn starts(designs: &[TermDesign], theta: nalgebra::DVector<f64>) -> Vec<nalgebra::DVector<f64>> {
+    let mut c = 0;
+    let mut urdf = theta.clone();
+    let mut inertial = false;
+    for d in designs {
+        if d.inertial.is_some() {
+            urdf.rows_mut(c, d.cols.len()).fill(0.0);
+            inertial = true;
+        }
+        c += d.cols.len();
+    }
+    if inertial {
+        vec![theta, urdf]
+    } else {
+        vec![theta]
+    }
+}
+
+/// Extra starts of a half's shooting fit (the half, the set's designs): answers of other sets on
+/// the same half.
+type EarlierStarts<'a> = dyn Fn(usize, &[TermDesign]) -> Vec<nalgebra::DVector<f64>> + 'a;
+
+/// One set's two-fold cross-validation by multiple shooting: each half of the fit runs' folds
+/// (alternate fifths of every run) fitted on the other half alone, from its torque-residual fit
+/// and `earlier(half, designs)`, and predicted with it.
+fn try_set(
+    scorer: &Scorer<'_>,
+    shoot_runs: &[kstep::PredictionRun],
+    sopts: &shooting::Options,
+    name: &str,
+    terms: &[Term],
+    earlier: &EarlierStarts<'_>,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> Result<Tried> {
+    let (model, formulation, ctx, prep) = (scorer.model, scorer.formulation, scorer.ctx, scorer.prep);
+    let n = model.dof();
+    let (designs, gr, _) = ctx.fit_terms(terms);
+    let mut merged: Vec<kstep::Errors> =
+        prep.fit_pred.iter().map(|pr| kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: vec![f64::NAN; pr.windows() * prep.horizons.len() * n] }).collect();
+    let mut halves = Vec::new();
+    for half in 0..2 {
+        let held = |f: usize| (f % FOLDS_PER_RUN) % 2 == half;
+        let keep = |r: usize, w: usize| !held(shoot_runs[r].fold[w]);
+        let problem = shooting::Problem { model, formulation, terms, designs: &designs, runs: shoot_runs, keep: &keep, options: sopts };
+        let mut from = starts(&designs, lsq::theta_without(&gr, &held));
+        from.extend(earlier(half, &designs));
+        let shot = shooting::fit(&problem, &from, stop)?;
+        let eff = effects::to_effects(model, &fitted_terms(terms, &designs, &shot.theta, None));
+        let errs: Vec<kstep::Errors> =
+            prep.fit_pred.par_iter().map(|pr| kstep::predict(model, formulation, &eff, pr, &prep.horizons, &|w| held(pr.fold[w]))).collect::<Result<_>>()?;
+        for (m, e) in merged.iter_mut().zip(&errs) {
+            for (a, v) in m.sq.iter_mut().zip(&e.sq) {
+                if v.is_finite() {
+                    *a = *v;
+                }
+            }
+        }
+        halves.push(shot.theta);
+    }
+    let mut all = kstep::Errors { horizons: prep.horizons.len(), dof: n, sq: Vec::new() };
+    for m in &merged {
+        all.sq.extend_from_slice(&m.sq);
+    }
+    let cv = all.rms();
+    let score = kstep::score(&cv, &scorer.nominal);
+    let test = scorer.against_nominal(&all);
+    Ok(Tried { name: name.to_string(), terms: terms.to_vec(), designs, halves, cv, score, test })
+}
+
+/// The set `best` fitted on all fit runs (from its torque-residual fit and its halves' answers),
+/// with the reported spread; terms fitted at their lower bound 0 are left out. Returns it and a
+/// note of what was done.
+fn finish(
+    scorer: &Scorer<'_>,
+    shoot_runs: &[kstep::PredictionRun],
+    sopts: &shooting::Options,
+    best: Tried,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> Result<(Refined, Vec<String>)> {
+    let (model, formulation, ctx) = (scorer.model, scorer.formulation, scorer.ctx);
+    let mut notes = Vec::new();
     let keep = |_: usize, _: usize| true;
     let (_, _, f) = ctx.fit_terms(&best.terms);
-    let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: &shoot_runs, keep: &keep, options: &sopts };
+    let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: shoot_runs, keep: &keep, options: sopts };
     // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
     let mut from = starts(&best.designs, f.theta.clone());
     from.extend(best.halves.iter().cloned());
@@ -271,5 +321,61 @@ pub(crate) fn refine_by_shooting(
         notes.push(format!("fitted by multiple shooting at their bound 0, so left out: {}", none.join(", ")));
     }
     let shot = shooting::Shot { theta: nalgebra::DVector::from_vec(theta), std: nalgebra::DVector::from_vec(std), ..shot };
-    Ok((Some(Refined { name: best.name, terms, designs, shot, own_std: nalgebra::DVector::from_vec(own_std), cv: best.cv, score: best.score }), notes))
+    let halves = (best.terms, best.designs, best.halves);
+    Ok((Refined { name: best.name, terms, designs, shot, own_std: nalgebra::DVector::from_vec(own_std), cv: best.cv, score: best.score, scored_as_is: true, halves }, notes))
+}
+
+/// The set of `r` fitted again by multiple shooting after a term left it (a partner it traded
+/// with, whose value the others then lack): its two-fold cross-validation and its fit on all fit
+/// runs, started from `r`'s values as well as from the torque-residual fit. `None` when nothing
+/// is left to fit.
+///
+/// # Errors
+/// As [`refine_by_shooting`].
+pub(crate) fn refit(scorer: &Scorer<'_>, r: &Refined, options: &DiagnoseOptions) -> Result<Option<(Refined, Vec<String>)>> {
+    if r.terms.is_empty() {
+        return Ok(None);
+    }
+    let sopts = shooting::Options::default();
+    let shoot_runs = shooting::shooting_runs(&scorer.prep.fit_pred, options.prepare.window, &sopts);
+    let tried = try_from(scorer, &shoot_runs, &sopts, r, &r.terms, options)?;
+    let (again, notes) = finish(scorer, &shoot_runs, &sopts, tried, options.stop.as_deref())?;
+    let notes = notes
+        .into_iter()
+        .map(|n| {
+            n.replacen(
+                "the parameters of the selected effects are fitted",
+                "after a term whose interval held no effect left the set, the parameters of the others are fitted again",
+                1,
+            )
+        })
+        .collect();
+    Ok(Some((again, notes)))
+}
+
+/// The two-fold cross-validated k-step score ([`kstep::score`]) of `terms` fitted by multiple
+/// shooting as the shooting stage scores its sets, each half started from the torque-residual
+/// fit and from `r`'s answer on the same half (shared terms; never from an answer that saw the
+/// held half): what the fit runs say of `r`'s set with a term more or less, on the same footing
+/// as the model the report states.
+///
+/// # Errors
+/// As [`refine_by_shooting`].
+pub(crate) fn shooting_score(scorer: &Scorer<'_>, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<f64> {
+    if terms.is_empty() {
+        // the nominal model, whose score is 1 by definition
+        return Ok(scorer.score(terms));
+    }
+    let sopts = shooting::Options::default();
+    let shoot_runs = shooting::shooting_runs(&scorer.prep.fit_pred, options.prepare.window, &sopts);
+    Ok(try_from(scorer, &shoot_runs, &sopts, r, terms, options)?.score)
+}
+
+/// [`try_set`] of `terms`, each half started also from `r`'s answer on that half where they
+/// share terms.
+fn try_from(scorer: &Scorer<'_>, shoot_runs: &[kstep::PredictionRun], sopts: &shooting::Options, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<Tried> {
+    let (t, d, h) = &r.halves;
+    let before = Tried { name: r.name.clone(), terms: t.clone(), designs: d.clone(), halves: h.clone(), cv: r.cv.clone(), score: r.score, test: kstep::FoldTest::of(&[]) };
+    let earlier = |half: usize, designs: &[TermDesign]| before.halves.get(half).map(|h| transfer(&before, h, terms, designs)).into_iter().collect::<Vec<_>>();
+    try_set(scorer, shoot_runs, sopts, &r.name, terms, &earlier, options.stop.as_deref())
 }

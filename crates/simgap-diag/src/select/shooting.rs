@@ -372,6 +372,10 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
         return Err(Error::Input("multiple shooting needs at least one start".into()));
     };
     let cost_start = ev.data_cost(&r);
+    // a set without parameters (no terms, or only grid members) has nothing to fit
+    if nx == 0 {
+        return Ok(Shot { theta: layout.theta_of(&x), std: DVector::zeros(layout.k), cost_start, cost: cost_start, iterations: 0 });
+    }
     let mut lambda = 1e-2;
     let mut small = 0;
     let mut iterations = 0;

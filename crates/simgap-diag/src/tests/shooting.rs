@@ -93,6 +93,27 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
 }
 
 #[test]
+fn a_set_without_parameters_is_fitted_as_it_is() {
+    // (a panic in nalgebra's eigen-decomposition of an empty matrix, before)
+    let model = Model::paper_arm();
+    let formulation = Formulation::EulerLagrange;
+    let (fit_specs, _) = demo_specs(1);
+    let run = generate(&model, formulation, &[], &fit_specs[0], 0.0025, 1_024_000.0).unwrap();
+    let horizons = kstep::DEFAULT_HORIZONS;
+    let pr = PredictionRun::new(align_run(&model, &run).unwrap(), &horizons, 0.05, SensorParams::exact(), 0, kstep::FIT_WINDOWS_PER_RUN);
+    let options = shooting::Options::default();
+    let runs = shooting::shooting_runs(&[pr], 0.05, &options);
+    let keep = |_: usize, _: usize| true;
+    for terms in [vec![], vec![Term::CoriolisStructure]] {
+        let designs = vec![crate::vocabulary::TermDesign::default(); terms.len()];
+        let sp = shooting::Problem { model: &model, formulation, terms: &terms, designs: &designs, runs: &runs, keep: &keep, options: &options };
+        let shot = shooting::fit(&sp, &[nalgebra::DVector::zeros(0)], None).unwrap();
+        assert!(shot.theta.is_empty() && shot.std.is_empty() && shot.iterations == 0, "{terms:?}: {shot:?}");
+        assert!(shot.cost.is_finite() && shot.cost == shot.cost_start);
+    }
+}
+
+#[test]
 fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let root = shared_data();
     let dp = root.join("dfki-double-pendulum");
