@@ -35,6 +35,8 @@ pub(crate) struct Refined {
     /// The set as its two-fold cross-validation fitted it (terms, designs, each half's answer):
     /// the leak-free starts of a set with a term more or less.
     pub(crate) halves: (Vec<Term>, Vec<TermDesign>, Vec<nalgebra::DVector<f64>>),
+    /// The fit runs cut into shooting windows, as it was fitted on (shared with its refits).
+    pub(crate) runs: std::sync::Arc<Vec<kstep::PredictionRun>>,
 }
 
 /// A set tried by the shooting stage: its two-fold cross-validation.
@@ -127,7 +129,7 @@ pub(crate) fn refine_by_shooting(
         return Ok((None, Vec::new()));
     }
     let sopts = shooting::Options::default();
-    let shoot_runs = shooting::shooting_runs(&prep.fit_pred, options.prepare.window, &sopts);
+    let shoot_runs = std::sync::Arc::new(shooting::shooting_runs(&prep.fit_pred, options.prepare.window, &sopts));
     let stop = options.stop.as_deref();
     let mut tried: Vec<Tried> = Vec::new();
     for (si, (name, terms)) in sets.iter().enumerate() {
@@ -165,7 +167,7 @@ pub(crate) fn refine_by_shooting(
     // the chosen set on all fit runs
     progress(Progress { stage: "refining by multiple shooting", done: sets.len(), total: sets.len() + 1 });
     let best = tried.swap_remove(bi);
-    let (refined, more) = finish(scorer, &shoot_runs, &sopts, best, stop)?;
+    let (refined, more) = finish(scorer, &shoot_runs, &sopts, best, "the parameters of the selected effects are fitted", stop)?;
     notes.extend(more);
     Ok((Some(refined), notes))
 }
@@ -266,9 +268,10 @@ fn try_set(
 /// note of what was done.
 fn finish(
     scorer: &Scorer<'_>,
-    shoot_runs: &[kstep::PredictionRun],
+    shoot_runs: &std::sync::Arc<Vec<kstep::PredictionRun>>,
     sopts: &shooting::Options,
     best: Tried,
+    what: &str,
     stop: Option<&std::sync::atomic::AtomicBool>,
 ) -> Result<(Refined, Vec<String>)> {
     let (model, formulation, ctx) = (scorer.model, scorer.formulation, scorer.ctx);
@@ -281,7 +284,7 @@ fn finish(
     from.extend(best.halves.iter().cloned());
     let mut shot = shooting::fit(&problem, &from, stop)?;
     notes.push(format!(
-        "the parameters of the selected effects are fitted by multiple shooting on all fit runs (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals, a quarter of the squared difference of the two halves' answers, and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes)",
+        "{what} by multiple shooting on all fit runs (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals, a quarter of the squared difference of the two halves' answers, and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes)",
         shot.cost_start, shot.cost, shot.iterations
     ));
     // the reported spread: σ² (JᵀJ)⁻¹ alone treats the errors along a window as independent
@@ -322,13 +325,27 @@ fn finish(
     }
     let shot = shooting::Shot { theta: nalgebra::DVector::from_vec(theta), std: nalgebra::DVector::from_vec(std), ..shot };
     let halves = (best.terms, best.designs, best.halves);
-    Ok((Refined { name: best.name, terms, designs, shot, own_std: nalgebra::DVector::from_vec(own_std), cv: best.cv, score: best.score, scored_as_is: true, halves }, notes))
+    Ok((
+        Refined {
+            name: best.name,
+            terms,
+            designs,
+            shot,
+            own_std: nalgebra::DVector::from_vec(own_std),
+            cv: best.cv,
+            score: best.score,
+            scored_as_is: true,
+            halves,
+            runs: shoot_runs.clone(),
+        },
+        notes,
+    ))
 }
 
 /// The set of `r` fitted again by multiple shooting after a term left it (a partner it traded
 /// with, whose value the others then lack): its two-fold cross-validation and its fit on all fit
-/// runs, started from `r`'s values as well as from the torque-residual fit. `None` when nothing
-/// is left to fit.
+/// runs, each half started from the torque-residual fit and from `r`'s answer on that half.
+/// `None` when nothing is left to fit.
 ///
 /// # Errors
 /// As [`refine_by_shooting`].
@@ -337,20 +354,9 @@ pub(crate) fn refit(scorer: &Scorer<'_>, r: &Refined, options: &DiagnoseOptions)
         return Ok(None);
     }
     let sopts = shooting::Options::default();
-    let shoot_runs = shooting::shooting_runs(&scorer.prep.fit_pred, options.prepare.window, &sopts);
-    let tried = try_from(scorer, &shoot_runs, &sopts, r, &r.terms, options)?;
-    let (again, notes) = finish(scorer, &shoot_runs, &sopts, tried, options.stop.as_deref())?;
-    let notes = notes
-        .into_iter()
-        .map(|n| {
-            n.replacen(
-                "the parameters of the selected effects are fitted",
-                "after a term whose interval held no effect left the set, the parameters of the others are fitted again",
-                1,
-            )
-        })
-        .collect();
-    Ok(Some((again, notes)))
+    let tried = try_from(scorer, &sopts, r, &r.terms, options)?;
+    let what = "after a term whose interval held no effect left the set, the parameters of the others are fitted again";
+    finish(scorer, &r.runs, &sopts, tried, what, options.stop.as_deref()).map(Some)
 }
 
 /// The two-fold cross-validated k-step score ([`kstep::score`]) of `terms` fitted by multiple
@@ -366,16 +372,14 @@ pub(crate) fn shooting_score(scorer: &Scorer<'_>, r: &Refined, terms: &[Term], o
         // the nominal model, whose score is 1 by definition
         return Ok(scorer.score(terms));
     }
-    let sopts = shooting::Options::default();
-    let shoot_runs = shooting::shooting_runs(&scorer.prep.fit_pred, options.prepare.window, &sopts);
-    Ok(try_from(scorer, &shoot_runs, &sopts, r, terms, options)?.score)
+    Ok(try_from(scorer, &shooting::Options::default(), r, terms, options)?.score)
 }
 
 /// [`try_set`] of `terms`, each half started also from `r`'s answer on that half where they
 /// share terms.
-fn try_from(scorer: &Scorer<'_>, shoot_runs: &[kstep::PredictionRun], sopts: &shooting::Options, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<Tried> {
+fn try_from(scorer: &Scorer<'_>, sopts: &shooting::Options, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<Tried> {
     let (t, d, h) = &r.halves;
     let before = Tried { name: r.name.clone(), terms: t.clone(), designs: d.clone(), halves: h.clone(), cv: r.cv.clone(), score: r.score, test: kstep::FoldTest::of(&[]) };
     let earlier = |half: usize, designs: &[TermDesign]| before.halves.get(half).map(|h| transfer(&before, h, terms, designs)).into_iter().collect::<Vec<_>>();
-    try_set(scorer, shoot_runs, sopts, &r.name, terms, &earlier, options.stop.as_deref())
+    try_set(scorer, &r.runs, sopts, &r.name, terms, &earlier, options.stop.as_deref())
 }
