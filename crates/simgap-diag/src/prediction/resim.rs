@@ -17,6 +17,10 @@ pub struct InferredSensors {
     pub velocity: String,
     /// Encoder counts per revolution when the logged positions are multiples of one increment.
     pub counts_per_rev: Option<f64>,
+    /// When the logged positions carry no measurement noise, the bandwidth [Hz] of the
+    /// low-pass filter their recorder applied (what they hold ends there; see
+    /// [`crate::prepare::lowpass`]); `None` for positions as an encoder gives them.
+    pub recorder_lowpass_hz: Option<f64>,
 }
 
 impl InferredSensors {
@@ -92,7 +96,7 @@ pub(crate) fn infer_sensors(run: &Run) -> InferredSensors {
         });
         on_grid.then_some(counts)
     });
-    InferredSensors { log: run.source.clone(), velocity, counts_per_rev }
+    InferredSensors { log: run.source.clone(), velocity, counts_per_rev, recorder_lowpass_hz: crate::prepare::lowpass::recorder_bandwidth(run) }
 }
 
 /// The sensors the re-simulation gives the controller ([`infer_sensors`]).

@@ -98,6 +98,10 @@ pub struct FitData {
     /// m/s]: from this run alone by [`FitData::new`], from every fit run by the diagnosis (the
     /// same on each of them; see [`DryWidth`]).
     pub dry_width: Vec<DryWidth>,
+    /// The bandwidth [Hz] of the low-pass filter the recorder applied to this run's positions,
+    /// when they carry no measurement noise above it ([`crate::prepare::lowpass`]); `None` for
+    /// positions as an encoder gives them.
+    pub recorder_bandwidth: Option<f64>,
     /// The aligned raw run.
     pub raw: Run,
     /// Smoothed velocities at every sample of the raw run (`len × dof`; at the first and last
@@ -219,6 +223,7 @@ impl FitData {
             regressor,
             h_max,
             dry_width: Vec::new(),
+            recorder_bandwidth: crate::prepare::lowpass::recorder_bandwidth(&run),
             raw: run,
             qd_every: qds,
             smoother,

@@ -4,6 +4,7 @@
 
 pub(crate) mod dataset;
 pub(crate) mod differentiate;
+pub(crate) mod lowpass;
 pub(crate) mod robust;
 pub(crate) mod servo;
 pub(crate) mod width;
@@ -133,6 +134,14 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
         }
     }
     let mut data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
+    // fit runs whose positions a recorder low-pass filtered (no measurement noise above a few Hz)
+    let filtered: Vec<(&str, f64)> = data.iter().filter_map(|d| d.recorder_bandwidth.map(|b| (d.name.as_str(), b))).collect();
+    if let Some(top) = filtered.iter().map(|f| f.1).reduce(f64::max) {
+        notes.push(format!(
+            "the positions of {} carry no measurement noise above about {top:.0} Hz: their recorder low-pass filtered them (and, as a rule, the torques alike), or they were simulated without sensor noise. Such a filter flattens the torque's peaks as a torque limit would, so a torque saturation cannot be told from it and is not tried; nothing faster than the filter passes can be seen in these logs",
+            filtered.iter().map(|f| f.0).collect::<Vec<_>>().join(", ")
+        ));
+    }
     // the dry-friction widths each joint's data allow, from every fit run (the width a term
     // takes within them is its column, the corrected model's and the report's)
     let velocities: Vec<&[f64]> = data.iter().map(|d| &d.qd[..]).collect();

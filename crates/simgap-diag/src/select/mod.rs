@@ -94,9 +94,13 @@ impl Family {
 }
 
 /// All candidate families for the fit runs `data` (back-EMF only on joints whose drive some
-/// run disables: elsewhere it is viscous friction).
+/// run disables: elsewhere it is viscous friction; a torque saturation only where no fit run was
+/// low-pass filtered by its recorder).
 pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
     let dof = data.first().map_or(0, |d| d.dof);
+    // a recorder's low-pass filter flattens the torque's peaks as a limit would: on such logs a
+    // torque saturation cannot be told from it (`prepare::lowpass`)
+    let saturation = !data.iter().any(|d| d.recorder_bandwidth.is_some());
     let mut f = Vec::new();
     for j in 0..dof {
         f.push(Family::Fixed(Term::Viscous(j)));
@@ -109,7 +113,9 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
         f.push(Family::Fixed(Term::Armature(j)));
         f.push(Family::Fixed(Term::Gain(j)));
         f.push(Family::Fixed(Term::Offset(j)));
-        f.push(Family::Saturation(j));
+        if saturation {
+            f.push(Family::Saturation(j));
+        }
         f.push(Family::Cogging(j));
         f.push(Family::Fixed(Term::Spring(j)));
     }

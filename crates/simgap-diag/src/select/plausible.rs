@@ -403,6 +403,29 @@ mod tests {
     }
 
     #[test]
+    fn a_spring_whose_stiffness_holds_zero_is_the_torque_offset_nested_in_it() {
+        // columns (q, −1), coefficients (k, k q0): k = 0.13 ± 0.17 about q0 = −4.5 rad, a rest
+        // position far outside the motion, is a constant torque of 0.6 N·m
+        let spring = TermDesign {
+            cols: vec![Column::new(Some(0), vec![0.2]), Column::new(Some(0), vec![-1.0])],
+            lo: vec![0.0, f64::NEG_INFINITY],
+            hi: vec![f64::INFINITY; 2],
+            ..Default::default()
+        };
+        let j = judge(&Term::Spring(0), &spring, &[0.13, -0.6], &[0.01, 0.01], &[0.087, 0.01], &[], &["a".into()]);
+        match j {
+            Judgment::Simpler { terms, extra, .. } => {
+                assert_eq!(terms, [Term::Offset(0)]);
+                assert_eq!(extra, [0], "the stiffness column is what the offset lacks; the constant is shared");
+            }
+            other => panic!("{other:?}"),
+        }
+        // a stiffness the runs resolve is a spring
+        let j = judge(&Term::Spring(0), &spring, &[2.0, -0.6], &[0.01, 0.01], &[0.087, 0.01], &[], &["a".into()]);
+        assert!(matches!(j, Judgment::Finding), "{j:?}");
+    }
+
+    #[test]
     fn an_unknown_spread_decides_nothing() {
         let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[f64::NAN], &[f64::NAN], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");

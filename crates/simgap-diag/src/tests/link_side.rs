@@ -65,6 +65,10 @@ fn sensor_offsets_and_spring_found(offsets: &[f64], seed: u64) {
     let selected = |effect: &str| d.report.selected_effects.iter().find(|e| e.effect == effect);
     assert!(selected("armature").is_none(), "a link-side torque holds no rotor inertia: {:?}", selected("armature"));
     assert!(selected("inertial_error").is_none(), "the URDF's inertia is right: {:?}", selected("inertial_error"));
+    // the recorder's filter is named, and its flattened torque peaks are not read as a limit
+    assert!(selected("torque_saturation").is_none(), "a filter is no torque limit: {:?}", selected("torque_saturation"));
+    let note = d.report.notes.iter().find(|n| n.contains("low-pass filtered")).unwrap_or_else(|| panic!("no note of the recorder's filter: {:?}", d.report.notes));
+    assert!(note.contains("repeat-1") && note.contains("repeat-2") && note.contains("saturation"), "{note}");
     // every sensor bias found, within its interval
     let found = selected("torque_offset").unwrap_or_else(|| panic!("no torque offset selected: {:?}", d.report.selected_effects));
     let names = model.joint_names();

@@ -1,6 +1,6 @@
 //! Tests of the stages' internals (the public API is tested from `tests/`).
 
-mod common;
+pub(crate) mod common;
 mod delay_line;
 mod friction_filter;
 mod gram_cache;

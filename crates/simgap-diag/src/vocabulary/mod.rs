@@ -392,6 +392,7 @@ pub(crate) fn simpler(term: &Term, data: &[FitData]) -> Option<Nested> {
     match term {
         Term::Stribeck { .. } => friction::simpler(term, data),
         Term::LoadFriction { joint, w } => Some(load_friction::simpler(*joint, *w)),
+        Term::Spring(j) => Some(spring::simpler(*j)),
         _ => None,
     }
 }

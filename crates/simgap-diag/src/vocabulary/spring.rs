@@ -9,13 +9,20 @@
 use simgap_sim::Effect;
 
 use super::effects::{per_joint as reported, sig3, unit_of, Entry};
-use super::{per_joint, EffectReport, TermDesign};
+use super::{per_joint, EffectReport, Nested, Term, TermDesign};
 use crate::prepare::dataset::FitData;
 
 /// The columns of a spring on joint `j`: `q_j` with k ≥ 0, and the constant `−1` of `k q0`.
 pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
     let cols = vec![per_joint(data, j, |d, i| d.q[i]), per_joint(data, j, |_, _| -1.0)];
     TermDesign { cols, lo: vec![0.0, f64::NEG_INFINITY], hi: vec![f64::INFINITY; 2], ..Default::default() }
+}
+
+/// The torque offset nested in it: with k = 0 its constant `k q0` alone is left, an offset of
+/// `−k q0` on the joint; its extra column is `q_j` (a spring whose stiffness the runs cannot tell
+/// from 0, about a rest position far outside the motion, is a constant torque).
+pub(super) fn simpler(j: usize) -> Nested {
+    Nested { terms: vec![Term::Offset(j)], extra: vec![0], unresolved: None }
 }
 
 /// `(k, q0)` from the columns' coefficients `(k, k q0)` (q0 = 0 for no spring).

@@ -1,0 +1,163 @@
+//! A recorder's low-pass filter, told from the logged positions: no measurement noise above a
+//! few hertz.
+//!
+//! An encoder's position carries at least its quantisation noise, white up to the Nyquist
+//! frequency, and a real drive adds more. A recorder that low-pass filters what it logs (a
+//! robot's state estimator, an export that smooths its signals) leaves none. The test is the
+//! power spectral density of the position's second difference (Welch: Hann windows of
+//! [`SEGMENT`] samples, half overlapping; the difference whitens the noise and lowers the motion
+//! it must be told from) in the top half of the band, `f > fs/4`, relative to its peak:
+//!
+//! - logs of real encoders (12 to 20 bits; pendulums, a servo) and simulated 20-bit encoders:
+//!   5·10⁻³ to 0.6;
+//! - the same signals zero-phase filtered at 4–10 Hz: about 10⁻¹², the window's own leakage.
+//!
+//! A run whose every moving joint is below [`NO_NOISE_RATIO`] is filtered. Its bandwidth is the
+//! highest frequency, over joints, at which the spectrum of the position's first difference is
+//! still within [`BANDWIDTH_RATIO`] of its peak: an upper bound of what the logs hold, above the
+//! filter's cut-off (by the window's leakage, up to about ten bins above the motion's peak).
+//!
+//! Why it matters: the recorder applied its filter to signals the plant's nonlinear dynamics
+//! produced, so the logged torque is not what the dynamics of the logged motion need at the
+//! peaks the filter flattens. A torque saturation, which also flattens peaks, cannot be told
+//! from it on such logs.
+
+use rustfft::num_complex::Complex;
+use rustfft::FftPlanner;
+use simgap_sim::Run;
+
+/// Samples per Welch segment.
+pub(crate) const SEGMENT: usize = 256;
+
+/// Below this top-band-to-peak ratio of the second difference's spectrum a joint's position
+/// holds no measurement noise (between the filtered signals' ~10⁻¹² and real encoders' ≥ 5·10⁻³,
+/// five decades from each).
+pub(crate) const NO_NOISE_RATIO: f64 = 1e-7;
+
+/// The bandwidth is where the first difference's spectrum falls below this fraction of its
+/// peak.
+pub(crate) const BANDWIDTH_RATIO: f64 = 1e-6;
+
+/// The bandwidth [Hz] of a run whose positions were low-pass filtered by its recorder (see the
+/// [module documentation](self)); `None` for a run whose positions carry measurement noise, whose
+/// joints do not move, or that is shorter than two segments.
+pub(crate) fn recorder_bandwidth(run: &Run) -> Option<f64> {
+    let n = run.dof();
+    let len = run.len();
+    if n == 0 || len < 2 * SEGMENT + 2 {
+        return None;
+    }
+    let fs = 1.0 / crate::prediction::kstep::median_spacing(&run.t);
+    let mut planner = FftPlanner::new();
+    let fft = planner.plan_fft_forward(SEGMENT);
+    let mut bandwidth: Option<f64> = None;
+    for j in 0..n {
+        let q: Vec<f64> = run.q.iter().skip(j).step_by(n).copied().collect();
+        let d1: Vec<f64> = q.windows(2).map(|w| w[1] - w[0]).collect();
+        let d2: Vec<f64> = d1.windows(2).map(|w| w[1] - w[0]).collect();
+        // a joint that does not move says nothing
+        if d1.iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        let p2 = welch(&d2, fft.as_ref());
+        let peak2 = p2.iter().copied().fold(0.0, f64::max);
+        let top = SEGMENT / 4;
+        let top2 = p2[top + 1..].iter().sum::<f64>() / (p2.len() - top - 1) as f64;
+        if !(peak2 > 0.0) || top2 / peak2 >= NO_NOISE_RATIO {
+            return None;
+        }
+        let p1 = welch(&d1, fft.as_ref());
+        let (k_peak, peak1) = p1.iter().copied().enumerate().fold((0, 0.0), |a, (k, v)| if v > a.1 { (k, v) } else { a });
+        let k_band = (k_peak..p1.len()).find(|&k| p1[k] < BANDWIDTH_RATIO * peak1).unwrap_or(p1.len() - 1);
+        let f = k_band as f64 * fs / SEGMENT as f64;
+        bandwidth = Some(bandwidth.map_or(f, |b: f64| b.max(f)));
+    }
+    bandwidth
+}
+
+/// The one-sided Welch spectrum of `x` (unscaled: only its ratios are used): Hann windows of
+/// [`SEGMENT`] samples, half overlapping, each less its mean; `SEGMENT / 2 + 1` bins.
+fn welch(x: &[f64], fft: &dyn rustfft::Fft<f64>) -> Vec<f64> {
+    let window: Vec<f64> = (0..SEGMENT).map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / SEGMENT as f64).cos()).collect();
+    let mut psd = vec![0.0; SEGMENT / 2 + 1];
+    let mut buf = vec![Complex::new(0.0, 0.0); SEGMENT];
+    let mut start = 0;
+    while start + SEGMENT <= x.len() {
+        let seg = &x[start..start + SEGMENT];
+        let mean = seg.iter().sum::<f64>() / SEGMENT as f64;
+        for (b, (v, w)) in buf.iter_mut().zip(seg.iter().zip(&window)) {
+            *b = Complex::new((v - mean) * w, 0.0);
+        }
+        fft.process(&mut buf);
+        for (p, b) in psd.iter_mut().zip(&buf) {
+            *p += b.norm_sqr();
+        }
+        start += SEGMENT / 2;
+    }
+    psd
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 20 s two-joint run at 400 Hz: a multisine of 0.2–2 Hz, positions quantised by a 20-bit
+    /// encoder.
+    fn encoder_run() -> Run {
+        let (n, fs) = (2, 400.0);
+        let samples = 8000;
+        let step = std::f64::consts::TAU / 1_048_576.0;
+        let mut run = Run::new(vec!["a".into(), "b".into()]);
+        run.t = (0..samples).map(|k| k as f64 / fs).collect();
+        run.q = run.t.iter().flat_map(|t| (0..n).map(move |j| ((0.5 * (1.3 * t + j as f64).sin() + 0.2 * (12.0 * t).sin() / (1.0 + j as f64)) / step).round() * step)).collect();
+        run.qd = vec![0.0; samples * n];
+        run.tau = vec![0.0; samples * n];
+        run
+    }
+
+    #[test]
+    fn an_encoder_s_positions_are_not_filtered() {
+        assert_eq!(recorder_bandwidth(&encoder_run()), None);
+    }
+
+    #[cfg(feature = "check")]
+    #[test]
+    fn positions_filtered_at_a_few_hertz_are_found_and_their_content_ends_above_the_cut_off() {
+        for hz in [4.0, 8.0] {
+            let mut run = encoder_run();
+            crate::check::bench::zero_phase_lowpass(&mut run.q, 2, hz, 0.0025);
+            let b = recorder_bandwidth(&run).expect("filtered positions found");
+            // what passes the filter ends above its cut-off, far below where noise would be
+            assert!((hz..=50.0).contains(&b), "bandwidth {b} Hz for a filter at {hz} Hz");
+        }
+    }
+
+    #[test]
+    fn a_run_that_does_not_move_or_is_too_short_says_nothing() {
+        let mut still = Run::new(vec!["a".into()]);
+        still.t = (0..2000).map(|k| k as f64 * 0.0025).collect();
+        still.q = vec![0.3; 2000];
+        still.qd = vec![0.0; 2000];
+        still.tau = vec![0.0; 2000];
+        assert_eq!(recorder_bandwidth(&still), None);
+        let short = encoder_run().slice(0..300);
+        assert_eq!(recorder_bandwidth(&short), None);
+    }
+
+    #[test]
+    fn real_encoder_logs_are_not_taken_for_filtered_ones() {
+        // the DFKI pendulums' hardware logs: encoders of the motors' own drives
+        let root = crate::tests::common::shared_data();
+        let dp = root.join("dfki-double-pendulum/experiment_records");
+        if !crate::tests::common::have_data("real_encoder_logs_are_not_taken_for_filtered_ones", &dp) {
+            return;
+        }
+        let mut logs: Vec<std::path::PathBuf> = (0..5).map(|i| dp.join(format!("design_C.0/20220914/sys_id/trajectory_0{i}.csv.gz"))).collect();
+        logs.push(dp.join("design_A.0/20220812/sys_id/20220812-061157-PM_measured.csv.gz"));
+        logs.push(root.join("dfki-simple-pendulum/control_method_pd/system_identification/data_measured.csv.gz"));
+        for path in logs {
+            let run = simgap_log::csv::read_csv_auto(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert_eq!(recorder_bandwidth(&run), None, "{} taken for a filtered log", path.display());
+        }
+    }
+}
