@@ -100,7 +100,8 @@ pub struct FitData {
     pub dry_width: Vec<DryWidth>,
     /// The bandwidth [Hz] of the low-pass filter the recorder applied to this run's positions,
     /// when they carry no measurement noise above it ([`crate::prepare::lowpass`]); `None` for
-    /// positions as an encoder gives them.
+    /// positions as an encoder gives them. Set by the diagnosis from the sensors it infers (a
+    /// run prepared alone, e.g. a synthetic one, has `None`).
     pub recorder_bandwidth: Option<f64>,
     /// The aligned raw run.
     pub raw: Run,
@@ -223,7 +224,7 @@ impl FitData {
             regressor,
             h_max,
             dry_width: Vec::new(),
-            recorder_bandwidth: crate::prepare::lowpass::recorder_bandwidth(&run),
+            recorder_bandwidth: None,
             raw: run,
             qd_every: qds,
             smoother,

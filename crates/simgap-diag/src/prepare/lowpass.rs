@@ -50,23 +50,24 @@ pub(crate) fn recorder_bandwidth(run: &Run) -> Option<f64> {
     let fs = 1.0 / crate::prediction::kstep::median_spacing(&run.t);
     let mut planner = FftPlanner::new();
     let fft = planner.plan_fft_forward(SEGMENT);
+    let window: Vec<f64> = (0..SEGMENT).map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / SEGMENT as f64).cos()).collect();
     let mut bandwidth: Option<f64> = None;
     for j in 0..n {
-        let q: Vec<f64> = run.q.iter().skip(j).step_by(n).copied().collect();
+        let q = run.column(&run.q, j);
         let d1: Vec<f64> = q.windows(2).map(|w| w[1] - w[0]).collect();
         let d2: Vec<f64> = d1.windows(2).map(|w| w[1] - w[0]).collect();
         // a joint that does not move says nothing
         if d1.iter().all(|v| *v == 0.0) {
             continue;
         }
-        let p2 = welch(&d2, fft.as_ref());
+        let p2 = welch(&d2, &window, fft.as_ref());
         let peak2 = p2.iter().copied().fold(0.0, f64::max);
         let top = SEGMENT / 4;
         let top2 = p2[top + 1..].iter().sum::<f64>() / (p2.len() - top - 1) as f64;
         if !(peak2 > 0.0) || top2 / peak2 >= NO_NOISE_RATIO {
             return None;
         }
-        let p1 = welch(&d1, fft.as_ref());
+        let p1 = welch(&d1, &window, fft.as_ref());
         let (k_peak, peak1) = p1.iter().copied().enumerate().fold((0, 0.0), |a, (k, v)| if v > a.1 { (k, v) } else { a });
         let k_band = (k_peak..p1.len()).find(|&k| p1[k] < BANDWIDTH_RATIO * peak1).unwrap_or(p1.len() - 1);
         let f = k_band as f64 * fs / SEGMENT as f64;
@@ -76,16 +77,15 @@ pub(crate) fn recorder_bandwidth(run: &Run) -> Option<f64> {
 }
 
 /// The one-sided Welch spectrum of `x` (unscaled: only its ratios are used): Hann windows of
-/// [`SEGMENT`] samples, half overlapping, each less its mean; `SEGMENT / 2 + 1` bins.
-fn welch(x: &[f64], fft: &dyn rustfft::Fft<f64>) -> Vec<f64> {
-    let window: Vec<f64> = (0..SEGMENT).map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / SEGMENT as f64).cos()).collect();
+/// [`SEGMENT`] samples (`window`), half overlapping, each less its mean; `SEGMENT / 2 + 1` bins.
+fn welch(x: &[f64], window: &[f64], fft: &dyn rustfft::Fft<f64>) -> Vec<f64> {
     let mut psd = vec![0.0; SEGMENT / 2 + 1];
     let mut buf = vec![Complex::new(0.0, 0.0); SEGMENT];
     let mut start = 0;
     while start + SEGMENT <= x.len() {
         let seg = &x[start..start + SEGMENT];
         let mean = seg.iter().sum::<f64>() / SEGMENT as f64;
-        for (b, (v, w)) in buf.iter_mut().zip(seg.iter().zip(&window)) {
+        for (b, (v, w)) in buf.iter_mut().zip(seg.iter().zip(window)) {
             *b = Complex::new((v - mean) * w, 0.0);
         }
         fft.process(&mut buf);

@@ -134,6 +134,9 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
         }
     }
     let mut data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
+    for (d, s) in data.iter_mut().zip(&sensors) {
+        d.recorder_bandwidth = s.recorder_lowpass_hz;
+    }
     // fit runs whose positions a recorder low-pass filtered (no measurement noise above a few Hz)
     let filtered: Vec<(&str, f64)> = data.iter().filter_map(|d| d.recorder_bandwidth.map(|b| (d.name.as_str(), b))).collect();
     if let Some(top) = filtered.iter().map(|f| f.1).reduce(f64::max) {
