@@ -1,11 +1,12 @@
 //! Tests of the stages' internals (the public API is tested from `tests/`).
 
-pub(crate) mod common;
+mod common;
 mod delay_line;
 mod friction_filter;
 mod gram_cache;
 mod intervals;
 mod link_side;
+mod lowpass;
 mod physical;
 mod pitfalls;
 mod rebuild;
