@@ -314,7 +314,12 @@ pub(crate) fn grams_against_known(p: &Problem, y: &Column, designs: &[&TermDesig
         if zero[a] {
             continue;
         }
-        p.dot_blocks(cols[a], y, &mut buf);
+        // (against the problem's own residual, the products are kept like the columns' own)
+        if std::sync::Arc::ptr_eq(&y.values, &p.y.values) {
+            p.dot_blocks_cached(cols[a], y, &mut buf);
+        } else {
+            p.dot_blocks(cols[a], y, &mut buf);
+        }
         for (bl, v) in buf.iter().enumerate() {
             c[bl][a] = *v;
         }
@@ -359,42 +364,127 @@ fn sse(g: &DMatrix<f64>, c: &DVector<f64>, s: f64, theta: &DVector<f64>) -> f64 
     (s - 2.0 * theta.dot(c) + theta.dot(&(g * theta))).max(0.0)
 }
 
+/// The Grams of a set summed for cross-validation: per fold and joint (`cell`), per fold
+/// (`fold_g`, `fold_c`), over the blocks after the last whole fold, which are in every training
+/// set (`rest_g`, `rest_c`), and over all the data (`g`, `c`, `s`).
+struct FoldSums {
+    cell: Vec<(DMatrix<f64>, DVector<f64>, f64)>,
+    fold_g: Vec<DMatrix<f64>>,
+    fold_c: Vec<DVector<f64>>,
+    rest_g: DMatrix<f64>,
+    rest_c: DVector<f64>,
+    g: DMatrix<f64>,
+    c: DVector<f64>,
+    s: f64,
+}
+
+impl FoldSums {
+    fn new(p: &Problem, gr: &Grams) -> FoldSums {
+        let folds = p.blocks / BLOCKS_PER_FOLD;
+        let (k, dof) = (gr.k, p.dof);
+        let mut fold_g = vec![DMatrix::zeros(k, k); folds];
+        let mut fold_c = vec![DVector::zeros(k); folds];
+        let mut cell: Vec<(DMatrix<f64>, DVector<f64>, f64)> = vec![(DMatrix::zeros(k, k), DVector::zeros(k), 0.0); folds * dof];
+        let (mut rest_g, mut rest_c) = (DMatrix::zeros(k, k), DVector::zeros(k));
+        for b in 0..gr.g.len() {
+            let (block, j) = (b / dof, b % dof);
+            let f = block / BLOCKS_PER_FOLD;
+            if f < folds {
+                let e = &mut cell[f * dof + j];
+                e.0 += &gr.g[b];
+                e.1 += &gr.c[b];
+                e.2 += gr.s[b];
+            } else {
+                rest_g += &gr.g[b];
+                rest_c += &gr.c[b];
+            }
+        }
+        for f in 0..folds {
+            for j in 0..dof {
+                fold_g[f] += &cell[f * dof + j].0;
+                fold_c[f] += &cell[f * dof + j].1;
+            }
+        }
+        let (mut g, mut c) = (rest_g.clone(), rest_c.clone());
+        for f in 0..folds {
+            g += &fold_g[f];
+            c += &fold_c[f];
+        }
+        let s = gr.s.iter().sum();
+        FoldSums { cell, fold_g, fold_c, rest_g, rest_c, g, c, s }
+    }
+}
+
 /// Fits and cross-validates, every fit (all data and each fold) under the terms' physical
 /// constraints (see [`Grams::solve`]); the folds start from the fit on all data.
 pub(crate) fn fit(p: &Problem, gr: &Grams) -> Fit {
-    let folds = p.blocks / BLOCKS_PER_FOLD;
-    // per fold, the sum over its blocks of every joint's cells and of each joint's; the blocks
-    // after the last whole fold are in every training set
-    let (k, dof) = (gr.k, p.dof);
-    let mut fold_g = vec![DMatrix::zeros(k, k); folds];
-    let mut fold_c = vec![DVector::zeros(k); folds];
-    let mut cell: Vec<(DMatrix<f64>, DVector<f64>, f64)> = vec![(DMatrix::zeros(k, k), DVector::zeros(k), 0.0); folds * dof];
-    let (mut rest_g, mut rest_c) = (DMatrix::zeros(k, k), DVector::zeros(k));
-    for b in 0..gr.g.len() {
-        let (block, j) = (b / dof, b % dof);
-        let f = block / BLOCKS_PER_FOLD;
-        if f < folds {
-            let e = &mut cell[f * dof + j];
-            e.0 += &gr.g[b];
-            e.1 += &gr.c[b];
-            e.2 += gr.s[b];
-        } else {
-            rest_g += &gr.g[b];
-            rest_c += &gr.c[b];
+    match cross_validate_unless(p, gr, f64::INFINITY) {
+        Ok(f) | Err(f) => f,
+    }
+}
+
+/// A set [`fit_unless`] did not cross-validate, with what is known of its residual.
+#[derive(Clone, Debug)]
+pub(crate) enum Rejected {
+    /// Its fit on all the data: `cv_mse` is the in-sample mean squared residual, a lower bound of
+    /// the cross-validated one, and `cv_joint` is empty.
+    Fitted(Fit),
+    /// A lower bound of its in-sample mean squared residual: the least-squares minimum without
+    /// the physical constraints, bounds and prior (see [`least_squares_floor`]); not even the
+    /// constrained fit on all the data was made.
+    Floor(f64),
+}
+
+/// A lower bound of the mean squared residual any parameters of the set leave on all the data:
+/// the unconstrained least-squares minimum `s − cᵀ G⁻¹ c` (over the number of rows), less a
+/// relative 1e-9 for the ridge of 1e-12 of the mean diagonal that keeps `G` invertible where a
+/// column is zero. The constrained and regularised fit leaves at least this much, and the
+/// cross-validated residual at least that: a set whose floor is above what a step needs is
+/// rejected by one Cholesky factorisation instead of the iterative solve of an inertial
+/// correction.
+pub(crate) fn least_squares_floor(p: &Problem, gr: &Grams) -> f64 {
+    let (mut g, c, s) = sum_blocks(gr, |_, _| true);
+    let k = gr.k;
+    if k == 0 {
+        return s.max(0.0) / p.rows();
+    }
+    let ridge = 1e-12 * (0..k).map(|i| g[(i, i)].abs()).sum::<f64>() / k as f64;
+    let g0 = g.clone();
+    for i in 0..k {
+        g[(i, i)] += ridge.max(f64::MIN_POSITIVE);
+    }
+    let Some(ch) = g.cholesky() else { return 0.0 };
+    let theta = ch.solve(&c);
+    let floor = sse(&g0, &c, s, &theta) * (1.0 - 1e-9) / p.rows();
+    if floor.is_finite() {
+        floor
+    } else {
+        0.0
+    }
+}
+
+pub(crate) fn fit_unless(p: &Problem, gr: &Grams, reject_at: f64) -> Result<Fit, Rejected> {
+    // an inertial correction's iterative solve is spared where the floor already rejects
+    if gr.inertial.is_some() && reject_at.is_finite() {
+        let floor = least_squares_floor(p, gr);
+        if floor >= reject_at {
+            return Err(Rejected::Floor(floor));
         }
     }
-    for f in 0..folds {
-        for j in 0..dof {
-            fold_g[f] += &cell[f * dof + j].0;
-            fold_c[f] += &cell[f * dof + j].1;
-        }
+    cross_validate_unless(p, gr, reject_at).map_err(Rejected::Fitted)
+}
+
+/// [`fit_unless`] without the floor: the fit on all the data (as `Err`) when its in-sample
+/// residual is at least `reject_at` (never for an infinite `reject_at`).
+fn cross_validate_unless(p: &Problem, gr: &Grams, reject_at: f64) -> Result<Fit, Fit> {
+    let sums = FoldSums::new(p, gr);
+    let FoldSums { cell, fold_g, fold_c, rest_g, rest_c, g, c, s } = &sums;
+    let (folds, dof) = (fold_g.len(), p.dof);
+    let (theta, start) = gr.solve_from(g, c, None);
+    let in_mse = sse(g, c, *s, &theta) / p.rows();
+    if reject_at < f64::INFINITY && in_mse >= reject_at {
+        return Err(Fit { theta, cv_mse: in_mse, cv_joint: Vec::new() });
     }
-    let (mut g, mut c) = (rest_g.clone(), rest_c.clone());
-    for f in 0..folds {
-        g += &fold_g[f];
-        c += &fold_c[f];
-    }
-    let (theta, start) = gr.solve_from(&g, &c, None);
     let mut cv_joint = vec![0.0; dof];
     for f in 0..folds {
         let (mut gt, mut ct) = (rest_g.clone(), rest_c.clone());
@@ -410,7 +500,7 @@ pub(crate) fn fit(p: &Problem, gr: &Grams) -> Fit {
     }
     let cv_mse = cv_joint.iter().sum::<f64>() / p.rows();
     let cv_joint = cv_joint.iter().map(|v| v / p.samples.max(1) as f64).collect();
-    Fit { theta, cv_mse, cv_joint }
+    Ok(Fit { theta, cv_mse, cv_joint })
 }
 
 /// Block-bootstrap standard deviations of the parameters (`draws` resamples, fixed seed), each

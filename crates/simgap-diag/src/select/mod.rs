@@ -150,6 +150,11 @@ pub(crate) struct Context<'a> {
     /// Fits already made, by the terms fitted in their order (exchange moves, polishing and
     /// pruning fit the same sets again).
     fits: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, Fit>>,
+    /// Sets fitted on all the data only ([`crate::lsq::Rejected`]): their θ and in-sample
+    /// residual.
+    whole_fits: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, Fit>>,
+    /// Least-squares floors of sets rejected by them ([`crate::lsq::Rejected::Floor`]).
+    floors: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, f64>>,
 }
 
 /// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
@@ -194,6 +199,8 @@ impl<'a> Context<'a> {
             cache: Default::default(),
             payload: Default::default(),
             fits: Default::default(),
+            whole_fits: Default::default(),
+            floors: Default::default(),
         };
         if ctx.inertial_basis.ncols() > 0 {
             let w = ctx.choose_prior_weight();
@@ -446,6 +453,84 @@ impl<'a> Context<'a> {
             let refs: Vec<&TermDesign> = designs.iter().collect();
             fit(&self.problem, &grams(&self.problem, &refs))
         })
+    }
+
+    /// [`Context::fit_set`] when its cross-validated residual may be below `reject_at`; `None`
+    /// when it is not (the fit on all the data leaves at least that much in sample, see
+    /// [`crate::lsq::fit_unless`]: the folds are then not fitted).
+    pub(crate) fn fit_set_below(&self, terms: &[Term], designs: &[TermDesign], reject_at: f64) -> Option<Fit> {
+        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
+            return (f.cv_mse < reject_at).then(|| f.clone());
+        }
+        if self.floor_of(&key).is_some_and(|floor| floor >= reject_at) {
+            return None;
+        }
+        let refs: Vec<&TermDesign> = designs.iter().collect();
+        match crate::lsq::fit_unless(&self.problem, &grams(&self.problem, &refs), reject_at) {
+            Ok(f) => {
+                self.fits.lock().expect("fit cache").insert(key, f.clone());
+                (f.cv_mse < reject_at).then_some(f)
+            }
+            Err(crate::lsq::Rejected::Fitted(f)) => {
+                self.whole_fits.lock().expect("fit cache").insert(key, f);
+                None
+            }
+            Err(crate::lsq::Rejected::Floor(floor)) => {
+                self.floors.lock().expect("fit cache").insert(key, floor);
+                None
+            }
+        }
+    }
+
+    /// The largest lower bound known of the cross-validated residual of the set `key`: its
+    /// in-sample residual, or its least-squares floor ([`crate::lsq::least_squares_floor`]).
+    fn floor_of(&self, key: &[crate::vocabulary::TermKey]) -> Option<f64> {
+        let whole = self.whole_fits.lock().expect("fit cache").get(key).map(|f| f.cv_mse);
+        let floor = self.floors.lock().expect("fit cache").get(key).copied();
+        match (whole, floor) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// A lower bound of the cross-validated residual of `terms` (the largest known, else their
+    /// least-squares floor, which is then kept).
+    pub(crate) fn residual_floor(&self, terms: &[Term], designs: &[TermDesign]) -> f64 {
+        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        if let Some(f) = self.floor_of(&key) {
+            return f;
+        }
+        let refs: Vec<&TermDesign> = designs.iter().collect();
+        let floor = crate::lsq::least_squares_floor(&self.problem, &grams(&self.problem, &refs));
+        self.floors.lock().expect("fit cache").insert(key, floor);
+        floor
+    }
+
+    /// The parameters of `terms` fitted on all the data (those of [`Context::fit_set`], without
+    /// its cross-validation when the set was not fitted before).
+    pub(crate) fn theta_of_set(&self, terms: &[Term], designs: &[TermDesign]) -> DVector<f64> {
+        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
+            return f.theta.clone();
+        }
+        if let Some(f) = self.whole_fits.lock().expect("fit cache").get(&key) {
+            return f.theta.clone();
+        }
+        let refs: Vec<&TermDesign> = designs.iter().collect();
+        match crate::lsq::fit_unless(&self.problem, &grams(&self.problem, &refs), f64::NEG_INFINITY) {
+            Ok(f) => {
+                self.fits.lock().expect("fit cache").insert(key, f.clone());
+                f.theta
+            }
+            Err(crate::lsq::Rejected::Fitted(f)) => {
+                let theta = f.theta.clone();
+                self.whole_fits.lock().expect("fit cache").insert(key, f);
+                theta
+            }
+            // (no floor is taken for an infinite rejection level)
+            Err(crate::lsq::Rejected::Floor(_)) => self.fit_set(terms, designs).theta,
+        }
     }
 
     /// [`Context::fit_set`] with the fit made by `fit_of` (called only when the set was not

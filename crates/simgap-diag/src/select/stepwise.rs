@@ -19,6 +19,9 @@ fn grid_penalty(t: &Term) -> f64 {
 /// and the designs after the swap.
 type Swap = (usize, Term, Fit, Vec<TermDesign>);
 
+/// A candidate of a forward step: the term, the set with it, their designs.
+type Candidate = (Term, Vec<Term>, Vec<TermDesign>);
+
 /// One pass of exchange moves; true when a swap was made.
 #[allow(clippy::too_many_arguments)]
 fn exchange_by_residual(
@@ -42,8 +45,7 @@ fn exchange_by_residual(
             rest_terms.remove(i);
             let mut rest = designs_now.to_vec();
             rest.remove(i);
-            let f0 = ctx.fit_set(&rest_terms, &rest);
-            let resid = residual_after(p, &rest, &f0.theta);
+            let resid = residual_after(p, &rest, &ctx.theta_of_set(&rest_terms, &rest));
             // (a family whose slot is taken is not searched: its best member could not join)
             let mut cands: Vec<Term> = fams
                 .iter()
@@ -63,13 +65,21 @@ fn exchange_by_residual(
                 ds.push(ctx.design(&c));
                 let mut all = rest_terms.clone();
                 all.push(c.clone());
-                let f = ctx.fit_set(&all, &ds);
+                // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
+                let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
+                let same_joint_simpler = simpler && c.joint() == terms_now[i].joint();
+                // (a set whose residual on all the data is above what a swap needs is not
+                // cross-validated: its cross-validated residual is at least as large)
+                let reject_at = if same_joint_simpler {
+                    current_now.cv_mse * 1.01 * (1.0 + f64::EPSILON)
+                } else {
+                    (current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain)).min(current_now.cv_mse - opts.min_nominal_gain * nominal.cv_mse)
+                };
+                let Some(f) = ctx.fit_set_below(&all, &ds, reject_at) else { continue };
                 if !admissible(&ds, &all, &f.theta) {
                     continue;
                 }
-                // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
-                let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
-                let ok = if simpler && c.joint() == terms_now[i].joint() {
+                let ok = if same_joint_simpler {
                     // a simpler term on the same joint that keeps that joint's residual within 1 %
                     cv_of(&f, &c) <= cv_of(current_now, &c) * 1.01 && f.cv_mse <= current_now.cv_mse * 1.01
                 } else {
@@ -114,6 +124,43 @@ fn describe(t: &Term) -> String {
     }
 }
 
+/// The candidates of a forward step that can be its choice, each fitted and cross-validated
+/// with the set (`sets`: candidate, set with it, their designs), in candidate order; the
+/// inadmissible left out. The step chooses among those whose gain over `current_cv` is within
+/// a factor (1 − ½ `min_relative_gain`) of the best gain; a candidate whose least-squares floor
+/// (a lower bound of its cross-validated residual, [`Context::residual_floor`]) leaves more
+/// than the best gain allows is not cross-validated. The two most promising by that floor are
+/// cross-validated first; their best gain bounds the rest.
+fn fit_candidates(ctx: &Context<'_>, sets: Vec<Candidate>, current_cv: f64, opts: &SelectOptions) -> Vec<(Term, Fit, Vec<TermDesign>)> {
+    let factor = 1.0 - 0.5 * opts.min_relative_gain;
+    // a lower bound of every set's cross-validated residual
+    let floor: Vec<f64> = sets.par_iter().map(|(_, all, ds)| ctx.residual_floor(all, ds)).collect();
+    let mut order: Vec<usize> = (0..sets.len()).collect();
+    order.sort_by(|&a, &b| floor[a].total_cmp(&floor[b]).then(a.cmp(&b)));
+    let full = |i: usize| -> Option<Fit> {
+        let (_, all, ds) = &sets[i];
+        let f = ctx.fit_set(all, ds);
+        admissible(ds, all, &f.theta).then_some(f)
+    };
+    let first: Vec<(usize, Option<Fit>)> = order.iter().take(2).collect::<Vec<_>>().into_par_iter().map(|&i| (i, full(i))).collect();
+    let best_gain = first.iter().filter_map(|(_, f)| f.as_ref()).map(|f| current_cv - f.cv_mse).fold(f64::NEG_INFINITY, f64::max);
+    // a candidate can be chosen only with a gain of at least `best_gain × factor` (a bound that
+    // holds while the tolerance grows with the best gain: factor > 0)
+    let reject_at = if factor > 0.0 { current_cv - best_gain * factor } else { f64::INFINITY };
+    let rest: Vec<(usize, Option<Fit>)> =
+        order.iter().skip(2).filter(|&&i| floor[i] <= reject_at || !reject_at.is_finite()).collect::<Vec<_>>().into_par_iter().map(|&i| (i, full(i))).collect();
+    let mut fitted: Vec<(usize, Fit)> = first.into_iter().chain(rest).filter_map(|(i, f)| f.map(|f| (i, f))).collect();
+    fitted.sort_by_key(|e| e.0);
+    let mut sets: Vec<Option<Candidate>> = sets.into_iter().map(Some).collect();
+    fitted
+        .into_iter()
+        .map(|(i, f)| {
+            let (c, _, ds) = sets[i].take().expect("each candidate once");
+            (c, f, ds)
+        })
+        .collect()
+}
+
 /// Forward stepwise selection with cross-validation, then backward pruning.
 pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
     let p = &ctx.problem;
@@ -133,17 +180,17 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         }
         // every candidate fitted jointly with the set, in parallel (in candidate order)
         let (terms_now, designs_now) = (&terms, &designs);
-        let evaluated: Vec<(Term, Fit, Vec<TermDesign>)> = cands
-            .into_par_iter()
-            .filter_map(|c| {
+        let sets: Vec<Candidate> = cands
+            .into_iter()
+            .map(|c| {
                 let mut ds = designs_now.clone();
                 ds.push(ctx.design(&c));
                 let mut all = terms_now.clone();
                 all.push(c.clone());
-                let f = ctx.fit_set(&all, &ds);
-                admissible(&ds, &all, &f.theta).then_some((c, f, ds))
+                (c, all, ds)
             })
             .collect();
+        let evaluated = fit_candidates(ctx, sets, current.cv_mse, opts);
         // the best candidate by the whole-robot gain, then parsimony: the fewest parameters
         // among candidates whose gain is within a tolerance of the best
         let rel = |e: &(Term, Fit, Vec<TermDesign>)| current.cv_mse - e.1.cv_mse;
@@ -202,7 +249,9 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
             ds.remove(i);
             let mut rest = terms.clone();
             rest.remove(i);
-            let f = ctx.fit_set(&rest, &ds);
+            // (a set whose residual on all the data already costs more is not cross-validated)
+            let reject_at = if opts.min_relative_gain < 1.0 { current.cv_mse / (1.0 - opts.min_relative_gain) } else { f64::INFINITY };
+            let Some(f) = ctx.fit_set_below(&rest, &ds, reject_at) else { continue };
             if !admissible(&ds, &rest, &f.theta) {
                 continue;
             }
@@ -260,14 +309,13 @@ fn polish(ctx: &Context<'_>, terms: &mut [Term], designs: &mut [TermDesign], cur
             rest.remove(i);
             let mut rest_terms = terms.to_vec();
             rest_terms.remove(i);
-            let f0 = ctx.fit_set(&rest_terms, &rest);
-            let resid = residual_after(p, &rest, &f0.theta);
+            let resid = residual_after(p, &rest, &ctx.theta_of_set(&rest_terms, &rest));
             let cand = ctx.best_of_with(&family, &resid, &rest);
             let mut ds = designs.to_vec();
             ds[i] = ctx.design(&cand);
             let mut all = terms.to_vec();
             all[i] = cand.clone();
-            let f = ctx.fit_set(&all, &ds);
+            let Some(f) = ctx.fit_set_below(&all, &ds, current.cv_mse) else { continue };
             if f.cv_mse < current.cv_mse && admissible(&ds, &all, &f.theta) {
                 terms[i] = cand;
                 designs[i] = ds.swap_remove(i);

@@ -10,6 +10,7 @@ mod lowpass;
 mod physical;
 mod pitfalls;
 mod rebuild;
+mod residual_floor;
 mod servo;
 mod shooting;
 mod spring;
