@@ -7,6 +7,7 @@ pub(crate) mod inertial;
 
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
 
 use crate::lsq::design::{Column, TermDesign};
 use crate::lsq::inertial::InertialPrior;
@@ -522,19 +523,26 @@ pub(crate) fn bootstrap_std(gr: &Grams, draws: usize, seed: u64) -> DVector<f64>
             (g, c)
         })
         .collect();
-    // every draw starts from the fit on all the data
+    // every draw starts from the fit on all the data; the draws' blocks are drawn in turn from
+    // the one generator, the draws fitted in parallel (an inertial correction's solve is
+    // iterative) and summed in their order
     let start = whole_fit_start(gr);
-    for _ in 0..draws {
-        let mut g = DMatrix::zeros(gr.k, gr.k);
-        let mut c = DVector::zeros(gr.k);
-        for _ in 0..nb {
-            let b = rng.random_range(0..nb);
-            g += &blocks[b].0;
-            c += &blocks[b].1;
-        }
-        let (th, _) = gr.solve_from(&g, &c, start.as_ref());
-        sum += &th;
-        sum2 += th.component_mul(&th);
+    let picks: Vec<Vec<usize>> = (0..draws).map(|_| (0..nb).map(|_| rng.random_range(0..nb)).collect()).collect();
+    let thetas: Vec<DVector<f64>> = picks
+        .par_iter()
+        .map(|pick| {
+            let mut g = DMatrix::zeros(gr.k, gr.k);
+            let mut c = DVector::zeros(gr.k);
+            for &b in pick {
+                g += &blocks[b].0;
+                c += &blocks[b].1;
+            }
+            gr.solve_from(&g, &c, start.as_ref()).0
+        })
+        .collect();
+    for th in &thetas {
+        sum += th;
+        sum2 += th.component_mul(th);
     }
     let n = draws as f64;
     (sum2 / n - (&sum / n).component_mul(&(&sum / n))).map(|v| v.max(0.0).sqrt())

@@ -325,12 +325,41 @@ fn delayed_command(stepper: &mut Stepper<'_>, run: &Run, k0: usize, zeros: &[f64
     stepper.restart(k0, previous, |i| if run.tau.is_empty() { zeros } else { &run.tau[i * n..(i + 1) * n] });
 }
 
+/// [`predict`] of every window of `pr`; a replayed run's windows in contiguous groups in
+/// parallel (a held-out run is often the only one). Each window restarts from the log (state,
+/// delay line) and a replay has no controller or sensor whose state runs on from one window to
+/// the next, so the groups predict what one pass does; a run with a feedback controller is
+/// predicted in one pass.
+pub(crate) fn predict_split(model: &Model, formulation: Formulation, effects: &[Effect], pr: &PredictionRun, horizons: &[f64]) -> Result<Errors> {
+    let feedback = pr.run.experiment.as_ref().is_some_and(|e| e.controller != ControllerKind::Replay);
+    let groups = 2 * rayon::current_num_threads();
+    let windows = pr.windows();
+    if feedback || groups < 2 || windows < 2 * groups {
+        return predict(model, formulation, effects, pr, horizons, &|_| true);
+    }
+    let size = windows.div_ceil(groups);
+    let parts: Vec<(usize, Errors)> = (0..windows.div_ceil(size))
+        .into_par_iter()
+        .map(|g| {
+            let range = g * size..((g + 1) * size).min(windows);
+            predict(model, formulation, effects, pr, horizons, &|w| range.contains(&w)).map(|e| (g, e))
+        })
+        .collect::<Result<_>>()?;
+    let mut out = Errors::new(windows, horizons.len(), model.dof());
+    let row = horizons.len() * model.dof();
+    for (g, e) in parts {
+        let cells = g * size * row..((g + 1) * size).min(windows) * row;
+        out.sq[cells.clone()].copy_from_slice(&e.sq[cells]);
+    }
+    Ok(out)
+}
+
 /// Predicts every window of every run with one set of effects; returns the pooled errors.
 ///
 /// # Errors
 /// As [`predict`].
 pub(crate) fn predict_all(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[PredictionRun], horizons: &[f64]) -> Result<(Errors, Vec<Errors>)> {
-    let per: Vec<Errors> = runs.par_iter().map(|pr| predict(model, formulation, effects, pr, horizons, &|_| true)).collect::<Result<_>>()?;
+    let per: Vec<Errors> = runs.par_iter().map(|pr| predict_split(model, formulation, effects, pr, horizons)).collect::<Result<_>>()?;
     let mut all = Errors { horizons: horizons.len(), dof: model.dof(), sq: Vec::new() };
     for e in &per {
         all.append(e);

@@ -5,6 +5,7 @@ mod delay_line;
 mod friction_filter;
 mod gram_cache;
 mod intervals;
+mod kstep_groups;
 mod link_side;
 mod lowpass;
 mod physical;
