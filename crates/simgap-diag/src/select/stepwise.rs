@@ -48,7 +48,7 @@ fn exchange_by_residual(
             let resid = residual_after(p, &rest, &ctx.theta_of_set(&rest_terms, &rest));
             // (a family whose slot is taken is not searched: its best member could not join)
             let mut cands: Vec<Term> = fams
-                .iter()
+                .par_iter()
                 .filter(|f| !slot_taken(&rest_terms, &f.member()))
                 .map(|f| ctx.best_of_with(f, &resid, &rest))
                 .filter(|t| !slot_taken(&rest_terms, t) && *t != terms_now[i])
@@ -59,38 +59,38 @@ fn exchange_by_residual(
                     cands.push(t);
                 }
             }
-            let mut ok_swaps = Vec::new();
-            for c in cands {
-                let mut ds = rest.clone();
-                ds.push(ctx.design(&c));
-                let mut all = rest_terms.clone();
-                all.push(c.clone());
-                // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
-                let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
-                let same_joint_simpler = simpler && c.joint() == terms_now[i].joint();
-                // (a set whose residual on all the data is above what a swap needs is not
-                // cross-validated: its cross-validated residual is at least as large)
-                let reject_at = if same_joint_simpler {
-                    current_now.cv_mse * 1.01 * (1.0 + f64::EPSILON)
-                } else {
-                    (current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain)).min(current_now.cv_mse - opts.min_nominal_gain * nominal.cv_mse)
-                };
-                let Some(f) = ctx.fit_set_below(&all, &ds, reject_at) else { continue };
-                if !admissible(&ds, &all, &f.theta) {
-                    continue;
-                }
-                let ok = if same_joint_simpler {
-                    // a simpler term on the same joint that keeps that joint's residual within 1 %
-                    cv_of(&f, &c) <= cv_of(current_now, &c) * 1.01 && f.cv_mse <= current_now.cv_mse * 1.01
-                } else {
-                    // a swap to a term as complex or more must gain visibly, also against the nominal
-                    f.cv_mse < current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current_now.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
-                };
-                if ok {
-                    ok_swaps.push((i, c, f, ds));
-                }
-            }
-            ok_swaps
+            // (the candidates in parallel, their acceptable swaps in candidate order)
+            cands
+                .into_par_iter()
+                .filter_map(|c| {
+                    let mut ds = rest.clone();
+                    ds.push(ctx.design(&c));
+                    let mut all = rest_terms.clone();
+                    all.push(c.clone());
+                    // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
+                    let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
+                    let same_joint_simpler = simpler && c.joint() == terms_now[i].joint();
+                    // (a set whose residual on all the data is above what a swap needs is not
+                    // cross-validated: its cross-validated residual is at least as large)
+                    let reject_at = if same_joint_simpler {
+                        current_now.cv_mse * 1.01 * (1.0 + f64::EPSILON)
+                    } else {
+                        (current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain)).min(current_now.cv_mse - opts.min_nominal_gain * nominal.cv_mse)
+                    };
+                    let f = ctx.fit_set_below(&all, &ds, reject_at)?;
+                    if !admissible(&ds, &all, &f.theta) {
+                        return None;
+                    }
+                    let ok = if same_joint_simpler {
+                        // a simpler term on the same joint that keeps that joint's residual within 1 %
+                        cv_of(&f, &c) <= cv_of(current_now, &c) * 1.01 && f.cv_mse <= current_now.cv_mse * 1.01
+                    } else {
+                        // a swap to a term as complex or more must gain visibly, also against the nominal
+                        f.cv_mse < current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current_now.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
+                    };
+                    ok.then_some((i, c, f, ds))
+                })
+                .collect::<Vec<Swap>>()
         })
         .collect();
     let mut best: Option<Swap> = None;
@@ -174,7 +174,7 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         let resid = residual_after(p, &designs, &current.theta);
         // best member of every family, then the inertial error, evaluated jointly with the set
         let mut cands: Vec<Term> =
-            fams.iter().filter(|f| !slot_taken(&terms, &f.member())).map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
+            fams.par_iter().filter(|f| !slot_taken(&terms, &f.member())).map(|f| ctx.best_of_with(f, &resid, &designs)).filter(|t| !slot_taken(&terms, t)).collect();
         if ctx.inertial_basis.ncols() > 0 && !terms.iter().any(|t| t.slot().0 == Slot::Inertia) {
             cands.push(ctx.inertial_term());
         }
