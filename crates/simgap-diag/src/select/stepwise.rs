@@ -22,6 +22,15 @@ type Swap = (usize, Term, Fit, Vec<TermDesign>);
 /// A candidate of a forward step: the term, the set with it, their designs.
 type Candidate = (Term, Vec<Term>, Vec<TermDesign>);
 
+/// The set `terms` with the candidate `c` after them, and their designs.
+fn with_candidate(ctx: &Context<'_>, terms: &[Term], designs: &[TermDesign], c: &Term) -> (Vec<Term>, Vec<TermDesign>) {
+    let mut all = terms.to_vec();
+    all.push(c.clone());
+    let mut ds = designs.to_vec();
+    ds.push(ctx.design(c));
+    (all, ds)
+}
+
 /// One pass of exchange moves; true when a swap was made.
 #[allow(clippy::too_many_arguments)]
 fn exchange_by_residual(
@@ -63,10 +72,7 @@ fn exchange_by_residual(
             cands
                 .into_par_iter()
                 .filter_map(|c| {
-                    let mut ds = rest.clone();
-                    ds.push(ctx.design(&c));
-                    let mut all = rest_terms.clone();
-                    all.push(c.clone());
+                    let (all, ds) = with_candidate(ctx, &rest_terms, &rest, &c);
                     // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
                     let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
                     let same_joint_simpler = simpler && c.joint() == terms_now[i].joint();
@@ -183,10 +189,7 @@ pub(crate) fn select(ctx: &Context<'_>, opts: &SelectOptions) -> Selection {
         let sets: Vec<Candidate> = cands
             .into_iter()
             .map(|c| {
-                let mut ds = designs_now.clone();
-                ds.push(ctx.design(&c));
-                let mut all = terms_now.clone();
-                all.push(c.clone());
+                let (all, ds) = with_candidate(ctx, terms_now, designs_now, &c);
                 (c, all, ds)
             })
             .collect();
