@@ -334,7 +334,7 @@ pub(crate) fn predict_split(model: &Model, formulation: Formulation, effects: &[
     let feedback = pr.run.experiment.as_ref().is_some_and(|e| e.controller != ControllerKind::Replay);
     let groups = 2 * rayon::current_num_threads();
     let windows = pr.windows();
-    if feedback || groups < 2 || windows < 2 * groups {
+    if feedback || windows < 2 * groups {
         return predict(model, formulation, effects, pr, horizons, &|_| true);
     }
     let size = windows.div_ceil(groups);

@@ -150,11 +150,22 @@ pub(crate) struct Context<'a> {
     /// Fits already made, by the terms fitted in their order (exchange moves, polishing and
     /// pruning fit the same sets again).
     fits: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, Fit>>,
-    /// Sets fitted on all the data only ([`crate::lsq::Rejected`]): their θ and in-sample
-    /// residual.
-    whole_fits: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, Fit>>,
-    /// Least-squares floors of sets rejected by them ([`crate::lsq::Rejected::Floor`]).
-    floors: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, f64>>,
+    /// What is known of sets not cross-validated ([`crate::lsq::Rejected`]).
+    bounds: std::sync::Mutex<std::collections::HashMap<Vec<crate::vocabulary::TermKey>, Bound>>,
+}
+
+/// What is known of a set that was not cross-validated: a lower bound of its cross-validated
+/// residual (its least-squares floor, or its in-sample residual once fitted on all the data),
+/// and its parameters fitted on all the data when they were.
+#[derive(Clone, Debug, Default)]
+struct Bound {
+    floor: f64,
+    theta: Option<DVector<f64>>,
+}
+
+/// The key of a set of terms in the context's caches (the terms in their order).
+fn set_key(terms: &[Term]) -> Vec<crate::vocabulary::TermKey> {
+    terms.iter().map(Term::key).collect()
 }
 
 /// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
@@ -199,8 +210,7 @@ impl<'a> Context<'a> {
             cache: Default::default(),
             payload: Default::default(),
             fits: Default::default(),
-            whole_fits: Default::default(),
-            floors: Default::default(),
+            bounds: Default::default(),
         };
         if ctx.inertial_basis.ncols() > 0 {
             let w = ctx.choose_prior_weight();
@@ -456,87 +466,71 @@ impl<'a> Context<'a> {
     }
 
     /// [`Context::fit_set`] when its cross-validated residual may be below `reject_at`; `None`
-    /// when it is not (the fit on all the data leaves at least that much in sample, see
-    /// [`crate::lsq::fit_unless`]: the folds are then not fitted).
+    /// when it is not (see [`crate::lsq::fit_unless`]: the folds are then not fitted).
     pub(crate) fn fit_set_below(&self, terms: &[Term], designs: &[TermDesign], reject_at: f64) -> Option<Fit> {
-        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        let key = set_key(terms);
         if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
             return (f.cv_mse < reject_at).then(|| f.clone());
         }
-        if self.floor_of(&key).is_some_and(|floor| floor >= reject_at) {
+        if self.bounds.lock().expect("fit cache").get(&key).is_some_and(|b| b.floor >= reject_at) {
             return None;
         }
         let refs: Vec<&TermDesign> = designs.iter().collect();
-        match crate::lsq::fit_unless(&self.problem, &grams(&self.problem, &refs), reject_at) {
+        let rejected = match crate::lsq::fit_unless(&self.problem, &grams(&self.problem, &refs), reject_at) {
             Ok(f) => {
                 self.fits.lock().expect("fit cache").insert(key, f.clone());
-                (f.cv_mse < reject_at).then_some(f)
+                return (f.cv_mse < reject_at).then_some(f);
             }
-            Err(crate::lsq::Rejected::Fitted(f)) => {
-                self.whole_fits.lock().expect("fit cache").insert(key, f);
-                None
-            }
-            Err(crate::lsq::Rejected::Floor(floor)) => {
-                self.floors.lock().expect("fit cache").insert(key, floor);
-                None
-            }
-        }
+            Err(crate::lsq::Rejected::Fitted(f)) => Bound { floor: f.cv_mse, theta: Some(f.theta) },
+            Err(crate::lsq::Rejected::Floor(floor)) => Bound { floor, theta: None },
+        };
+        self.learn(key, rejected);
+        None
     }
 
-    /// The largest lower bound known of the cross-validated residual of the set `key`: its
-    /// in-sample residual, or its least-squares floor ([`crate::lsq::least_squares_floor`]).
-    fn floor_of(&self, key: &[crate::vocabulary::TermKey]) -> Option<f64> {
-        let whole = self.whole_fits.lock().expect("fit cache").get(key).map(|f| f.cv_mse);
-        let floor = self.floors.lock().expect("fit cache").get(key).copied();
-        match (whole, floor) {
-            (Some(a), Some(b)) => Some(a.max(b)),
-            (a, b) => a.or(b),
+    /// Keeps what was learnt of a set not cross-validated (the larger floor, any parameters).
+    fn learn(&self, key: Vec<crate::vocabulary::TermKey>, bound: Bound) {
+        let mut bounds = self.bounds.lock().expect("fit cache");
+        let b = bounds.entry(key).or_default();
+        b.floor = b.floor.max(bound.floor);
+        if bound.theta.is_some() {
+            b.theta = bound.theta;
         }
     }
 
     /// A lower bound of the cross-validated residual of `terms` (the largest known, else their
     /// least-squares floor, which is then kept).
     pub(crate) fn residual_floor(&self, terms: &[Term], designs: &[TermDesign]) -> f64 {
-        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
-        if let Some(f) = self.floor_of(&key) {
-            return f;
+        let key = set_key(terms);
+        if let Some(b) = self.bounds.lock().expect("fit cache").get(&key) {
+            return b.floor;
         }
         let refs: Vec<&TermDesign> = designs.iter().collect();
         let floor = crate::lsq::least_squares_floor(&self.problem, &grams(&self.problem, &refs));
-        self.floors.lock().expect("fit cache").insert(key, floor);
+        self.learn(key, Bound { floor, theta: None });
         floor
     }
 
     /// The parameters of `terms` fitted on all the data (those of [`Context::fit_set`], without
     /// its cross-validation when the set was not fitted before).
     pub(crate) fn theta_of_set(&self, terms: &[Term], designs: &[TermDesign]) -> DVector<f64> {
-        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        let key = set_key(terms);
         if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
             return f.theta.clone();
         }
-        if let Some(f) = self.whole_fits.lock().expect("fit cache").get(&key) {
-            return f.theta.clone();
+        if let Some(theta) = self.bounds.lock().expect("fit cache").get(&key).and_then(|b| b.theta.clone()) {
+            return theta;
         }
         let refs: Vec<&TermDesign> = designs.iter().collect();
-        match crate::lsq::fit_unless(&self.problem, &grams(&self.problem, &refs), f64::NEG_INFINITY) {
-            Ok(f) => {
-                self.fits.lock().expect("fit cache").insert(key, f.clone());
-                f.theta
-            }
-            Err(crate::lsq::Rejected::Fitted(f)) => {
-                let theta = f.theta.clone();
-                self.whole_fits.lock().expect("fit cache").insert(key, f);
-                theta
-            }
-            // (no floor is taken for an infinite rejection level)
-            Err(crate::lsq::Rejected::Floor(_)) => self.fit_set(terms, designs).theta,
-        }
+        let f = crate::lsq::fit_whole(&self.problem, &grams(&self.problem, &refs));
+        self.learn(key, Bound { floor: f.cv_mse, theta: Some(f.theta.clone()) });
+        f.theta
     }
 
     /// [`Context::fit_set`] with the fit made by `fit_of` (called only when the set was not
     /// fitted before: a caller that needs the set's Grams anyway builds them once).
     pub(crate) fn fit_set_with(&self, terms: &[Term], fit_of: impl FnOnce() -> Fit) -> Fit {
-        let key: Vec<crate::vocabulary::TermKey> = terms.iter().map(Term::key).collect();
+        let key = set_key(terms);
         if let Some(f) = self.fits.lock().expect("fit cache").get(&key) {
             return f.clone();
         }

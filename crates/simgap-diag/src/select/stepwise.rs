@@ -76,24 +76,21 @@ fn exchange_by_residual(
                     // a swap must lower the residual, or keep it (within 1 %) with fewer parameters
                     let simpler = n_params(&c, ds.last().unwrap()) < n_params(&terms_now[i], &designs_now[i]);
                     let same_joint_simpler = simpler && c.joint() == terms_now[i].joint();
-                    // (a set whose residual on all the data is above what a swap needs is not
-                    // cross-validated: its cross-validated residual is at least as large)
+                    // the residual a swap needs: within 1 % for a simpler term on the same joint;
+                    // a visible gain, also against the nominal, for a term as complex or more (a
+                    // set whose residual is known to be above it is not cross-validated)
                     let reject_at = if same_joint_simpler {
                         current_now.cv_mse * 1.01 * (1.0 + f64::EPSILON)
                     } else {
                         (current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain)).min(current_now.cv_mse - opts.min_nominal_gain * nominal.cv_mse)
                     };
+                    // (a swap to a term as complex or more passes with its residual below that level)
                     let f = ctx.fit_set_below(&all, &ds, reject_at)?;
                     if !admissible(&ds, &all, &f.theta) {
                         return None;
                     }
-                    let ok = if same_joint_simpler {
-                        // a simpler term on the same joint that keeps that joint's residual within 1 %
-                        cv_of(&f, &c) <= cv_of(current_now, &c) * 1.01 && f.cv_mse <= current_now.cv_mse * 1.01
-                    } else {
-                        // a swap to a term as complex or more must gain visibly, also against the nominal
-                        f.cv_mse < current_now.cv_mse * (1.0 - 0.5 * opts.min_relative_gain) && current_now.cv_mse - f.cv_mse > opts.min_nominal_gain * nominal.cv_mse
-                    };
+                    // a simpler term on the same joint must keep that joint's residual within 1 %
+                    let ok = !same_joint_simpler || (cv_of(&f, &c) <= cv_of(current_now, &c) * 1.01 && f.cv_mse <= current_now.cv_mse * 1.01);
                     ok.then_some((i, c, f, ds))
                 })
                 .collect::<Vec<Swap>>()
@@ -143,28 +140,25 @@ fn fit_candidates(ctx: &Context<'_>, sets: Vec<Candidate>, current_cv: f64, opts
     let floor: Vec<f64> = sets.par_iter().map(|(_, all, ds)| ctx.residual_floor(all, ds)).collect();
     let mut order: Vec<usize> = (0..sets.len()).collect();
     order.sort_by(|&a, &b| floor[a].total_cmp(&floor[b]).then(a.cmp(&b)));
-    let full = |i: usize| -> Option<Fit> {
+    let full = |&i: &usize| -> (usize, Option<Fit>) {
         let (_, all, ds) = &sets[i];
         let f = ctx.fit_set(all, ds);
-        admissible(ds, all, &f.theta).then_some(f)
+        (i, admissible(ds, all, &f.theta).then_some(f))
     };
-    let first: Vec<(usize, Option<Fit>)> = order.iter().take(2).collect::<Vec<_>>().into_par_iter().map(|&i| (i, full(i))).collect();
-    let best_gain = first.iter().filter_map(|(_, f)| f.as_ref()).map(|f| current_cv - f.cv_mse).fold(f64::NEG_INFINITY, f64::max);
+    let (first, others) = order.split_at(order.len().min(2));
+    let mut fits: Vec<Option<Fit>> = vec![None; sets.len()];
+    for (i, f) in first.par_iter().map(full).collect::<Vec<_>>() {
+        fits[i] = f;
+    }
+    let best_gain = fits.iter().flatten().map(|f| current_cv - f.cv_mse).fold(f64::NEG_INFINITY, f64::max);
     // a candidate can be chosen only with a gain of at least `best_gain × factor` (a bound that
     // holds while the tolerance grows with the best gain: factor > 0)
     let reject_at = if factor > 0.0 { current_cv - best_gain * factor } else { f64::INFINITY };
-    let rest: Vec<(usize, Option<Fit>)> =
-        order.iter().skip(2).filter(|&&i| floor[i] <= reject_at || !reject_at.is_finite()).collect::<Vec<_>>().into_par_iter().map(|&i| (i, full(i))).collect();
-    let mut fitted: Vec<(usize, Fit)> = first.into_iter().chain(rest).filter_map(|(i, f)| f.map(|f| (i, f))).collect();
-    fitted.sort_by_key(|e| e.0);
-    let mut sets: Vec<Option<Candidate>> = sets.into_iter().map(Some).collect();
-    fitted
-        .into_iter()
-        .map(|(i, f)| {
-            let (c, _, ds) = sets[i].take().expect("each candidate once");
-            (c, f, ds)
-        })
-        .collect()
+    let in_play: Vec<usize> = others.iter().copied().filter(|&i| floor[i] <= reject_at || !reject_at.is_finite()).collect();
+    for (i, f) in in_play.par_iter().map(full).collect::<Vec<_>>() {
+        fits[i] = f;
+    }
+    sets.into_iter().zip(fits).filter_map(|((c, _, ds), f)| f.map(|f| (c, f, ds))).collect()
 }
 
 /// Forward stepwise selection with cross-validation, then backward pruning.
