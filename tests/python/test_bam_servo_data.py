@@ -217,6 +217,9 @@ def test_held_out_drops_are_predicted_better_than_by_every_published_bam_model(d
         text=True,
     )
     assert p.returncode == 0, p.stdout + p.stderr
+    # the per-log whole-run table names every held-out drop with its firmware gain
+    per_log = (out / "tables.md").read_text().split("Whole-run MAE per held-out log")[1].split("| held-out trajectory | selected effects")[0]
+    assert sum(1 for line in per_log.splitlines() if line.startswith("| lift_and_drop |")) == 3, per_log
     fold = out / "fold-lift_and_drop"
     pred = json.loads((fold / "predict.json").read_text())
     bam = json.loads((fold / "bam.json").read_text())["pooled"]["models"]
