@@ -71,8 +71,10 @@ fn on(n: usize, joint: usize, neutral: f64, value: f64) -> Vec<f64> {
 ///   torque, `fc + mu |τ|`, mu 0.1–0.3;
 /// - `link_side`: the 7-DOF arm whose torques are measured on the link side at 200 Hz: sensor
 ///   offsets on two to four joints, viscous friction on every joint, a cable spring on a wrist
-///   joint in two draws of three, signals zero-phase filtered at 6–10 Hz, two repeats of one
-///   trajectory fitted and a faster run held out (no rotor inertia is there to find);
+///   joint in two draws of three (an offset on the spring's joint is part of its rest position:
+///   [`truth_set`](crate::selfcheck::truth_set)), signals zero-phase filtered at 6–10 Hz, two
+///   repeats of one trajectory fitted and a faster run held out (no rotor inertia is there to
+///   find);
 /// - `filtered`: a one-effect scenario of the paper's arm, a pendulum or the double pendulum,
 ///   its signals zero-phase filtered at 4–8 Hz by the recorder.
 ///

@@ -29,3 +29,27 @@ fn a_hidden_joint_spring_is_found_with_its_stiffness_and_rest_position() {
     assert_eq!(e.units["q0"], "rad");
     assert!(d.report.gap.kstep.after.iter().zip(&d.report.gap.kstep.before).all(|(a, b)| a < &(0.5 * b)), "{:?}", d.report.gap.kstep);
 }
+
+#[test]
+fn a_torque_offset_on_a_sprung_joint_is_the_springs_rest_position() {
+    // −k (q − q0) + o = −k (q − (q0 + o/k)): the same torque at every state, so no data tell an
+    // offset on the spring's joint from the spring's rest position
+    let (k, q0, o) = (2.0, 0.3, 0.5);
+    let with_offset = [Effect::JointSpring { k: vec![0.0, k], q0: vec![0.0, q0] }, Effect::TorqueOffset { offset: vec![0.7, o] }];
+    let folded = [Effect::JointSpring { k: vec![0.0, k], q0: vec![0.0, q0 + o / k] }, Effect::TorqueOffset { offset: vec![0.7, 0.0] }];
+    let total = |effects: &[Effect], q: &[f64], qd: &[f64], tau: &[f64]| {
+        let (mut passive, mut applied) = ([0.0; 2], [0.0; 2]);
+        simgap_sim::friction_torque(effects, q, qd, &mut passive);
+        simgap_sim::applied_torque(effects, tau, &mut applied);
+        [passive[0] + applied[0], passive[1] + applied[1]]
+    };
+    for (q, qd, tau) in [([0.2, -0.4], [0.1, 0.3], [1.0, 2.0]), ([-1.0, 1.3], [-0.5, 0.0], [0.0, -3.0])] {
+        let (a, b) = (total(&with_offset, &q, &qd, &tau), total(&folded, &q, &qd, &tau));
+        assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12, "{a:?} against {b:?}");
+    }
+    // the self-check's truth: the spring, and the offset only where no spring is
+    let model = Model::paper_arm();
+    let truth = crate::check::selfcheck::truth_set(&model, &with_offset);
+    let pairs: Vec<(&str, Option<&str>)> = truth.iter().map(|(e, j)| (e.as_str(), j.as_deref())).collect();
+    assert_eq!(pairs, [("joint_spring", Some("elbow")), ("torque_offset", Some("shoulder"))]);
+}

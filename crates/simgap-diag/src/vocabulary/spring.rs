@@ -62,5 +62,6 @@ pub(super) fn report(th: &[f64], sd: &[f64], entry: &mut Entry<'_>) {
 pub(super) fn describe(e: &EffectReport) -> String {
     let (uk, uq) = (unit_of(e, "k"), unit_of(e, "q0"));
     let parts: Vec<String> = reported(e, "k").iter().zip(reported(e, "q0")).map(|((j, k), (_, q0))| format!("k = {} {uk} about q0 = {} {uq} on {j}", sig3(*k), sig3(q0))).collect();
-    format!("joint spring {}", parts.join(", "))
+    // −k (q − q0) + o is a spring about q0 + o/k: an offset on its joint is in its rest position
+    format!("joint spring {} (a constant torque on its joint, such as a sensor offset, is part of its rest position)", parts.join(", "))
 }
