@@ -139,6 +139,27 @@ fn diagnose_on_the_demo_files_reproduces_the_demo() {
     assert!(left.is_empty(), "{left:?}");
 }
 
+#[test]
+fn link_side_torque_tries_no_rotor_inertia_and_says_so() {
+    // the demo's logs, told that their effort was measured on the link side of the gearbox
+    let (dir, _, _) = demo();
+    let json = scratch("link-side").join("r.json");
+    #[rustfmt::skip]
+    let o = simgap(&[
+        "diagnose", "--urdf", s(&dir.join("paper_arm.urdf")), "--log", s(&dir.join("fit-step.mcap")),
+        "--log", s(&dir.join("fit-excitation.mcap")), "--holdout", s(&dir.join("holdout-excitation.mcap")),
+        "--json", s(&json), "--link-side-torque",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for key in ["selected_effects", "candidates"] {
+        let effects: Vec<&str> = r[key].as_array().unwrap().iter().map(|e| e["effect"].as_str().unwrap()).collect();
+        assert!(!effects.contains(&"armature") && !effects.contains(&"back_emf"), "{key}: {effects:?}");
+    }
+    let notes: Vec<&str> = r["notes"].as_array().unwrap().iter().filter_map(|n| n.as_str()).collect();
+    assert!(notes.iter().any(|n| n.contains("link side of the gearbox")), "{notes:?}");
+}
+
 fn simulate_pendulum(path: &Path, target: &str, duration: &str) {
     let o = simgap(&["simulate", "--urdf", PENDULUM, "--kp", "20", "--kv", "2", "--target", target, "--duration", duration, "--out", s(path)]);
     assert!(o.status.success(), "{}", text(&o));

@@ -55,6 +55,7 @@ def diagnose(
     progress: bool | ProgressCallback | None = None,
     urdf: str | PathLike[str] | None = None,
     directional_friction: bool = False,
+    link_side_torque: bool = False,
 ) -> _simgap.Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks on
@@ -79,6 +80,10 @@ def diagnose(
     (levels and slopes per direction) in place of each joint's Coulomb and viscous friction,
     for ball screws and worn gearboxes (the CLI's ``--directional-friction``; off by default).
 
+    ``link_side_torque``: the logged effort is measured on the link side of the gearbox
+    (joint-torque sensors, as on torque-sensing arms), so no rotor inertia or back-EMF is tried:
+    both act before such a sensor (the CLI's ``--link-side-torque``; off by default).
+
     Returns a :class:`Report`, which a notebook displays as the HTML report. Ctrl-C raises
     KeyboardInterrupt; errors as :func:`simgap._simgap.diagnose`.
     """
@@ -93,7 +98,7 @@ def diagnose(
     else:
         raise TypeError(f"progress: expected True, False, None or a callable (stage, done, total), got {type(progress).__name__}")
     try:
-        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, directional_friction=directional_friction)  # type: ignore[arg-type]
+        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, directional_friction=directional_friction, link_side_torque=link_side_torque)  # type: ignore[arg-type]
     finally:
         if close is not None:
             close()

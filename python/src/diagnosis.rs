@@ -81,6 +81,9 @@ struct Job {
     experiment: Option<Experiment>,
     /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
     directional_friction: bool,
+    /// The logged effort is measured on the link side of the gearbox
+    /// ([`simgap_diag::PrepareOptions::link_side_torque`]).
+    link_side_torque: bool,
     /// Where the worker leaves its latest progress for the Python thread.
     latest: Latest,
 }
@@ -111,7 +114,8 @@ impl Job {
                 *latest = Some((p.stage.to_string(), p.done, p.total));
             }
         };
-        let options = DiagnoseOptions { stop: Some(stop.clone()), directional_friction: self.directional_friction, ..DiagnoseOptions::default() };
+        let mut options = DiagnoseOptions { stop: Some(stop.clone()), directional_friction: self.directional_friction, ..DiagnoseOptions::default() };
+        options.prepare.link_side_torque = self.link_side_torque;
         simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &options, &mut progress)
     }
 
@@ -177,14 +181,16 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// URDF file `model` was loaded from, kept for `Report.export_urdf`. `directional_friction`:
 /// also try friction that differs with the direction of motion (levels and slopes per
 /// direction) in place of each joint's Coulomb and viscous friction, for ball screws and worn
-/// gearboxes (the CLI's `--directional-friction`; off by default).
+/// gearboxes (the CLI's `--directional-friction`; off by default). `link_side_torque`: the
+/// logged effort is measured on the link side of the gearbox (joint-torque sensors), so no rotor
+/// inertia or back-EMF is tried (the CLI's `--link-side-torque`; off by default).
 ///
 /// Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
 /// FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
 /// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
 /// TypeError for arguments that are neither runs nor paths.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, directional_friction = false))]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, directional_friction = false, link_side_torque = false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -196,6 +202,7 @@ pub(crate) fn diagnose(
     progress: Option<Bound<'_, PyAny>>,
     urdf: Option<PathBuf>,
     directional_friction: bool,
+    link_side_torque: bool,
 ) -> PyResult<PyReport> {
     let progress = progress.filter(|p| !p.is_none());
     if let Some(p) = &progress {
@@ -212,6 +219,7 @@ pub(crate) fn diagnose(
         holdout: Source::from_arg("holdout", holdout)?,
         experiment,
         directional_friction,
+        link_side_torque,
         latest: Latest::default(),
     };
     let diagnosis = run_interruptible(py, job, progress)?;

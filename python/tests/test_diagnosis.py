@@ -245,3 +245,24 @@ def test_directional_friction_is_tried_only_when_asked_for(tmp_path: Path) -> No
     assert [e["effect"] for e in asked["selected_effects"]] == ["directional_friction"], asked.summary()
     default = simgap.diagnose(model, fit, held)
     assert "directional_friction" not in [e["effect"] for e in default["selected_effects"]], default.summary()
+
+
+def test_link_side_torque_tries_no_rotor_inertia() -> None:
+    # the paper's arm with a rotor inertia on its elbow: as the drive's effort the logs show the
+    # rotor; told that the effort was measured on the link side of the gearbox (after the rotor),
+    # the diagnosis tries no rotor inertia or back-EMF and says so
+    model = simgap.Model.paper_arm()
+    effects = ["armature:ia=0,0.05", "viscous_friction:b=0.3,0.2"]
+
+    def tracked(freqs: tuple[float, float], amps: tuple[float, float], name: str) -> simgap.Run:
+        return simgap.simulate(model, sine_reference(model, 6.0, freqs, amps, name), controller="pd_gravity", kp=KP, kv=KV, effects=effects, duration=6.0)
+
+    fit = [tracked((0.5, 0.8), (0.6, 0.8), "fit-1"), tracked((0.3, 1.2), (0.8, 0.5), "fit-2")]
+    held = [tracked((0.4, 1.0), (0.7, 0.6), "held")]
+    drive = simgap.diagnose(model, fit, held)
+    assert "armature" in [e["effect"] for e in drive.selected_effects], drive.summary()
+    link = simgap.diagnose(model, fit, held, link_side_torque=True)
+    for effect in ("armature", "back_emf"):
+        assert effect not in [e["effect"] for e in link.selected_effects], link.summary()
+        assert effect not in [c["effect"] for c in link["candidates"]], link.summary()
+    assert any("link side of the gearbox" in n for n in link["notes"]), link["notes"]

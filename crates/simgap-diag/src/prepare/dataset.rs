@@ -17,11 +17,16 @@ pub struct PrepareOptions {
     pub max_samples: usize,
     /// Compute the inertial-parameter regressor (needed for `payload` and `inertial_error`).
     pub regressor: bool,
+    /// The logged effort is measured on the link side of the gearbox (joint-torque sensors, as
+    /// on torque-sensing arms), not the torque the drive was commanded (default false). The
+    /// rotor's inertia and the motor's back-EMF act before such a sensor, so the data cannot
+    /// show them and neither is tried.
+    pub link_side_torque: bool,
 }
 
 impl Default for PrepareOptions {
     fn default() -> Self {
-        PrepareOptions { window: 0.05, max_samples: 3000, regressor: true }
+        PrepareOptions { window: 0.05, max_samples: 3000, regressor: true, link_side_torque: false }
     }
 }
 
@@ -103,6 +108,9 @@ pub struct FitData {
     /// positions as an encoder gives them. Set by the diagnosis from the sensors it infers (a
     /// run prepared alone, e.g. a synthetic one, has `None`).
     pub recorder_bandwidth: Option<f64>,
+    /// The run's effort was measured on the link side of the gearbox
+    /// ([`PrepareOptions::link_side_torque`]).
+    pub link_side_torque: bool,
     /// The aligned raw run.
     pub raw: Run,
     /// Smoothed velocities at every sample of the raw run (`len × dof`; at the first and last
@@ -225,6 +233,7 @@ impl FitData {
             h_max,
             dry_width: Vec::new(),
             recorder_bandwidth: None,
+            link_side_torque: options.link_side_torque,
             raw: run,
             qd_every: qds,
             smoother,

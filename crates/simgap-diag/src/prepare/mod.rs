@@ -133,6 +133,12 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
             notes.push(format!("joint {} is passive (commanded effort always 0): actuator effects (gain, offset, saturation) are not tried on it", model.joint_names()[j]));
         }
     }
+    if options.link_side_torque {
+        notes.push(
+            "the logged effort is measured on the link side of the gearbox (as told): the rotor's inertia and the motor's back-EMF act before such a sensor, so neither is tried"
+                .into(),
+        );
+    }
     let mut data: Vec<FitData> = fit_runs.iter().map(|r| FitData::new(model, formulation, r.clone(), options)).collect::<Result<_>>()?;
     for (d, s) in data.iter_mut().zip(&sensors) {
         d.recorder_bandwidth = s.recorder_lowpass_hz;

@@ -95,12 +95,14 @@ impl Family {
 
 /// All candidate families for the fit runs `data` (back-EMF only on joints whose drive some
 /// run disables: elsewhere it is viscous friction; a torque saturation only where no fit run was
-/// low-pass filtered by its recorder).
+/// low-pass filtered by its recorder; a rotor inertia only where the effort was not measured on
+/// the link side of the gearbox).
 pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
     let dof = data.first().map_or(0, |d| d.dof);
     // a recorder's low-pass filter flattens the torque's peaks as a limit would: on such logs a
     // torque saturation cannot be told from it (`prepare::lowpass`)
     let saturation = !data.iter().any(|d| d.recorder_bandwidth.is_some());
+    let rotor = crate::vocabulary::rotor::visible(data);
     let mut f = Vec::new();
     for j in 0..dof {
         f.push(Family::Fixed(Term::Viscous(j)));
@@ -110,7 +112,9 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
         if crate::vocabulary::back_emf::separable(j, data) {
             f.push(Family::Fixed(Term::BackEmf(j)));
         }
-        f.push(Family::Fixed(Term::Armature(j)));
+        if rotor {
+            f.push(Family::Fixed(Term::Armature(j)));
+        }
         f.push(Family::Fixed(Term::Gain(j)));
         f.push(Family::Fixed(Term::Offset(j)));
         if saturation {

@@ -199,19 +199,23 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         // the offsets alone where the torque is mostly a constant; offsets and rotor inertias
         // where it is mostly a constant and an acceleration term
         let offsets_only: Vec<Term> = parts.iter().filter(|p| p.constant).map(|p| Term::Offset(p.joint)).collect();
+        // (no rotor inertia where the effort was measured on the link side of the gearbox)
+        let rotor = crate::vocabulary::rotor::visible(scorer.ctx.data);
         let mut with_rotor: Vec<Term> = Vec::new();
         for p in &parts {
             if p.offset {
                 with_rotor.push(Term::Offset(p.joint));
             }
-            if p.rotor {
+            if p.rotor && rotor {
                 with_rotor.push(Term::Armature(p.joint));
             }
         }
         // and with a rotor inertia on every actuated joint (an inertial correction spreads a
         // rotor inertia over the links the joint moves, so its torque shows it only in part)
         let mut every_rotor = with_rotor.clone();
-        every_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature).filter(|t| !with_rotor.contains(t)));
+        if rotor {
+            every_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature).filter(|t| !with_rotor.contains(t)));
+        }
         // the simplest replacement that predicts as well, or a richer one that predicts better
         // than it by more than the tie tolerance
         let mut chosen: Option<(Vec<Term>, Vec<Term>, f64, &str)> = None;

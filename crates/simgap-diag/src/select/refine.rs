@@ -99,15 +99,21 @@ pub(crate) fn refine_by_shooting(
         sets.push(("the selected set with an inertial correction of every link in place of the payload".into(), with));
     }
     if has_inertial {
+        let rotor = crate::vocabulary::rotor::visible(ctx.data);
         let mut natural = vec![ctx.inertial_term()];
         for j in 0..n {
             natural.push(Term::Coulomb { joint: j, w: ctx.dry_width[j].mid() });
             natural.push(Term::Viscous(j));
-            if !prep.passive[j] {
+            if rotor && !prep.passive[j] {
                 natural.push(Term::Armature(j));
             }
         }
-        sets.push(("an inertial correction of every link with Coulomb and viscous friction and rotor inertia on every joint".into(), natural));
+        let name = if rotor {
+            "an inertial correction of every link with Coulomb and viscous friction and rotor inertia on every joint"
+        } else {
+            "an inertial correction of every link with Coulomb and viscous friction on every joint"
+        };
+        sets.push((name.into(), natural));
     }
     if servo {
         // a servo's own structure: its motor constants (drive gain kt/R, back-EMF kt²/R where a

@@ -96,3 +96,45 @@ fn sensor_offsets_and_spring_found(offsets: &[f64], seed: u64) {
         }
     }
 }
+
+#[test]
+fn a_rotor_inertia_is_not_tried_where_the_torque_is_measured_on_the_link_side() {
+    // the paper's arm with a rotor inertia on its elbow and viscous friction: told that the
+    // effort is the drive's, the diagnosis finds the rotor; told that it was measured on the link
+    // side of the gearbox, it tries no rotor inertia (nor back-EMF), says so, and still finds the
+    // friction
+    let model = Model::from_urdf_str(simgap_core::PAPER_ARM_URDF).unwrap();
+    let n = model.dof();
+    let period = 0.002;
+    let truth = vec![Effect::Armature { ia: vec![0.0, 0.05] }, Effect::ViscousFriction { b: vec![0.3, 0.2] }];
+    let (kp, kv) = gains_for(&model, 3.0);
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+    let runs: Vec<_> = (0..3)
+        .map(|i| {
+            let spec = RunSpec {
+                name: format!("run-{i}"),
+                controller: ControllerKind::PdGravity,
+                kp: kp.clone(),
+                kv: kv.clone(),
+                reference: RefSpec::Fourier(random_fourier(n, 0.6, &mut rng)),
+                duration: 8.0,
+            };
+            generate(&model, Formulation::EulerLagrange, &truth, &spec, period, 1_048_576.0).unwrap()
+        })
+        .collect();
+    let (fit, hold) = runs.split_at(2);
+    let names = |d: &crate::Diagnosis| d.report.selected_effects.iter().map(|e| e.effect.clone()).collect::<Vec<_>>();
+    let drive_side = diagnose(&model, Formulation::EulerLagrange, fit, hold, &DiagnoseOptions::default(), &mut |_| {}).unwrap();
+    assert!(names(&drive_side).iter().any(|e| e == "armature"), "the drive's effort shows the rotor: {:?}", names(&drive_side));
+    let mut options = DiagnoseOptions::default();
+    options.prepare.link_side_torque = true;
+    let link_side = diagnose(&model, Formulation::EulerLagrange, fit, hold, &options, &mut |_| {}).unwrap();
+    println!("{}", link_side.report.summary());
+    for e in ["armature", "back_emf"] {
+        assert!(!names(&link_side).iter().any(|x| x == e), "{e} selected on link-side torque: {:?}", names(&link_side));
+        assert!(!link_side.report.candidates.iter().any(|c| c.effect == e), "{e} tried on link-side torque");
+    }
+    assert!(names(&link_side).iter().any(|e| e == "viscous_friction"), "{:?}", names(&link_side));
+    assert!(link_side.report.notes.iter().any(|n| n.contains("link side of the gearbox")), "{:?}", link_side.report.notes);
+    assert!(!link_side.report.notes.iter().any(|n| n.contains("the data show a rotor inertia")), "{:?}", link_side.report.notes);
+}

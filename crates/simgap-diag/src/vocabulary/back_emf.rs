@@ -21,9 +21,10 @@ pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
 }
 
 /// Whether some fit run disables the drive of joint `j` (back-EMF is then told from viscous
-/// friction).
+/// friction), and the effort was not measured on the link side of the gearbox (the motor's
+/// back-EMF acts before such a sensor).
 pub(crate) fn separable(j: usize, data: &[FitData]) -> bool {
-    data.iter().any(|d| (0..d.len()).any(|s| d.enabled[s * d.dof + j] < 0.5))
+    super::rotor::visible(data) && data.iter().any(|d| (0..d.len()).any(|s| d.enabled[s * d.dof + j] < 0.5))
 }
 
 /// Adds the back-EMF of joint `j` to the simulator's.

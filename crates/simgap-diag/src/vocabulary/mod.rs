@@ -31,7 +31,7 @@ mod friction;
 mod inertial;
 mod load_friction;
 mod payload;
-mod rotor;
+pub(crate) mod rotor;
 mod spring;
 
 pub use effects::{EffectReport, Param};

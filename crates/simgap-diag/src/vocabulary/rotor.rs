@@ -5,7 +5,9 @@
 //! joint moves over the fit runs. Reflected rotor inertias of geared arms reach tens of times
 //! the wrist's link inertia (a rotor of 1e-5 kg·m² through a 100:1 gearbox is 0.1 kg·m²); an
 //! armature a hundred times the link inertia freezes the joint rather than explaining it, and
-//! one fitted at that edge is no finding (see [`crate::select::plausible`]).
+//! one fitted at that edge is no finding (see [`crate::select::plausible`]). Where the effort is
+//! measured on the link side of the gearbox ([`crate::PrepareOptions::link_side_torque`]) the
+//! range is empty: the rotor is driven before the sensor, and no rotor inertia is tried.
 
 use simgap_sim::Effect;
 
@@ -15,6 +17,12 @@ use crate::prepare::dataset::FitData;
 
 /// Largest plausible rotor inertia as a multiple of the link inertia its joint moves.
 pub(crate) const ARMATURE_MAX_RATIO: f64 = 100.0;
+
+/// Whether the fit runs `data` can show a rotor inertia: not where their effort was measured on
+/// the link side of the gearbox, after the rotor.
+pub(crate) fn visible(data: &[FitData]) -> bool {
+    !data.iter().any(|d| d.link_side_torque)
+}
 
 /// The column of a rotor inertia on joint `j`, bounded by its physical range.
 pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
