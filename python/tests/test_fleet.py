@@ -92,6 +92,25 @@ def test_diagnose_task_records_a_data_error_instead_of_raising(tmp_path: Path) -
     assert out["seconds"] >= 0 and out["worker"]
 
 
+def test_diagnose_task_passes_its_diagnose_options(tmp_path: Path) -> None:
+    # a robot-day of the paper's arm: told that the effort is a link-side sensor's, the task's
+    # diagnosis tries no rotor inertia and says so; without it, it does try one
+    arm = simgap.Model.paper_arm()
+    paths = []
+    for i, target in enumerate(([0.6, 1.0], [-0.5, 0.8])):
+        run = simgap.simulate(arm, target, controller="pd_gravity", kp=[64.72, 32.36], kv=[48.54, 6.472], effects=["viscous_friction:b=0.5,0.2"], duration=3.0)
+        paths.append(str(tmp_path / f"run{i}.mcap"))
+        simgap.write_log(run, paths[-1])
+    urdf = str(Path(__file__).resolve().parents[2] / "crates" / "simgap-core" / "models" / "paper_arm.urdf")
+    task = {"robot": "r", "day": "d", "fit": paths[:1], "holdout": paths[1:]}
+    told = fleet.diagnose_task(task, urdf, diagnose_options={"link_side_torque": True})
+    assert told["status"] == "ok", told["error"]
+    assert "armature" not in [c["effect"] for c in told["report"]["candidates"]]
+    assert any("link side of the gearbox" in n for n in told["report"]["notes"])
+    default = fleet.diagnose_task(task, urdf)
+    assert "armature" in [c["effect"] for c in default["report"]["candidates"]]
+
+
 REPORT = {
     "selected_effects": [
         {"effect": "coulomb_friction", "joints": ["shoulder", "elbow"], "parameters": {"fc": [7.1, 1.7]}, "uncertainty": {"fc": [0.1, 0.02]}, "units": {"fc": "N·m"}},

@@ -92,10 +92,18 @@ def _rss_mb(field: str = "VmHWM") -> float:
     return math.nan
 
 
-def diagnose_task(task: dict[str, Any], urdf: str, tip: str | None = None, formulation: str = "euler_lagrange", read_options: dict[str, Any] | None = None) -> dict[str, Any]:
+def diagnose_task(
+    task: dict[str, Any],
+    urdf: str,
+    tip: str | None = None,
+    formulation: str = "euler_lagrange",
+    read_options: dict[str, Any] | None = None,
+    diagnose_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """Diagnoses one robot-day on the worker that runs it: loads the URDF, reads the logs of
     ``task`` (``{robot, day, fit: [paths], holdout: [paths]}``) and runs
-    :func:`simgap.diagnose`.
+    :func:`simgap.diagnose` (with the keyword arguments ``diagnose_options``, e.g.
+    ``{"link_side_torque": True}``).
 
     Returns a dict of plain data: ``robot``, ``day``, ``status`` (``"ok"`` / ``"error"``),
     ``error`` (``"LogError: …"`` or ``""``), ``report`` (the JSON report as a dict, or None; with
@@ -117,7 +125,7 @@ def diagnose_task(task: dict[str, Any], urdf: str, tip: str | None = None, formu
         out["joint_types"] = _joint_types(str(urdf), mtime)
         fit = [_read(p, model.joint_names, read_options or {}) for p in task["fit"]]
         holdout = [_read(p, model.joint_names, read_options or {}) for p in task["holdout"]]
-        report = simgap.diagnose(model, fit, holdout, formulation=formulation)  # type: ignore[arg-type]
+        report = simgap.diagnose(model, fit, holdout, formulation=formulation, **(diagnose_options or {}))  # type: ignore[arg-type]
         out["report"] = json.loads(report.to_json())
         # each interval method on its own, for the check's coverage comparison
         out["report"]["interval_variants"] = report.interval_variants
@@ -187,6 +195,7 @@ def iter_fleet(
     retries: int = 2,
     read_options: dict[str, Any] | None = None,
     timeout: float | None = None,
+    diagnose_options: dict[str, Any] | None = None,
 ) -> Generator[dict[str, Any], None, None]:
     """Submits one task per robot-day of ``index`` to the Dask ``client`` and yields each
     task's result dict (see :func:`diagnose_task`) as it finishes, in completion order.
@@ -210,7 +219,7 @@ def iter_fleet(
     task_of = {}
     for task in todo:
         spec = {"robot": task.robot, "day": task.day, "fit": task.fit, "holdout": task.holdout}
-        future = client.submit(diagnose_task, spec, urdf, tip, formulation, read_options, key=f"simgap-diagnose-{task.robot}-{task.day}-{uuid.uuid4().hex[:8]}", retries=retries, pure=False)
+        future = client.submit(diagnose_task, spec, urdf, tip, formulation, read_options, diagnose_options, key=f"simgap-diagnose-{task.robot}-{task.day}-{uuid.uuid4().hex[:8]}", retries=retries, pure=False)
         futures.append(future)
         task_of[future.key] = task
     finished: set[str] = set()
@@ -244,6 +253,7 @@ def diagnose_fleet(
     read_options: dict[str, Any] | None = None,
     n_workers: int | None = None,
     timeout: float | None = None,
+    diagnose_options: dict[str, Any] | None = None,
 ) -> FleetResult:
     """Diagnoses every robot on every day of ``index`` on a Dask cluster.
 
@@ -257,6 +267,9 @@ def diagnose_fleet(
     (tqdm when installed), or a callable called with each result dict. ``read_options``:
     extra keyword arguments of :func:`simgap.read_log` on the workers. ``timeout`` [s]: the
     longest wait for the next result (``TimeoutError`` past it; None waits as long as it takes).
+    ``diagnose_options``: keyword arguments of :func:`simgap.diagnose` for every robot-day, e.g.
+    ``{"link_side_torque": True}`` for arms whose logged effort is a joint-torque sensor's, or
+    ``{"directional_friction": True}`` for ball-screw axes.
 
     Returns a :class:`FleetResult`; failed robot-days are in it with their errors.
     """
@@ -282,7 +295,7 @@ def diagnose_fleet(
         workers = len(client.scheduler_info().get("workers", {}))
         start = time.perf_counter()
         results: list[dict[str, Any]] = []
-        stream = iter_fleet(index, urdf, client, tip=tip, formulation=formulation, retries=retries, read_options=read_options, timeout=timeout)
+        stream = iter_fleet(index, urdf, client, tip=tip, formulation=formulation, retries=retries, read_options=read_options, timeout=timeout, diagnose_options=diagnose_options)
         tasks_total = len(tasks_from_index(index))
         tick, close = _progress(tasks_total, progress)
         try:
