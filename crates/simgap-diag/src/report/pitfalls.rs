@@ -92,7 +92,8 @@ pub(crate) fn urdf_pitfalls(model: &Model, data: &[FitData]) -> Vec<String> {
     // missing rotor inertia (none where the effort was measured on the link side of the gearbox,
     // after the rotor)
     let h_mean = mean_mass_diagonal(model, data);
-    for j in (0..n).filter(|_| crate::vocabulary::rotor::visible(data)) {
+    let rotor = crate::vocabulary::rotor::visible(data);
+    for j in (0..n).filter(|_| rotor) {
         let f = fit_with(&[design(&Term::Armature(j), data)]);
         let ia = f.theta[k0];
         if ia > 0.1 * h_mean[j] && gain(&f) >= MIN_GAIN {
