@@ -381,6 +381,19 @@ impl<'a> Context<'a> {
             }
         };
         let c0 = within(&c0.map(|x| if x.is_finite() { x } else { 0.0 }));
+        // more starts: the last link's first moment is identified better than its mass, whose
+        // linear estimate can even come out negative and send h/m to the opposite side of the
+        // link; its direction at a quarter, half and the whole of the reach, and the link's origin
+        let mut starts = vec![c0];
+        if th.len() == 4 {
+            let h = [th[1], th[2], th[3]];
+            let norm = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+            let r = if reach.is_finite() && reach > 0.0 { reach } else { 0.2 };
+            if norm > 0.0 && norm.is_finite() {
+                starts.extend([0.25, 0.5, 1.0].map(|f| within(&h.map(|x| x / norm * f * r))));
+            }
+        }
+        starts.push([0.0; 3]);
         let max_mass = self.max_payload();
         // the Grams of `rest` and of the ten basis columns, once: the payload's inner products
         // are then linear and quadratic forms in π(c) (equal to the column's own up to rounding)
@@ -446,7 +459,16 @@ impl<'a> Context<'a> {
             let t = solver.solve(&g, &c);
             s - 2.0 * t.dot(&c) + t.dot(&(&g * &t))
         };
-        Term::Payload { com: within(&nelder_mead(&mut sse, c0, 0.02, 60)), max_mass }
+        // the best of the searches from every start (the first, h/m, is the search of old)
+        let mut best: Option<([f64; 3], f64)> = None;
+        for start in starts {
+            let com = within(&nelder_mead(&mut sse, start, 0.02, 60));
+            let v = sse(&com);
+            if best.is_none_or(|b| v < b.1) {
+                best = Some((com, v));
+            }
+        }
+        Term::Payload { com: best.map_or(c0, |b| b.0), max_mass }
     }
 
     /// The largest plausible payload [kg]: twice the mass of the chain's links in the URDF.
@@ -664,7 +686,7 @@ fn inertial_basis(p: &Problem, data: &[FitData], scales: &[f64]) -> DMatrix<f64>
 }
 
 /// Least-squares fit of one design against a residual column: (θ, weighted SSE).
-fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
+pub(crate) fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
     screen_fit_known(p, d, resid, None)
 }
 

@@ -8,6 +8,7 @@ mod intervals;
 mod kstep_groups;
 mod link_side;
 mod lowpass;
+mod payload;
 mod physical;
 mod pitfalls;
 mod rebuild;
