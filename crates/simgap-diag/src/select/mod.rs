@@ -686,7 +686,7 @@ fn inertial_basis(p: &Problem, data: &[FitData], scales: &[f64]) -> DMatrix<f64>
 }
 
 /// Least-squares fit of one design against a residual column: (θ, weighted SSE).
-pub(crate) fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
+fn screen_fit(p: &Problem, d: &TermDesign, resid: &Column) -> (DVector<f64>, f64) {
     screen_fit_known(p, d, resid, None)
 }
 
