@@ -38,6 +38,13 @@ pub(crate) const NO_NOISE_RATIO: f64 = 1e-7;
 /// peak.
 pub(crate) const BANDWIDTH_RATIO: f64 = 1e-6;
 
+/// Whether a recorder low-pass filtered any of the fit runs `data` (each run's
+/// [`FitData::recorder_bandwidth`](crate::FitData::recorder_bandwidth), set from
+/// [`recorder_bandwidth`]).
+pub(crate) fn any_filtered(data: &[crate::FitData]) -> bool {
+    data.iter().any(|d| d.recorder_bandwidth.is_some())
+}
+
 /// The bandwidth [Hz] of a run whose positions were low-pass filtered by its recorder (see the
 /// [module documentation](self)); `None` for a run whose positions carry measurement noise, whose
 /// joints do not move, or that is shorter than two segments.

@@ -101,7 +101,7 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
     let dof = data.first().map_or(0, |d| d.dof);
     // a recorder's low-pass filter flattens the torque's peaks as a limit would: on such logs a
     // torque saturation cannot be told from it (`prepare::lowpass`)
-    let saturation = !data.iter().any(|d| d.recorder_bandwidth.is_some());
+    let saturation = !crate::prepare::lowpass::any_filtered(data);
     let rotor = crate::vocabulary::rotor::visible(data);
     let mut f = Vec::new();
     for j in 0..dof {
@@ -384,7 +384,7 @@ impl<'a> Context<'a> {
         // more starts: the last link's first moment is identified better than its mass, whose
         // linear estimate can even come out negative and send h/m to the opposite side of the
         // link; its direction at a quarter, half and the whole of the reach, and the link's origin
-        let mut starts = vec![c0];
+        let mut starts = Vec::new();
         if th.len() == 4 {
             let h = [th[1], th[2], th[3]];
             let norm = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
@@ -459,16 +459,19 @@ impl<'a> Context<'a> {
             let t = solver.solve(&g, &c);
             s - 2.0 * t.dot(&c) + t.dot(&(&g * &t))
         };
-        // the best of the searches from every start (the first, h/m, is the search of old)
-        let mut best: Option<([f64; 3], f64)> = None;
-        for start in starts {
+        // the best of the searches from h/m and from every other start
+        let mut search = |start: [f64; 3]| {
             let com = within(&nelder_mead(&mut sse, start, 0.02, 60));
-            let v = sse(&com);
-            if best.is_none_or(|b| v < b.1) {
-                best = Some((com, v));
+            (com, sse(&com))
+        };
+        let mut best = search(c0);
+        for start in starts {
+            let found = search(start);
+            if found.1 < best.1 {
+                best = found;
             }
         }
-        Term::Payload { com: best.map_or(c0, |b| b.0), max_mass }
+        Term::Payload { com: best.0, max_mass }
     }
 
     /// The largest plausible payload [kg]: twice the mass of the chain's links in the URDF.

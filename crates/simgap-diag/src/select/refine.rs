@@ -295,7 +295,7 @@ fn finish(
     // filtered and link-side scenarios' intervals held 202 of 216 true values without it (206
     // with it, at a median 3.2 times the width: a link-side viscous friction of
     // 0.81 N·m·s/rad was reported ± 0.96, its shooting spread ± 0.005)
-    let filtered = ctx.data.iter().any(|d| d.recorder_bandwidth.is_some());
+    let filtered = crate::prepare::lowpass::any_filtered(ctx.data);
     let method_term = if filtered {
         " (not the difference from the torque-residual fit of the same set: these logs were low-pass filtered by their recorder, which distorts that fit)"
     } else {
