@@ -18,6 +18,9 @@ fn a_payload_is_searched_on_the_side_its_first_moment_points_to_when_the_mass_gu
     let model = &sc.diagnosis_model;
     let prep = crate::prepare::prepare(model, simgap_core::Formulation::EulerLagrange, &sc.fit, &sc.holdout, &Default::default(), &[]).unwrap();
     let ctx = Context::new(&prep.data, 0.005, &parameter_scales(model));
+    // the linear guess the search starts from: mass and first moment of the last link
+    let linear = fit(&ctx.problem, &grams(&ctx.problem, &[&crate::vocabulary::payload_linear_design(&prep.data)])).theta;
+    println!("linear guess of the last link: mass {:.3} kg, first moment {:?} kg·m (payload {mass:.3} kg at {com:?} m)", linear[0], &linear.as_slice()[1..]);
     let found = ctx.best_of(&Family::Payload, &ctx.problem.y);
     let Term::Payload { com: c, .. } = found else { panic!("{found:?}") };
     let side = c.iter().zip(&com).map(|(a, b)| a * b).sum::<f64>();

@@ -1,0 +1,48 @@
+//! Diagnoses one scenario of `simgap selfcheck` and prints its hidden effects, the report's
+//! summary (selected effects, alternatives, held-out k-step errors against the
+//! constant-velocity floor) and its notes: how a figure quoted for one scenario is reproduced.
+//!
+//! `cargo run --release --example selfcheck_scenario -- SEED KIND INDEX [--link-side-torque]`
+//!
+//! KIND is `cycle` for the scenarios of the cycle of 13 (INDEX as `simgap selfcheck` numbers
+//! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
+//! them) or `servo` for the servo scenarios. `--link-side-torque` diagnoses as
+//! `simgap diagnose --link-side-torque` does.
+
+use simgap::core::Formulation;
+use simgap::diag::{diagnose, drives, selfcheck, DiagnoseOptions};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque]";
+    let (Some(seed), Some(kind), Some(index)) = (args.first().and_then(|s| s.parse::<u64>().ok()), args.get(1), args.get(2).and_then(|s| s.parse::<usize>().ok())) else {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    };
+    let scenario = match kind.as_str() {
+        "cycle" => selfcheck::scenario(seed, index),
+        "drive" => drives::drive_scenario(seed, index),
+        "servo" => selfcheck::servo_scenario(seed, index),
+        other => {
+            eprintln!("unknown kind '{other}'; {usage}");
+            std::process::exit(2);
+        }
+    };
+    let scenario = match scenario {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("scenario {seed}/{kind}/{index}: {e}");
+            std::process::exit(1);
+        }
+    };
+    let mut options = DiagnoseOptions { directional_friction: scenario.directional_friction, ..DiagnoseOptions::default() };
+    options.prepare.link_side_torque = args.iter().any(|a| a == "--link-side-torque");
+    println!("family {}, hidden: {:?}", scenario.family, scenario.truth);
+    match diagnose(&scenario.diagnosis_model, Formulation::EulerLagrange, &scenario.fit, &scenario.holdout, &options, &mut |_| {}) {
+        Ok(d) => println!("{}", d.report.summary()),
+        Err(e) => {
+            eprintln!("diagnosis failed: {e}");
+            std::process::exit(1);
+        }
+    }
+}
