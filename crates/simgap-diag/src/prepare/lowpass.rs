@@ -39,9 +39,9 @@ pub(crate) const NO_NOISE_RATIO: f64 = 1e-7;
 pub(crate) const BANDWIDTH_RATIO: f64 = 1e-6;
 
 /// Whether a recorder low-pass filtered any of the fit runs `data` (each run's
-/// [`FitData::recorder_bandwidth`](crate::FitData::recorder_bandwidth), set from
+/// [`FitData::recorder_bandwidth`](crate::prepare::dataset::FitData::recorder_bandwidth), set from
 /// [`recorder_bandwidth`]).
-pub(crate) fn any_filtered(data: &[crate::FitData]) -> bool {
+pub(crate) fn any_filtered(data: &[crate::prepare::dataset::FitData]) -> bool {
     data.iter().any(|d| d.recorder_bandwidth.is_some())
 }
 
