@@ -102,3 +102,18 @@ pub(super) fn describe(e: &EffectReport) -> String {
         }
     }
 }
+
+/// A saturation's description completed by the torque gain selected with it: the simulator
+/// clamps the command first and then scales it (`k · clamp(τ_cmd, ±limit)`), so the most the
+/// drive delivers is `k · limit`, which the description states.
+pub(super) fn describe_limit_with_gain(entries: &mut [EffectReport]) {
+    let gains: Vec<(String, f64)> = entries.iter().filter(|e| e.effect == "torque_gain").flat_map(|e| reported(e, "k").into_iter().map(|(j, k)| (j.to_string(), k))).collect();
+    for e in entries.iter_mut().filter(|e| e.effect == "torque_saturation") {
+        let unit = unit_of(e, "limit").to_string();
+        let most: Vec<String> =
+            reported(e, "limit").iter().filter_map(|(j, l)| gains.iter().find(|(g, _)| g == j).map(|(_, k)| format!("±{} {unit} on {j}", sig3(k * l)))).collect();
+        if !most.is_empty() {
+            e.description.push_str(&format!(" of the command, before the torque gain: the drive delivers at most {}", most.join(", ")));
+        }
+    }
+}

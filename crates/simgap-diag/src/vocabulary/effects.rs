@@ -177,6 +177,7 @@ pub(crate) fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectRepo
             e.description = super::describe(model, e);
         }
     }
+    super::actuator::describe_limit_with_gain(&mut out);
     out
 }
 
@@ -232,5 +233,21 @@ mod tests {
         assert_eq!(unit_on("torque_offset", "offset", &[Revolute, Prismatic]), "N·m (revolute), N (prismatic)");
         assert_eq!(unit_on("payload", "mass", &[Prismatic]), "kg");
         assert_eq!(unit_on("no_such_effect", "b", &[Revolute]), "-");
+    }
+
+    #[test]
+    fn a_limit_selected_with_a_gain_states_the_most_the_drive_delivers() {
+        use super::{to_reports, FittedTerm};
+        use crate::vocabulary::Term;
+        let model = simgap_core::Model::from_urdf_str(simgap_core::PENDULUM_URDF).unwrap();
+        let limit = FittedTerm { term: Term::Saturation { joint: 0, limit: 0.2 }, theta: vec![], std: vec![] };
+        // the gain's column coefficient is 1 − k: k = 2.5
+        let gain = FittedTerm { term: Term::Gain(0), theta: vec![-1.5], std: vec![0.0] };
+        let both = to_reports(&model, &[limit.clone(), gain]);
+        let saturation = both.iter().find(|e| e.effect == "torque_saturation").unwrap();
+        assert!(saturation.description.contains("±0.200 N·m") && saturation.description.contains("at most ±0.500 N·m on hinge"), "{}", saturation.description);
+        // alone, the limit is the most the drive delivers
+        let alone = to_reports(&model, &[limit]);
+        assert!(!alone[0].description.contains("at most"), "{}", alone[0].description);
     }
 }
