@@ -98,11 +98,60 @@ pub(crate) fn volts(run: &Run, p: &ServoParams) -> Result<Vec<f64>> {
             if !run.drive.enabled(k, j, n) {
                 continue;
             }
-            let duty = if logged_duty { run.drive.duty[k * n + j] } else { (p.duty_gain[j] * (run.q_ref[k * n + j] - run.q[k * n + j])).clamp(-p.max_duty[j], p.max_duty[j]) };
-            out[k * n + j] = v * duty;
+            out[k * n + j] = v * duty(run, p, logged_duty, k, j);
         }
     }
     Ok(out)
+}
+
+/// The duty of joint `j` at sample `k`: the logged one (`logged`), else the firmware's P law on
+/// the logged goal, `clip(duty_gain (goal − q), ±max_duty)`.
+fn duty(run: &Run, p: &ServoParams, logged: bool, k: usize, j: usize) -> f64 {
+    let n = run.dof();
+    if logged {
+        run.drive.duty[k * n + j]
+    } else {
+        (p.duty_gain[j] * (run.q_ref[k * n + j] - run.q[k * n + j])).clamp(-p.max_duty[j], p.max_duty[j])
+    }
+}
+
+/// Share of `max_duty` from which a duty counts as full.
+const FULL_DUTY: f64 = 0.99;
+
+/// Per joint, whether the servo of `run` stalls: it drives at full duty (at least
+/// [`FULL_DUTY`] of `max_duty`, one sign, enabled) for `duration` seconds or more while its
+/// joint moves by no more than `rest_speed[j] · duration` (joint units per second). Such a log
+/// shows the most torque the drive gives; a drive that never stalls shows none.
+pub(crate) fn stalls(run: &Run, p: &ServoParams, rest_speed: &[f64], duration: f64) -> Vec<bool> {
+    let (n, len) = (run.dof(), run.len());
+    let logged = run.drive.duty.len() == len * n && len > 0;
+    (0..n)
+        .map(|j| {
+            let full = |k: usize| {
+                let d = duty(run, p, logged, k, j);
+                run.drive.enabled(k, j, n) && d.abs() >= FULL_DUTY * p.max_duty[j]
+            };
+            // two pointers over each stretch of full duty of one sign
+            let mut start = 0;
+            for end in 0..len {
+                if !full(end) {
+                    start = end + 1;
+                    continue;
+                }
+                if duty(run, p, logged, end, j).signum() != duty(run, p, logged, start, j).signum() {
+                    start = end;
+                }
+                while start < end && run.t[end] - run.t[start + 1] >= duration {
+                    start += 1;
+                }
+                let dt = run.t[end] - run.t[start];
+                if dt >= duration && (run.q[end * n + j] - run.q[start * n + j]).abs() <= rest_speed[j] * dt {
+                    return true;
+                }
+            }
+            false
+        })
+        .collect()
 }
 
 /// The torque constant [N·m/A] of a servo whose fit logs show no back-EMF: small enough that

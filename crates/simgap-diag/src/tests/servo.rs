@@ -105,3 +105,41 @@ fn a_viscous_friction_traded_with_the_back_emf_leaves_and_the_motor_constants_ar
         assert!(s.implausible.is_empty(), "scenario {index}: {:?}", s.implausible);
     }
 }
+
+/// A run of the pendulum's servo held at q = 0 toward a goal `goal(t)`, its joint at `q(t)`,
+/// every 5 ms for 1 s, duty from the P law (gain 10/rad, so an error of 0.1 rad is full duty).
+fn held_run(goal: impl Fn(f64) -> f64, q: impl Fn(f64) -> f64) -> (Run, simgap_sim::ServoParams) {
+    let mut run = Run::new(vec!["hinge".into()]);
+    run.t = (0..=200).map(|k| k as f64 * PERIOD).collect();
+    run.q = run.t.iter().map(|&t| q(t)).collect();
+    run.q_ref = run.t.iter().map(|&t| goal(t)).collect();
+    let p = simgap_sim::ServoParams { duty_gain: vec![10.0], max_duty: vec![1.0], supply_voltage: VOLTS, kt: None, r: None, goal_rate_limit: None };
+    (run, p)
+}
+
+#[test]
+fn a_servo_stalls_only_at_full_duty_at_rest_for_long_enough() {
+    use crate::prepare::servo::stalls;
+    let rest = [0.05];
+    // a goal 0.5 rad away (duty 5, clipped to full) from 0.3 s to 0.8 s, the joint held at 0
+    let far = |t: f64| if (0.3..0.8).contains(&t) { 0.5 } else { 0.0 };
+    let (run, p) = held_run(far, |_| 0.0);
+    assert_eq!(stalls(&run, &p, &rest, 0.1), vec![true]);
+    // the same drive with the joint moving at 1 rad/s: no stall
+    let (run, p) = held_run(far, |t| t);
+    assert_eq!(stalls(&run, &p, &rest, 0.1), vec![false]);
+    // at full duty for 0.05 s only (a reversal): no stall
+    let brief = |t: f64| if (0.3..0.35).contains(&t) { 0.5 } else { 0.0 };
+    let (run, p) = held_run(brief, |_| 0.0);
+    assert_eq!(stalls(&run, &p, &rest, 0.1), vec![false]);
+    // full duty alternating in sign every sample is not one stall
+    let (run, p) = held_run(|t| if ((t / PERIOD).round() as i64) % 2 == 0 { 0.5 } else { -0.5 }, |_| 0.0);
+    assert_eq!(stalls(&run, &p, &rest, 0.1), vec![false]);
+    // torque off: no drive, no stall; and the logged duty, where there is one, decides
+    let (mut run, p) = held_run(far, |_| 0.0);
+    run.drive.torque_enable = vec![0.0; run.len()];
+    assert_eq!(stalls(&run, &p, &rest, 0.1), vec![false]);
+    let (mut run, p) = held_run(far, |_| 0.0);
+    run.drive.duty = vec![0.5; run.len()];
+    assert_eq!(stalls(&run, &p, &rest, 0.1), vec![false]);
+}
