@@ -58,9 +58,10 @@ pub(crate) struct Tried {
 /// identification run (inertial error of every link, Coulomb and viscous friction and rotor
 /// inertia on every joint), on servo logs the servo's own set (its motor constants, rotor
 /// inertia, load-dependent and viscous friction) and, where a fit log shows the servo stalled
-/// ([`stalled_joints`]), the servo's set with a limit ([`servo_limit`]), each fitted by multiple shooting ([`shooting`])
-/// from the start of lowest cost among its torque-residual fit, the same with the URDF's
-/// inertia, and the answers of the sets tried before it (shared terms kept, the others at 0).
+/// ([`stalled_joints`]), the servo's set with a limit ([`servo_limit`]), each fitted by
+/// multiple shooting ([`shooting`]) from the start of lowest cost among its torque-residual
+/// fit, the same with the URDF's inertia, and the answers of the sets tried before it (shared
+/// terms kept, the others at 0).
 ///
 /// Feedback runs keep the torque-residual fit: their torque residual is well conditioned (the
 /// controller keeps the motion near its reference, accelerations are smooth), while in a k-step
@@ -227,8 +228,9 @@ fn stalled_joints(scorer: &Scorer<'_>) -> Vec<usize> {
 /// limit, coarse then around the best ([`servo_limit`]).
 const LIMIT_SHARES: [f64; 4] = [0.45, 0.6, 0.75, 0.9];
 
-/// The servo's set `drive` with a torque limit on its driven joints that stalled, fitted by multiple
-/// shooting: the limit (a share of each joint's largest command, the same share on every joint)
+/// The servo's set `drive` with a torque limit on its driven joints that stalled, fitted by
+/// multiple shooting: the limit (a share of each joint's largest command, the same share on
+/// every joint)
 /// searched over [`LIMIT_SHARES`] and then half a step either side of the best. A servo stops
 /// where its drive can give no more (a current limit, a stall), which a load-dependent friction
 /// also explains: the friction that stalls the drive at full duty then brakes it at every duty,
