@@ -127,25 +127,28 @@ pub(crate) fn stalls(run: &Run, p: &ServoParams, rest_speed: &[f64], duration: f
     let logged = run.drive.duty.len() == len * n && len > 0;
     (0..n)
         .map(|j| {
-            let full = |k: usize| {
-                let d = duty(run, p, logged, k, j);
-                run.drive.enabled(k, j, n) && d.abs() >= FULL_DUTY * p.max_duty[j]
-            };
+            // the sign of a full duty at each sample, 0 where the duty is not full or the drive off
+            let full: Vec<f64> = (0..len)
+                .map(|k| {
+                    let d = duty(run, p, logged, k, j);
+                    if run.drive.enabled(k, j, n) && d.abs() >= FULL_DUTY * p.max_duty[j] {
+                        d.signum()
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
             // two pointers over each stretch of full duty of one sign
             let mut start = 0;
             for end in 0..len {
-                if !full(end) {
-                    start = end + 1;
-                    continue;
-                }
-                if duty(run, p, logged, end, j).signum() != duty(run, p, logged, start, j).signum() {
+                if full[end] == 0.0 || full[end] != full[start] {
                     start = end;
                 }
                 while start < end && run.t[end] - run.t[start + 1] >= duration {
                     start += 1;
                 }
                 let dt = run.t[end] - run.t[start];
-                if dt >= duration && (run.q[end * n + j] - run.q[start * n + j]).abs() <= rest_speed[j] * dt {
+                if full[end] != 0.0 && dt >= duration && (run.q[end * n + j] - run.q[start * n + j]).abs() <= rest_speed[j] * dt {
                     return true;
                 }
             }

@@ -161,6 +161,7 @@ pub(crate) fn refine_by_shooting(
                 "no fit log shows the servo stalled (at full duty for {MIN_STALL} s or more with its joint at rest): the servo's set is not tried with a torque limit"
             ));
         } else if let Some(drive) = tried.last() {
+            // (on servo logs the servo's set is the last set tried)
             let (limited, note) = servo_limit(scorer, &shoot_runs, &sopts, drive, &stalled, stop)?;
             tried.extend(limited);
             limit_notes.push(note);
@@ -230,9 +231,8 @@ const LIMIT_SHARES: [f64; 4] = [0.45, 0.6, 0.75, 0.9];
 
 /// The servo's set `drive` with a torque limit on its driven joints that stalled, fitted by
 /// multiple shooting: the limit (a share of each joint's largest command, the same share on
-/// every joint)
-/// searched over [`LIMIT_SHARES`] and then half a step either side of the best. A servo stops
-/// where its drive can give no more (a current limit, a stall), which a load-dependent friction
+/// every joint) searched over [`LIMIT_SHARES`] and then half a step either side of the best. A
+/// servo stops where its drive can give no more (a current limit, a stall), which a load-dependent friction
 /// also explains: the friction that stalls the drive at full duty then brakes it at every duty,
 /// and a servo held with a low gain, whose duty is small, is predicted too stiff. The limited
 /// set is returned when it predicts the fit runs better than `drive` by [`ADD_GAIN`] (a limit
@@ -254,44 +254,24 @@ fn servo_limit(
 ) -> Result<(Option<Tried>, String)> {
     let ctx = scorer.ctx;
     let joints: Vec<usize> = drive.terms.iter().filter_map(|t| if let Term::Gain(j) = t { Some(*j) } else { None }).filter(|j| stalled.contains(j)).collect();
-    let with_limit = |share: f64| -> Vec<Term> {
+    if joints.is_empty() {
+        return Ok((None, "no driven servo joint stalled: no torque limit tried".into()));
+    }
+    let try_share = |share: f64| -> Result<(f64, Tried)> {
         let mut terms = drive.terms.clone();
-        for &j in &joints {
-            let limit = (share * ctx.max_command(j)).max(ctx.saturation_floor[j]);
-            terms.push(Term::Saturation { joint: j, limit });
-        }
-        terms
-    };
-    let try_share = |share: f64| -> Result<Tried> {
-        let terms = with_limit(share);
+        terms.extend(joints.iter().map(|&j| Term::Saturation { joint: j, limit: (share * ctx.max_command(j)).max(ctx.saturation_floor[j]) }));
         // each half starts where the set without a limit ended on it
         let earlier = |half: usize, designs: &[TermDesign]| vec![transfer(drive, &drive.halves[half], &terms, designs)];
         let name =
             format!("the servo's motor constants with rotor inertia, load-dependent and viscous friction and a torque limit at {:.0} % of the largest command", 100.0 * share);
-        try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)
+        Ok((share, try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)?))
     };
-    let mut best: Option<(f64, Tried)> = None;
-    let keep_best = |share: f64, t: Tried, best: &mut Option<(f64, Tried)>| {
-        if best.as_ref().is_none_or(|(_, b)| t.score < b.score) {
-            *best = Some((share, t));
-        }
-    };
-    if joints.is_empty() {
-        return Ok((None, "no driven servo joint stalled: no torque limit tried".into()));
-    }
-    for share in LIMIT_SHARES {
-        let t = try_share(share)?;
-        keep_best(share, t, &mut best);
-    }
+    let best_of = |tries: Vec<(f64, Tried)>| tries.into_iter().min_by(|a, b| a.1.score.total_cmp(&b.1.score));
+    let coarse = best_of(LIMIT_SHARES.into_iter().map(try_share).collect::<Result<_>>()?);
     let step = 0.5 * (LIMIT_SHARES[1] - LIMIT_SHARES[0]);
-    let at = best.as_ref().map_or(LIMIT_SHARES[0], |(s, _)| *s);
-    for share in [at - step, at + step] {
-        if share > 0.0 && share < 1.0 {
-            let t = try_share(share)?;
-            keep_best(share, t, &mut best);
-        }
-    }
-    let Some((share, limited)) = best else { return Ok((None, String::new())) };
+    let at = coarse.as_ref().map_or(LIMIT_SHARES[0], |(s, _)| *s);
+    let near: Vec<(f64, Tried)> = [at - step, at + step].into_iter().filter(|s| *s > 0.0 && *s < 1.0).map(try_share).collect::<Result<_>>()?;
+    let Some((share, limited)) = best_of(coarse.into_iter().chain(near).collect()) else { return Ok((None, String::new())) };
     let shares: Vec<String> = LIMIT_SHARES.iter().map(|s| format!("{:.0}", 100.0 * s)).collect();
     let head = format!(
         "multiple shooting: the servo's set with a torque limit on its stalled joints at {:.1} % of each joint's largest command (the best of {} % and half a step either side of the best) predicts the fit runs at {:.4} of the nominal model's k-step error, against {:.4} without it",

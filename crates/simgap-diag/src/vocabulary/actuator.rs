@@ -8,7 +8,7 @@
 //! it carries). A term fitted at the edge of its range is no finding
 //! (see [`crate::select::plausible`]).
 
-use simgap_sim::Effect;
+use simgap_sim::{Effect, EffectKind};
 
 use super::effects::{list_per_joint, per_joint as reported, sig3, unit_of, Entry, FittedTerm};
 use super::{per_joint, Column, EffectReport, Term, TermDesign};
@@ -107,8 +107,9 @@ pub(super) fn describe(e: &EffectReport) -> String {
 /// clamps the command first and then scales it (`k · clamp(τ_cmd, ±limit)`), so the most the
 /// drive delivers is `k · limit`, which the description states.
 pub(super) fn describe_limit_with_gain(entries: &mut [EffectReport]) {
-    let gains: Vec<(String, f64)> = entries.iter().filter(|e| e.effect == "torque_gain").flat_map(|e| reported(e, "k").into_iter().map(|(j, k)| (j.to_string(), k))).collect();
-    for e in entries.iter_mut().filter(|e| e.effect == "torque_saturation") {
+    let is = |e: &EffectReport, kind: EffectKind| e.effect == kind.as_str();
+    let gains: Vec<(String, f64)> = entries.iter().filter(|e| is(e, EffectKind::TorqueGain)).flat_map(|e| reported(e, "k").into_iter().map(|(j, k)| (j.to_string(), k))).collect();
+    for e in entries.iter_mut().filter(|e| is(e, EffectKind::TorqueSaturation)) {
         let unit = unit_of(e, "limit").to_string();
         let most: Vec<String> =
             reported(e, "limit").iter().filter_map(|(j, l)| gains.iter().find(|(g, _)| g == j).map(|(_, k)| format!("±{} {unit} on {j}", sig3(k * l)))).collect();
