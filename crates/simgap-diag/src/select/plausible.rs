@@ -76,6 +76,18 @@ pub(crate) fn interval_holds_no_effect(design: &TermDesign, theta: &[f64], std: 
 /// finding: [`crate::select::SelectOptions::min_torque_share`]'s default.
 const MIN_TORQUE_SHARE: f64 = 0.01;
 
+/// The torque the columns `cols` of a term explain on its joint with coefficients `theta`, as a
+/// share of the joint's commanded torque (RMS over the fit data); `None` for a term of no single
+/// joint or without data.
+fn torque_share(term: &Term, design: &TermDesign, theta: &[f64], cols: &[usize], data: &[crate::prepare::dataset::FitData]) -> Option<f64> {
+    let (j, d0) = (term.joint()?, data.first()?);
+    let dof = d0.dof;
+    let samples = design.cols.first().map_or(0, |c| if c.joint.is_some() { c.values.len() } else { c.values.len() / dof.max(1) });
+    let explained: f64 = (0..samples).map(|s| cols.iter().filter_map(|&c| Some(theta.get(c)? * design.cols.get(c)?.at(s, j, dof))).sum::<f64>().powi(2)).sum();
+    let commanded: f64 = data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(d.dof)).map(|t| t * t).sum();
+    (samples > 0 && commanded > 0.0).then(|| (explained / commanded).sqrt())
+}
+
 /// Judges one selected term from its column coefficients `theta` and their standard deviations
 /// (the design's coordinates, see [`TermDesign`]): `std`, the data's own spread, decides whether
 /// the term is there at all; `shape_std`, which may add the pipeline's shared error, whether a
@@ -91,17 +103,9 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
     // too small to matter: the torque it explains on its joint is below the share of the
     // commanded torque the stepwise selection asks of every term (a term a multiple-shooting
     // set brought in was never asked)
-    if let (Some(j), Some(d0)) = (term.joint(), data.first()) {
-        let dof = d0.dof;
-        let samples = design.cols.first().map_or(0, |c| if c.joint.is_some() { c.values.len() } else { c.values.len() / dof.max(1) });
-        let explained: f64 = (0..samples).map(|s| design.cols.iter().zip(theta).map(|(c, th)| th * c.at(s, j, dof)).sum::<f64>().powi(2)).sum();
-        let commanded: f64 = data.iter().flat_map(|d| d.tau.iter().skip(j).step_by(d.dof)).map(|t| t * t).sum();
-        if samples > 0 && commanded > 0.0 {
-            let share = (explained / commanded).sqrt();
-            if share < MIN_TORQUE_SHARE {
-                return Judgment::NoFinding(format!("not a finding: {name} explains {:.2} % of the commanded torque on its joint (RMS): too small to matter", 100.0 * share));
-            }
-        }
+    let all: Vec<usize> = (0..theta.len()).collect();
+    if let Some(share) = torque_share(term, design, theta, &all, data).filter(|s| *s < MIN_TORQUE_SHARE) {
+        return Judgment::NoFinding(format!("not a finding: {name} explains {:.2} % of the commanded torque on its joint (RMS): too small to matter", 100.0 * share));
     }
     // at the edge of its physical range (a bound other than the neutral 0)
     for (c, &th) in theta.iter().enumerate() {
@@ -121,12 +125,18 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
     }
     // a richer shape whose extra parameters are consistent with the simpler one
     if let Some(nested) = simpler(term, data) {
+        // (the torque its extra parameters add, beyond the simpler effect, measured as a whole
+        // term's is: a load-dependent friction of 1e-4 × |τ| beside 1.6 N·m of dry friction,
+        // resolved on noise-free synthetic logs, is a Coulomb friction)
+        let extra_share = torque_share(term, design, theta, &nested.extra, data);
         let why = match nested.unresolved {
             Some(u) => Some(u),
             None if nested.extra.iter().all(|&c| c < theta.len() && c < shape_std.len() && holds_zero(theta[c], shape_std[c])) => {
                 Some("the 95 % intervals of its extra parameters hold the values of the simpler effect".to_string())
             }
-            None => None,
+            None => extra_share.filter(|s| *s < MIN_TORQUE_SHARE).map(|s| {
+                format!("its extra parameters add {:.2} % of the commanded torque on its joint (RMS) to the simpler effect: too small to matter", 100.0 * s)
+            }),
         };
         if let Some(why) = why {
             return Judgment::Simpler { terms: nested.terms, extra: nested.extra, why };
@@ -426,6 +436,33 @@ mod tests {
         }
         // a stiffness the runs resolve is a spring
         let j = judge(&Term::Spring(0), &spring, &[2.0, -0.6], &[0.01, 0.01], &[0.087, 0.01], &[], &["a".into()]);
+        assert!(matches!(j, Judgment::Finding), "{j:?}");
+    }
+
+    #[test]
+    fn a_load_friction_whose_load_share_is_too_small_to_matter_is_the_coulomb_friction_nested_in_it() {
+        use crate::check::bench::{demo_specs, generate};
+        use crate::prepare::dataset::{align_run, FitData, PrepareOptions};
+        use simgap_core::{Formulation, Model};
+        let model = Model::paper_arm();
+        let (fit, _) = demo_specs(1);
+        let run = generate(&model, Formulation::EulerLagrange, &[], &fit[0], 0.0025, 1_024_000.0).unwrap();
+        let data = vec![FitData::new(&model, Formulation::EulerLagrange, align_run(&model, &run).unwrap(), &PrepareOptions::default()).unwrap()];
+        let term = Term::LoadFriction { joint: 1, w: 0.01 };
+        let d = crate::vocabulary::design(&term, &data);
+        let names = ["a".to_string(), "b".to_string()];
+        // resolved (its interval far from 0), but 1e-4 × |τ| is nothing beside the commanded
+        // torque: a Coulomb friction of the same fc
+        match judge(&term, &d, &[1.0, 1e-4], &[0.01, 1e-6], &[0.01, 1e-6], &data, &names) {
+            Judgment::Simpler { terms, extra, why } => {
+                assert_eq!(terms, [Term::Coulomb { joint: 1, w: 0.01 }]);
+                assert_eq!(extra, [1]);
+                assert!(why.contains("too small to matter"), "{why}");
+            }
+            other => panic!("{other:?}"),
+        }
+        // a quarter of the drive's torque lost in the gearbox is a finding
+        let j = judge(&term, &d, &[1.0, 0.25], &[0.01, 0.01], &[0.01, 0.01], &data, &names);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
 
