@@ -134,9 +134,9 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
             None if nested.extra.iter().all(|&c| c < theta.len() && c < shape_std.len() && holds_zero(theta[c], shape_std[c])) => {
                 Some("the 95 % intervals of its extra parameters hold the values of the simpler effect".to_string())
             }
-            None => extra_share.filter(|s| *s < MIN_TORQUE_SHARE).map(|s| {
-                format!("its extra parameters add {:.2} % of the commanded torque on its joint (RMS) to the simpler effect: too small to matter", 100.0 * s)
-            }),
+            None => extra_share
+                .filter(|s| *s < MIN_TORQUE_SHARE)
+                .map(|s| format!("its extra parameters add {:.2} % of the commanded torque on its joint (RMS) to the simpler effect: too small to matter", 100.0 * s)),
         };
         if let Some(why) = why {
             return Judgment::Simpler { terms: nested.terms, extra: nested.extra, why };
@@ -439,15 +439,20 @@ mod tests {
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
 
-    #[test]
-    fn a_load_friction_whose_load_share_is_too_small_to_matter_is_the_coulomb_friction_nested_in_it() {
+    /// The fit data of the paper arm's first demo run, simulated without effects.
+    fn demo_fit_data() -> Vec<crate::prepare::dataset::FitData> {
         use crate::check::bench::{demo_specs, generate};
         use crate::prepare::dataset::{align_run, FitData, PrepareOptions};
         use simgap_core::{Formulation, Model};
         let model = Model::paper_arm();
         let (fit, _) = demo_specs(1);
         let run = generate(&model, Formulation::EulerLagrange, &[], &fit[0], 0.0025, 1_024_000.0).unwrap();
-        let data = vec![FitData::new(&model, Formulation::EulerLagrange, align_run(&model, &run).unwrap(), &PrepareOptions::default()).unwrap()];
+        vec![FitData::new(&model, Formulation::EulerLagrange, align_run(&model, &run).unwrap(), &PrepareOptions::default()).unwrap()]
+    }
+
+    #[test]
+    fn a_load_friction_whose_load_share_is_too_small_to_matter_is_the_coulomb_friction_nested_in_it() {
+        let data = demo_fit_data();
         let term = Term::LoadFriction { joint: 1, w: 0.01 };
         let d = crate::vocabulary::design(&term, &data);
         let names = ["a".to_string(), "b".to_string()];
@@ -474,13 +479,7 @@ mod tests {
 
     #[test]
     fn a_torque_that_is_a_constant_and_an_acceleration_term_is_an_offset_and_a_rotor_inertia() {
-        use crate::check::bench::{demo_specs, generate};
-        use crate::prepare::dataset::{align_run, FitData, PrepareOptions};
-        use simgap_core::{Formulation, Model};
-        let model = Model::paper_arm();
-        let (fit, _) = demo_specs(1);
-        let run = generate(&model, Formulation::EulerLagrange, &[], &fit[0], 0.0025, 1_024_000.0).unwrap();
-        let data = vec![FitData::new(&model, Formulation::EulerLagrange, align_run(&model, &run).unwrap(), &PrepareOptions::default()).unwrap()];
+        let data = demo_fit_data();
         let qdd = |j: usize| crate::vocabulary::design(&Term::Armature(j), &data).cols[0].values.clone();
         let (a0, a1) = (qdd(0), qdd(1));
         let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
