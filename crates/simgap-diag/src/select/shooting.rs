@@ -51,7 +51,8 @@ pub(crate) struct Options {
     pub window: f64,
     /// Instants per window at which the error counts (evenly spaced, the last at the window's end).
     pub points: usize,
-    /// Levenberg–Marquardt iterations at most.
+    /// Levenberg–Marquardt iterations at most (10 by default; the shooting stage raises it on
+    /// servo logs, see `refine::SERVO_ITERATIONS`).
     pub max_iterations: usize,
     /// Weight of the prior of an inertial correction: moving every scaled inertial parameter by
     /// one unit costs this fraction of the nominal model's total (normalised) error. Weak: it
