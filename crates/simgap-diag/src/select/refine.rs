@@ -428,8 +428,19 @@ fn finish(
     let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: shoot_runs, keep: &keep, options: sopts };
     // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
     let mut from = starts(&best.designs, f.theta.clone());
+    let mut start_names = vec!["the torque-residual fit", "the torque-residual fit with the URDF's inertia"];
+    start_names.truncate(from.len());
     from.extend(best.halves.iter().cloned());
+    start_names.extend(["the answer fitted on the 2nd and 4th fifths of every fit run", "the answer fitted on the 1st, 3rd and 5th fifths"].iter().take(best.halves.len()));
     let mut shot = shooting::fit(&problem, &from, stop)?;
+    // where the fit began, and whether it moved from there (on rough costs, e.g. a servo's
+    // stalls and clipped duty, no step may lower it: the answer is then that start's)
+    let began = start_names.get(shot.start).copied().unwrap_or("a start");
+    let moved = if shot.cost < shot.cost_start {
+        format!("from {began}, the start of lowest cost")
+    } else {
+        format!("from {began}, the start of lowest cost, which no step improved: the answer is that start's")
+    };
     // on logs their recorder low-pass filtered, the torque-residual fit is distorted where the
     // filter flattened the torque's peaks (`prepare::lowpass`): its disagreement measures that
     // distortion, not the error of the shooting answer. On both seeds' self-check, the
@@ -443,7 +454,7 @@ fn finish(
         ", and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes)"
     };
     notes.push(format!(
-        "{what} by multiple shooting on all fit runs (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals and a quarter of the squared difference of the two halves' answers{method_term}",
+        "{what} by multiple shooting on all fit runs {moved} (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals and a quarter of the squared difference of the two halves' answers{method_term}",
         shot.cost_start, shot.cost, shot.iterations
     ));
     // the reported spread: σ² (JᵀJ)⁻¹ alone treats the errors along a window as independent

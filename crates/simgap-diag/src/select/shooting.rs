@@ -103,6 +103,8 @@ pub(crate) struct Shot {
     pub cost: f64,
     /// Levenberg–Marquardt iterations done.
     pub iterations: usize,
+    /// Which of the starts the fit began from (the one of lowest cost), by its index.
+    pub start: usize,
 }
 
 /// The problem: a model, terms (with their designs, for bounds and layout) and windows.
@@ -369,13 +371,13 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
             best = Some((i, x, r, f));
         }
     }
-    let Some((_, mut x, mut r, mut f)) = best else {
+    let Some((start, mut x, mut r, mut f)) = best else {
         return Err(Error::Input("multiple shooting needs at least one start".into()));
     };
     let cost_start = ev.data_cost(&r);
     // a set without parameters (no terms, or only grid members) has nothing to fit
     if nx == 0 {
-        return Ok(Shot { theta: layout.theta_of(&x), std: DVector::zeros(layout.k), cost_start, cost: cost_start, iterations: 0 });
+        return Ok(Shot { theta: layout.theta_of(&x), std: DVector::zeros(layout.k), cost_start, cost: cost_start, iterations: 0, start });
     }
     let mut lambda = 1e-2;
     let mut small = 0;
@@ -494,7 +496,7 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
     let t = layout.dtheta_dx(&x);
     let cov = &t * cov_x * t.transpose();
     let std = DVector::from_fn(layout.k, |i, _| cov[(i, i)].max(0.0).sqrt());
-    Ok(Shot { theta: layout.theta_of(&x), std, cost_start, cost: ev.data_cost(&r), iterations })
+    Ok(Shot { theta: layout.theta_of(&x), std, cost_start, cost: ev.data_cost(&r), iterations, start })
 }
 
 #[cfg(test)]
