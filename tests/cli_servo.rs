@@ -144,4 +144,24 @@ fn the_rhoban_servo_logs_are_diagnosed_and_the_held_out_trajectory_predicted_bet
     assert!(selected.contains(&"torque_saturation"), "{selected:?}\n{}", text(&o));
     let (before, after) = (r["gap"]["holdout_l2_before"].as_f64().unwrap(), r["gap"]["holdout_l2_after"].as_f64().unwrap());
     assert!(after < 0.5 * before, "closed loop {before} → {after}\n{}", text(&o));
+    // a selected effect whose 95 % intervals all hold its neutral value (k = 1 for a gain, 0
+    // otherwise) says it is not established, in its description and so in the summary
+    for e in r["selected_effects"].as_array().unwrap() {
+        let neutral = |name: &str| if e["effect"] == "torque_gain" && name == "k" { 1.0 } else { 0.0 };
+        let mut finite = 0;
+        let mut holds = true;
+        for (name, values) in e["parameters"].as_object().unwrap() {
+            let (Some(values), Some(ci)) = (values.as_array(), e["uncertainty"][name].as_array()) else { continue };
+            for (x, u) in values.iter().zip(ci) {
+                let (Some(x), Some(u)) = (x.as_f64(), u.as_f64()) else { continue };
+                finite += 1;
+                holds &= (x - neutral(name)).abs() <= u;
+            }
+        }
+        if finite > 0 && holds {
+            let description = e["description"].as_str().unwrap();
+            assert!(description.contains("not established"), "{}: {description}", e["effect"]);
+            assert!(text(&o).contains(description), "the summary states it:\n{}", text(&o));
+        }
+    }
 }

@@ -332,7 +332,7 @@ impl Report {
                 .map(|(k, v)| {
                     let unit = e.units.get(k).map(String::as_str).unwrap_or("-");
                     let unit = if unit == "-" || unit.is_empty() { String::new() } else { format!(" {unit}") };
-                    format!("{k} = {}{unit}", fmt_param(v))
+                    format!("{k} = {}{unit}", fmt_param_with(v, e.uncertainty.get(k)))
                 })
                 .collect();
             let _ = writeln!(s, "  {:<20} joints {:?}  {}", e.effect, e.joints, params.join(", "));
@@ -387,6 +387,22 @@ impl Report {
         let a = verdict::assess(self);
         let _ = writeln!(s, "\n{}", a.text);
         s
+    }
+}
+
+/// A parameter with its 95 % half-width where the report gives a finite one: `2.1243 ± 1.4920`,
+/// per joint `[0.0176 ± 0.0230, 0.0100]`.
+fn fmt_param_with(p: &Param, half_width: Option<&Param>) -> String {
+    let with = |x: f64, u: Option<f64>| match u.filter(|u| u.is_finite()) {
+        Some(u) => format!("{x:.4} ± {u:.4}"),
+        None => format!("{x:.4}"),
+    };
+    match (p, half_width) {
+        (Param::Number(x), Some(Param::Number(u))) => with(*x, Some(*u)),
+        (Param::PerJoint(v), Some(Param::PerJoint(u))) | (Param::Vector(v), Some(Param::Vector(u))) if u.len() == v.len() => {
+            format!("[{}]", v.iter().zip(u).map(|(x, u)| with(*x, Some(*u))).collect::<Vec<_>>().join(", "))
+        }
+        _ => fmt_param(p),
     }
 }
 
