@@ -332,7 +332,7 @@ impl Report {
                 .map(|(k, v)| {
                     let unit = e.units.get(k).map(String::as_str).unwrap_or("-");
                     let unit = if unit == "-" || unit.is_empty() { String::new() } else { format!(" {unit}") };
-                    format!("{k} = {}{unit}", fmt_param_with(v, e.uncertainty.get(k)))
+                    format!("{k} = {}{unit}", fmt_param(v, e.uncertainty.get(k)))
                 })
                 .collect();
             let _ = writeln!(s, "  {:<20} joints {:?}  {}", e.effect, e.joints, params.join(", "));
@@ -390,26 +390,21 @@ impl Report {
     }
 }
 
-/// A parameter with its 95 % half-width where the report gives a finite one: `2.1243 ± 1.4920`,
-/// per joint `[0.0176 ± 0.0230, 0.0100]`.
-fn fmt_param_with(p: &Param, half_width: Option<&Param>) -> String {
-    let with = |x: f64, u: Option<f64>| match u.filter(|u| u.is_finite()) {
+/// A parameter, each value with its 95 % half-width where `half_width` gives a finite one of
+/// the same layout: `2.1243 ± 1.4920`, per joint `[0.0176 ± 0.0230, 0.0100]`; links by count.
+fn fmt_param(p: &Param, half_width: Option<&Param>) -> String {
+    let halves: &[f64] = match (p, half_width) {
+        (Param::Number(_), Some(Param::Number(u))) => std::slice::from_ref(u),
+        (Param::PerJoint(v), Some(Param::PerJoint(u))) | (Param::Vector(v), Some(Param::Vector(u))) if u.len() == v.len() => u,
+        _ => &[],
+    };
+    let one = |i: usize, x: f64| match halves.get(i).filter(|u| u.is_finite()) {
         Some(u) => format!("{x:.4} ± {u:.4}"),
         None => format!("{x:.4}"),
     };
-    match (p, half_width) {
-        (Param::Number(x), Some(Param::Number(u))) => with(*x, Some(*u)),
-        (Param::PerJoint(v), Some(Param::PerJoint(u))) | (Param::Vector(v), Some(Param::Vector(u))) if u.len() == v.len() => {
-            format!("[{}]", v.iter().zip(u).map(|(x, u)| with(*x, Some(*u))).collect::<Vec<_>>().join(", "))
-        }
-        _ => fmt_param(p),
-    }
-}
-
-fn fmt_param(p: &Param) -> String {
     match p {
-        Param::Number(x) => format!("{x:.4}"),
-        Param::PerJoint(v) | Param::Vector(v) => format!("[{}]", v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")),
+        Param::Number(x) => one(0, *x),
+        Param::PerJoint(v) | Param::Vector(v) => format!("[{}]", v.iter().enumerate().map(|(i, x)| one(i, *x)).collect::<Vec<_>>().join(", ")),
         Param::PerLink(v) => format!("{} links", v.len()),
     }
 }

@@ -339,6 +339,9 @@ fn transfer(from: &Tried, theta: &nalgebra::DVector<f64>, to: &[Term], to_design
     out
 }
 
+/// The starts [`starts`] gives, in words, in its order.
+const START_NAMES: [&str; 2] = ["the torque-residual fit", "the torque-residual fit with the URDF's inertia"];
+
 /// Starts of a shooting fit: the torque-residual fit `theta`, and the same with the URDF's
 /// inertia where the set corrects it.
 fn starts(designs: &[TermDesign], theta: nalgebra::DVector<f64>) -> Vec<nalgebra::DVector<f64>> {
@@ -362,6 +365,10 @@ fn starts(designs: &[TermDesign], theta: nalgebra::DVector<f64>) -> Vec<nalgebra
 /// Extra starts of a half's shooting fit (the half, the set's designs): answers of other sets on
 /// the same half.
 type EarlierStarts<'a> = dyn Fn(usize, &[TermDesign]) -> Vec<nalgebra::DVector<f64>> + 'a;
+
+/// The answers of [`try_set`]'s halves, in words, in its order: half `h` holds out the folds
+/// (fifths of every run) whose index has parity `h`, and is fitted on the others.
+const HALF_NAMES: [&str; 2] = ["the answer fitted on the 2nd and 4th fifths of every fit run", "the answer fitted on the 1st, 3rd and 5th fifths"];
 
 /// One set's two-fold cross-validation by multiple shooting: each half of the fit runs' folds
 /// (alternate fifths of every run) fitted on the other half alone, from its torque-residual fit
@@ -428,10 +435,9 @@ fn finish(
     let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: shoot_runs, keep: &keep, options: sopts };
     // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
     let mut from = starts(&best.designs, f.theta.clone());
-    let mut start_names = vec!["the torque-residual fit", "the torque-residual fit with the URDF's inertia"];
-    start_names.truncate(from.len());
+    let mut start_names: Vec<&str> = START_NAMES[..from.len()].to_vec();
     from.extend(best.halves.iter().cloned());
-    start_names.extend(["the answer fitted on the 2nd and 4th fifths of every fit run", "the answer fitted on the 1st, 3rd and 5th fifths"].iter().take(best.halves.len()));
+    start_names.extend(&HALF_NAMES[..best.halves.len()]);
     let mut shot = shooting::fit(&problem, &from, stop)?;
     // where the fit began, and whether it moved from there (on rough costs, e.g. a servo's
     // stalls and clipped duty, no step may lower it: the answer is then that start's)
