@@ -88,6 +88,17 @@ fn torque_share(term: &Term, design: &TermDesign, theta: &[f64], cols: &[usize],
     (samples > 0 && commanded > 0.0).then(|| (explained / commanded).sqrt())
 }
 
+/// The first coefficient of `theta` fitted at a bound of its physical range other than the
+/// neutral 0, with that bound: a term the data push beyond what the robot can have.
+pub(crate) fn at_edge(design: &TermDesign, theta: &[f64]) -> Option<(f64, f64)> {
+    theta.iter().enumerate().find_map(|(c, &th)| {
+        [design.lo.get(c).copied().unwrap_or(f64::NEG_INFINITY), design.hi.get(c).copied().unwrap_or(f64::INFINITY)]
+            .into_iter()
+            .find(|&b| b != 0.0 && on_bound(th, b))
+            .map(|b| (th, b))
+    })
+}
+
 /// Judges one selected term from its column coefficients `theta` and their standard deviations
 /// (the design's coordinates, see [`TermDesign`]): `std`, the data's own spread, decides whether
 /// the term is there at all; `shape_std`, which may add the pipeline's shared error, whether a
@@ -108,16 +119,12 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
         return Judgment::NoFinding(format!("not a finding: {name} explains {:.2} % of the commanded torque on its joint (RMS): too small to matter", 100.0 * share));
     }
     // at the edge of its physical range (a bound other than the neutral 0)
-    for (c, &th) in theta.iter().enumerate() {
-        for b in [design.lo.get(c).copied().unwrap_or(f64::NEG_INFINITY), design.hi.get(c).copied().unwrap_or(f64::INFINITY)] {
-            if b != 0.0 && on_bound(th, b) {
-                return Judgment::NoFinding(format!(
-                    "not a finding: {name} is fitted at the edge of its physical range (coefficient {} at its bound {}): the data push it beyond what the robot can have",
-                    crate::vocabulary::effects::sig3(th),
-                    crate::vocabulary::effects::sig3(b)
-                ));
-            }
-        }
+    if let Some((th, b)) = at_edge(design, theta) {
+        return Judgment::NoFinding(format!(
+            "not a finding: {name} is fitted at the edge of its physical range (coefficient {} at its bound {}): the data push it beyond what the robot can have",
+            crate::vocabulary::effects::sig3(th),
+            crate::vocabulary::effects::sig3(b)
+        ));
     }
     // every parameter consistent with its neutral value
     if theta.iter().zip(std).all(|(t, s)| holds_zero(*t, *s)) && std.iter().any(|s| s.is_finite()) {

@@ -1,6 +1,7 @@
 //! The pieces of the reported 95 % intervals.
 
 use crate::lsq::t_quantile_975;
+use crate::select::refine::jackknife_variance;
 use crate::select::uncertainty::interval_std;
 use nalgebra::DVector;
 
@@ -33,6 +34,28 @@ fn interval_takes_the_pipeline_error_where_it_exceeds_the_larger_resampling_spre
 /// The synthetic runs of an open-loop replay stay near its logged motion, and the torque they
 /// record is the torque they applied: replayed open loop with the same effects, a synthetic run
 /// reproduces its own positions.
+#[test]
+fn jackknife_variance_of_the_mean_is_the_sample_variance_over_n() {
+    // for the mean, θ₍ᵢ₎ − θ̄ = (x̄ − xᵢ)/(n − 1), so (n − 1)/n Σ (θ₍ᵢ₎ − θ̄)² = s²/n exactly
+    let x = [0.3, -1.2, 2.5, 0.9, 4.1, -0.7];
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let s2 = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    // two parameters: the mean of x and of 3x (its variance 9 times)
+    let answers: Vec<DVector<f64>> = (0..x.len())
+        .map(|out| {
+            let m = x.iter().enumerate().filter(|(i, _)| *i != out).map(|(_, v)| v).sum::<f64>() / (n - 1.0);
+            DVector::from_vec(vec![m, 3.0 * m])
+        })
+        .collect();
+    let v = jackknife_variance(&answers);
+    assert!((v[0] - s2 / n).abs() < 1e-12 * s2, "{} vs {}", v[0], s2 / n);
+    assert!((v[1] - 9.0 * s2 / n).abs() < 1e-12 * s2, "{} vs {}", v[1], 9.0 * s2 / n);
+    // one answer has no spread to measure
+    assert_eq!(jackknife_variance(&answers[..1]), vec![0.0, 0.0]);
+    assert!(jackknife_variance(&[]).is_empty());
+}
+
 #[test]
 fn a_tracked_replay_stays_near_its_log_and_records_the_torque_it_applied() {
     use crate::check::bench::{gains_for, generate, random_fourier, RefSpec, RunSpec};

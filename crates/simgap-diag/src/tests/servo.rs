@@ -9,7 +9,7 @@ use crate::{diagnose, DiagnoseOptions, Param};
 use simgap_core::{Formulation, Model, PENDULUM_URDF};
 use simgap_sim::controller::servo_keys;
 use simgap_sim::reference::Fourier;
-use simgap_sim::{simulate, ControllerKind, Effect, Experiment, MemorySink, Plant, Run, RunEnd, SensorParams, Servo, SimParams};
+use simgap_sim::{simulate, ControllerKind, Effect, Experiment, MemorySink, Plant, Run, RunEnd, SensorParams, Servo, SimParams, VelocityEstimate};
 
 /// The servo: 12 N·m per unit duty, back-EMF 1 N·m·s/rad.
 const KT: f64 = 1.0;
@@ -21,13 +21,18 @@ const PERIOD: f64 = 0.005;
 /// One servo log: the goal `reference`, the torque switched off from `off_at` seconds on (a
 /// drop), logged as a servo logs (no torque; duty, torque enable, goal).
 fn servo_log(model: &Model, effects: &[Effect], reference: &Fourier, duration: f64, off_at: f64, name: &str) -> Run {
+    servo_log_sensed(model, effects, reference, duration, off_at, name, SensorParams::exact())
+}
+
+/// [`servo_log`] measured by `sensor`.
+fn servo_log_sensed(model: &Model, effects: &[Effect], reference: &Fourier, duration: f64, off_at: f64, name: &str, sensor: SensorParams) -> Run {
     let n = samples(duration);
     let mut log = Run::new(vec!["hinge".into()]);
     log.t = (0..n).map(|k| k as f64 * PERIOD).collect();
     log.drive.torque_enable = log.t.iter().map(|t| if *t < off_at { 1.0 } else { 0.0 }).collect();
     let servo = Servo::new(vec![DUTY_GAIN], vec![1.0], VOLTS, vec![KT], vec![R], None).unwrap().with_log(&log, &[0]);
     let plant = Plant::new(model, Formulation::EulerLagrange, effects).unwrap();
-    let params = SimParams { duration, sample_period: PERIOD, sensor: SensorParams::exact(), q0: vec![0.0], qd0: vec![0.0], substeps: 4, ..SimParams::default() };
+    let params = SimParams { duration, sample_period: PERIOD, sensor, q0: vec![0.0], qd0: vec![0.0], substeps: 4, ..SimParams::default() };
     let mut sink = MemorySink::new();
     let mut controller = servo;
     assert_eq!(simulate(&plant, &mut controller, reference, &params, &mut sink, None).unwrap(), RunEnd::Completed);
@@ -173,4 +178,43 @@ fn a_servo_that_stalls_at_its_torque_limit_is_diagnosed_with_the_limit() {
     for i in 0..k.horizons_s.len() {
         assert!(k.after[i] < 0.5 * k.before[i], "{k:?}\n{}", r.summary());
     }
+}
+
+/// The same servo with four fit logs: the torque-residual fit reads the stalls as torque, so the
+/// intervals take the spread of the answers with each fit log left out instead of its
+/// disagreement. They hold the true viscous friction, which is established, and the drive's
+/// most torque is found within 10 %.
+#[test]
+fn a_stalled_servo_s_intervals_come_from_the_jackknife_over_its_fit_logs_and_hold_the_truth() {
+    let model = Model::from_urdf_str(PENDULUM_URDF).unwrap();
+    let truth = [Effect::TorqueSaturation { limit: vec![6.0] }, Effect::ViscousFriction { b: vec![0.3] }];
+    // a servo's encoder (4096 counts per revolution) and a little noise, as the logs of a real one
+    let sensor = |seed: u64| SensorParams { counts_per_rev: Some(4096.0), velocity: VelocityEstimate::BackwardDifference, noise_std: 2e-4, seed };
+    let log = |amplitude: &[f64], f0: f64, off_at: f64, name: &str, seed: u64| servo_log_sensed(&model, &truth, &goal(amplitude, f0), 8.0, off_at, name, sensor(seed));
+    let fit = [
+        log(&[1.2, 0.2, 0.1], 0.12, 6.5, "fit-a", 1),
+        log(&[1.0, 0.3, 0.1], 0.15, f64::INFINITY, "fit-b", 2),
+        log(&[0.9, 0.1, 0.2], 0.17, f64::INFINITY, "fit-c", 3),
+        log(&[1.3, 0.2, 0.1], 0.11, 6.0, "fit-d", 4),
+    ];
+    let hold = [log(&[1.1, 0.25, 0.05], 0.13, f64::INFINITY, "held-out", 5)];
+    let d = diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &DiagnoseOptions::default(), &mut |_| {}).unwrap();
+    let r = &d.report;
+    if std::env::var_os("SIMGAP_SHOW").is_some() {
+        println!("{}", r.summary());
+    }
+    assert!(r.notes.iter().any(|n| n.contains("delete-one-log jackknife variance of the answers fitted with each of the 4 fit logs left out")), "{}", r.summary());
+    let viscous = r.selected_effects.iter().find(|e| e.effect == "viscous_friction").unwrap_or_else(|| panic!("no viscous friction\n{}", r.summary()));
+    let (Param::PerJoint(b), Param::PerJoint(u)) = (&viscous.parameters["b"], &viscous.uncertainty["b"]) else { panic!("{viscous:?}") };
+    assert!((b[0] - 0.3).abs() <= u[0], "b = {} ± {}, truth 0.3\n{}", b[0], u[0], r.summary());
+    assert!(!viscous.description.contains("not established"), "{}\n{}", viscous.description, r.summary());
+    let per_joint = |name: &str, key: &str| -> Option<f64> {
+        r.selected_effects.iter().find(|e| e.effect == name).and_then(|e| match &e.parameters[key] {
+            Param::PerJoint(v) => v.first().copied(),
+            _ => None,
+        })
+    };
+    let limit = per_joint("torque_saturation", "limit").unwrap_or_else(|| panic!("no torque limit selected\n{}", r.summary()));
+    let most = limit * per_joint("torque_gain", "k").unwrap_or(1.0);
+    assert!((most / 6.0 - 1.0).abs() < 0.1, "the drive delivers at most {most} N·m (limit {limit})\n{}", r.summary());
 }
