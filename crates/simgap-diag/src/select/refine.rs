@@ -465,7 +465,17 @@ fn finish(
     // k = 1.72–2.34). With fewer fit logs than [`MIN_JACKKNIFE_RUNS`] the disagreement stays
     // (wide, not understated)
     let stalled = scorer.prep.servo.is_some() && !stalled_joints(scorer).is_empty();
-    let jackknife = if stalled && !filtered && shoot_runs.len() >= MIN_JACKKNIFE_RUNS { Some(run_jackknife(&problem, &shot.theta, stop)?) } else { None };
+    // (a leave-one-out fit that fails, e.g. a simulation that diverges without one log, keeps
+    // the disagreement instead; only a stop request ends the diagnosis)
+    let jackknife = if stalled && !filtered && shoot_runs.len() >= MIN_JACKKNIFE_RUNS {
+        match run_jackknife(&problem, &shot.theta, stop) {
+            Ok(answers) => Some(answers),
+            Err(crate::error::Error::Interrupted) => return Err(crate::error::Error::Interrupted),
+            Err(_) => None,
+        }
+    } else {
+        None
+    };
     let method_term = if filtered {
         " (not the difference from the torque-residual fit of the same set: these logs were low-pass filtered by their recorder, which distorts that fit)".to_string()
     } else if let Some(j) = &jackknife {
@@ -493,10 +503,11 @@ fn finish(
     let jack_var = jackknife.as_deref().map(jackknife_variance);
     for i in 0..shot.theta.len() {
         let half = halves.map_or(0.0, |(a, b)| 0.5 * (a[i] - b[i]));
+        let disagreement = || f.theta.get(i).map_or(0.0, |t| (shot.theta[i] - t).powi(2));
         let other = match &jack_var {
-            Some(v) => v.get(i).copied().unwrap_or(0.0),
+            Some(v) => v.get(i).copied().filter(|x| x.is_finite()).unwrap_or_else(disagreement),
             None if filtered => 0.0,
-            None => f.theta.get(i).map_or(0.0, |t| (shot.theta[i] - t).powi(2)),
+            None => disagreement(),
         };
         let total = (shot.std[i].powi(2) + half.powi(2) + other).sqrt();
         shot.std[i] = if total.is_finite() { total } else { shot.std[i] };
