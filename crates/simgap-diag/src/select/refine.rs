@@ -585,8 +585,8 @@ pub(crate) fn jackknife_variance(answers: &[nalgebra::DVector<f64>]) -> Vec<f64>
 
 /// The set of `r` fitted again by multiple shooting after a term left it with a value the others
 /// were fitted beside (a partner it traded with, or a term at the edge of its range): its
-/// two-fold cross-validation and its fit on all fit
-/// runs, each half started from the torque-residual fit and from `r`'s answer on that half.
+/// two-fold cross-validation and its fit on all fit runs, each half started from the
+/// torque-residual fit and from `r`'s answer on that half.
 /// `None` when nothing is left to fit.
 ///
 /// # Errors

@@ -31,9 +31,6 @@ fn interval_takes_the_pipeline_error_where_it_exceeds_the_larger_resampling_spre
     assert_eq!(s.as_slice(), &[2.0, 3.0, 2.0]);
 }
 
-/// The synthetic runs of an open-loop replay stay near its logged motion, and the torque they
-/// record is the torque they applied: replayed open loop with the same effects, a synthetic run
-/// reproduces its own positions.
 #[test]
 fn jackknife_variance_of_the_mean_is_the_sample_variance_over_n() {
     // for the mean, θ₍ᵢ₎ − θ̄ = (x̄ − xᵢ)/(n − 1), so (n − 1)/n Σ (θ₍ᵢ₎ − θ̄)² = s²/n exactly
@@ -56,6 +53,9 @@ fn jackknife_variance_of_the_mean_is_the_sample_variance_over_n() {
     assert!(jackknife_variance(&[]).is_empty());
 }
 
+/// The synthetic runs of an open-loop replay stay near its logged motion, and the torque they
+/// record is the torque they applied: replayed open loop with the same effects, a synthetic run
+/// reproduces its own positions.
 #[test]
 fn a_tracked_replay_stays_near_its_log_and_records_the_torque_it_applied() {
     use crate::check::bench::{gains_for, generate, random_fourier, RefSpec, RunSpec};
