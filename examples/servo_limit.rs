@@ -23,8 +23,9 @@ use simgap::sim::Effect;
 /// The hidden limit as a share of the gravity torque at the horizontal.
 const LIMIT_SHARE: f64 = 0.6;
 
-/// Drive effects: a correction of the fitted motor constants, or the limit itself.
-const DRIVE: [&str; 3] = ["torque_gain", "back_emf", "torque_saturation"];
+/// The drive's own effect beside the corrections of its fitted motor constants
+/// ([`selfcheck::MOTOR_CONSTANTS`]): the limit itself.
+const LIMIT: &str = "torque_saturation";
 
 struct Outcome {
     text: String,
@@ -63,8 +64,12 @@ fn one(seed: u64, i: usize) -> Result<Outcome, String> {
     let names = model.joint_names();
     let hidden: BTreeSet<String> =
         sc.effects.iter().flat_map(|e| e.joints_acted().into_iter().map(move |j| (e.name().to_string(), j))).map(|(e, j)| format!("{e}@{}", names[j])).collect();
-    let mechanics: BTreeSet<String> =
-        r.selected_effects.iter().filter(|e| !DRIVE.contains(&e.effect.as_str())).flat_map(|e| e.joints.iter().map(move |j| format!("{}@{j}", e.effect))).collect();
+    let mechanics: BTreeSet<String> = r
+        .selected_effects
+        .iter()
+        .filter(|e| e.effect != LIMIT && !selfcheck::MOTOR_CONSTANTS.contains(&e.effect.as_str()))
+        .flat_map(|e| e.joints.iter().map(move |j| format!("{}@{j}", e.effect)))
+        .collect();
     let selected: Vec<String> = r
         .selected_effects
         .iter()

@@ -758,6 +758,11 @@ pub fn run_drive_scenario(seed: u64, index: usize) -> ScenarioScore {
     score(index, crate::check::drives::drive_family_of(index), crate::check::drives::drive_scenario(seed, index))
 }
 
+/// The effects that, on a servo whose motor constants were fitted from its logs, correct those
+/// constants rather than add mechanics: a torque gain scales `kt/R` and `kt²/R` alike, a
+/// back-EMF `kt²/R` alone. A servo scenario is scored on the other selected effects.
+pub const MOTOR_CONSTANTS: [&str; 2] = ["torque_gain", "back_emf"];
+
 /// Of every [`MIXED_CYCLE`] scenarios `simgap selfcheck` runs, the first [`CYCLE`] are one cycle
 /// of [`scenario`] and the rest one of each real-drive family
 /// ([`DRIVE_FAMILIES`](crate::check::drives::DRIVE_FAMILIES)).
@@ -820,7 +825,7 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
         "servo" => {
             // the motor constants are fitted: a torque gain or back-EMF corrects them, and the
             // constants the corrected model drives with must be the servo's
-            let mechanical: BTreeSet<(String, Option<String>)> = found.iter().filter(|(e, _)| !matches!(e.as_str(), "torque_gain" | "back_emf")).cloned().collect();
+            let mechanical: BTreeSet<(String, Option<String>)> = found.iter().filter(|(e, _)| !MOTOR_CONSTANTS.contains(&e.as_str())).cloned().collect();
             let spec = sc.servo.as_ref();
             let constants = match (spec, &d.report.servo) {
                 (Some(spec), Some(rep)) => (0..spec.kt.len())
