@@ -104,8 +104,15 @@ fn one(seed: u64, i: usize) -> Result<Outcome, String> {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let seed = args.first().and_then(|s| s.parse().ok()).unwrap_or(3);
-    let count = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(12usize);
+    let (seed, count) = match (args.first().map(|s| s.parse::<u64>()), args.get(1).map(|s| s.parse::<usize>())) {
+        (None | Some(Ok(_)), None | Some(Ok(_))) if args.len() <= 2 => {
+            (args.first().and_then(|s| s.parse().ok()).unwrap_or(3), args.get(1).and_then(|s| s.parse().ok()).unwrap_or(12))
+        }
+        _ => {
+            eprintln!("usage: servo_limit [SEED] [COUNT] (unsigned integers; default 3 and 12), got {args:?}");
+            std::process::exit(2);
+        }
+    };
     let outcomes: Vec<Result<Outcome, String>> = (0..count).into_par_iter().map(|i| one(seed, i)).collect();
     let mut done = Vec::new();
     for (i, o) in outcomes.into_iter().enumerate() {
