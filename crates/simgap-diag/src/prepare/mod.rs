@@ -196,7 +196,7 @@ fn servo_commands(model: &Model, fit_runs: &mut [Run], hold_runs: &mut [Run], op
     // the priors of the first servo run that gives them, else the fit runs' constants
     let prior = params.iter().flatten().find_map(|p| p.kt.clone().zip(p.r.clone()));
     let constants = match prior {
-        Some((kt, r)) => servo::Constants { kt, r, source: "prior", notes: Vec::new() },
+        Some((kt, r)) => servo::Constants { kt, r, source: "prior", notes: Vec::new(), clamp: Vec::new() },
         None => {
             let fit: Vec<(&Run, Vec<f64>)> = fit_runs.iter().zip(&volts).filter(|(r, _)| servo::is_servo(r)).map(|(r, v)| (r, v.clone())).collect();
             if fit.is_empty() {

@@ -58,7 +58,8 @@ pub(crate) struct Tried {
 /// identification run (inertial error of every link, Coulomb and viscous friction and rotor
 /// inertia on every joint), on servo logs the servo's own set (its motor constants, rotor
 /// inertia, load-dependent and viscous friction) and, where a fit log shows the servo stalled
-/// ([`stalled_joints`]), the servo's set with a limit ([`servo_limit`]), each fitted by
+/// ([`stalled_joints`]) or its motor constants were fitted clamped ([`servo::Clamp`]), the
+/// servo's set with a limit ([`servo_limit`]), each fitted by
 /// multiple shooting ([`shooting`]) from the start of lowest cost among its torque-residual
 /// fit, the same with the URDF's inertia, and the answers of the sets tried before it (shared
 /// terms kept, the others at 0).
@@ -155,14 +156,21 @@ pub(crate) fn refine_by_shooting(
     let mut limit_notes = Vec::new();
     if servo {
         progress(Progress { stage: "refining by multiple shooting", done: sets.len(), total });
-        let stalled = stalled_joints(scorer);
-        if stalled.is_empty() {
+        // the joints a fit log shows stalled, and those whose motor constants were fitted
+        // with their torque clamped
+        let mut limited_joints = stalled_joints(scorer);
+        let clamped = scorer.prep.servo.as_ref().map(|c| c.clamp.iter().enumerate().filter(|(_, c)| c.is_some()).map(|(j, _)| j).collect::<Vec<_>>()).unwrap_or_default();
+        limited_joints.extend(clamped);
+        limited_joints.sort_unstable();
+        limited_joints.dedup();
+        if limited_joints.is_empty() {
             limit_notes.push(format!(
-                "no fit log shows the servo stalled (at full duty for {MIN_STALL} s or more with its joint at rest): the servo's set is not tried with a torque limit"
+                "no fit log shows the servo stalled (at full duty for {} s or more with its joint at rest), and its motor law fits unclamped: the servo's set is not tried with a torque limit",
+                servo::MIN_STALL
             ));
         } else if let Some(drive) = tried.last() {
             // (on servo logs the servo's set is the last set tried)
-            let (limited, note) = servo_limit(scorer, &shoot_runs, &sopts, drive, &stalled, stop)?;
+            let (limited, note) = servo_limit(scorer, &shoot_runs, &sopts, drive, &limited_joints, stop)?;
             tried.extend(limited);
             limit_notes.push(note);
         }
@@ -219,25 +227,16 @@ fn shooting_options(scorer: &Scorer<'_>) -> shooting::Options {
     o
 }
 
-/// How long a servo must drive at full duty with its joint at rest for its log to show a stall
-/// [s] (a reversal at full duty passes through rest in a few milliseconds; the Rhoban XL330's
-/// stalls at firmware Kp 800 last 0.24 and 2.9 s).
-const MIN_STALL: f64 = 0.1;
-
-/// The joint's speed below which a stalled joint counts as at rest: this many times its
-/// dry-friction width (0.05 rad/s, 10 mm/s for the typical widths).
-const REST_WIDTHS: f64 = 5.0;
-
 /// The driven servo joints that some fit log shows stalled ([`servo::stalls`]): at full duty
-/// for [`MIN_STALL`] or more, at rest. Only there is a torque limit evidenced.
+/// for [`servo::MIN_STALL`] or more, at rest. Only there is a torque limit evidenced.
 fn stalled_joints(scorer: &Scorer<'_>) -> Vec<usize> {
     let (model, ctx, prep) = (scorer.model, scorer.ctx, scorer.prep);
     let n = model.dof();
-    let rest: Vec<f64> = (0..n).map(|j| REST_WIDTHS * ctx.dry_width[j].mid()).collect();
+    let rest: Vec<f64> = (0..n).map(|j| servo::REST_WIDTHS * ctx.dry_width[j].mid()).collect();
     let mut stalled = vec![false; n];
     for run in prep.fit_runs.iter().filter(|r| servo::is_servo(r)) {
         let Ok(p) = servo::params(model, run) else { continue };
-        for (s, now) in stalled.iter_mut().zip(servo::stalls(run, &p, &rest, MIN_STALL)) {
+        for (s, now) in stalled.iter_mut().zip(servo::stalls(run, &p, &rest, servo::MIN_STALL)) {
             *s |= now;
         }
     }
@@ -248,54 +247,86 @@ fn stalled_joints(scorer: &Scorer<'_>) -> Vec<usize> {
 /// limit, coarse then around the best ([`servo_limit`]).
 const LIMIT_SHARES: [f64; 4] = [0.45, 0.6, 0.75, 0.9];
 
-/// The servo's set `drive` with a torque limit on its driven joints that stalled, fitted by
+/// Ratio either side of the clamp the motor constants were fitted with ([`servo::Clamp`]) at
+/// which the servo set is also tried.
+const CLAMP_STEP: f64 = 1.15;
+
+/// The servo's set `drive` with a torque limit on its driven joints that stalled or whose
+/// motor constants were fitted clamped (`limited`), fitted by
 /// multiple shooting: the limit (a share of each joint's largest command, the same share on
-/// every joint) searched over [`LIMIT_SHARES`] and then half a step either side of the best. A
-/// servo stops where its drive can give no more (a current limit, a stall), which a load-dependent friction
-/// also explains: the friction that stalls the drive at full duty then brakes it at every duty,
-/// and a servo held with a low gain, whose duty is small, is predicted too stiff. The limited
-/// set is returned when it predicts the fit runs better than `drive` by [`ADD_GAIN`] (a limit
-/// is one more parameter) and than `drive` fitted again from the limited set's answer (where
-/// the limit only led the fit to a better answer of the others, that set is returned instead);
-/// the note says what was found either way.
+/// every joint) searched over [`LIMIT_SHARES`] and then half a step either side of the best;
+/// and, where the motor constants were fitted clamped ([`servo::Clamp`]), the set with the
+/// limit at that clamp and [`CLAMP_STEP`] either side. A servo stops where its drive can give no more (a current limit, a
+/// stall), which a load-dependent friction also explains: the friction that stalls the drive
+/// at full duty then brakes it at every duty, and a servo held with a low gain, whose duty is
+/// small, is predicted too stiff. The limited set is returned when it predicts the fit runs
+/// better than `drive` by [`ADD_GAIN`] (a limit is one more parameter) and than `drive` fitted
+/// again from the limited set's answer (where the limit only led the fit to a better answer of
+/// the others, that set is returned instead); the note says what was found either way.
 ///
 /// On the Rhoban XL330 logs, with the `sin_time_square` logs held out, the set without a limit
 /// had been selected (load friction 0.45 × |τ|, torque gain 1.66): whole-run error 66.5 mrad on
 /// the held-out Kp 100 log. With a limit at 45 % of the largest command (load friction 0.50 ×
-/// |τ|, gain 2.53) it is 40.0 mrad; BAM's best published model has 19.1.
+/// |τ|, gain 2.53) it is 40.0 mrad; BAM's best published model has 19.1. On simulated servos
+/// with a limit at a sixth to a quarter of their stall torque (`examples/servo_limit.rs`) the
+/// grid alone, whose lowest share is far above such a limit, settled on a torque gain twice
+/// the truth with the limit half of it, and wrong mechanics beside them; with constants fitted
+/// clamped and the search at the clamp, the most torque came within 15 % of the limit in each
+/// of the 5 that stalled.
 fn servo_limit(
     scorer: &Scorer<'_>,
     shoot_runs: &[kstep::PredictionRun],
     sopts: &shooting::Options,
     drive: &Tried,
-    stalled: &[usize],
+    limited: &[usize],
     stop: Option<&std::sync::atomic::AtomicBool>,
 ) -> Result<(Option<Tried>, String)> {
     let ctx = scorer.ctx;
-    let joints: Vec<usize> = drive.terms.iter().filter_map(|t| if let Term::Gain(j) = t { Some(*j) } else { None }).filter(|j| stalled.contains(j)).collect();
+    let joints: Vec<usize> = drive.terms.iter().filter_map(|t| if let Term::Gain(j) = t { Some(*j) } else { None }).filter(|j| limited.contains(j)).collect();
     if joints.is_empty() {
-        return Ok((None, "no driven servo joint stalled: no torque limit tried".into()));
+        return Ok((None, "no driven servo joint stalled or was fitted clamped: no torque limit tried".into()));
     }
-    let try_share = |share: f64| -> Result<(f64, Tried)> {
+    let unit = |j: usize| if scorer.model.joints()[j].kind == simgap_core::JointKind::Prismatic { "N" } else { "N·m" };
+    // the set with a limit `limits[i]` on `joints[i]`, each half started where the set without
+    // a limit ended on it
+    let try_limits = |limits: &[f64], what: String| -> Result<Tried> {
         let mut terms = drive.terms.clone();
-        terms.extend(joints.iter().map(|&j| Term::Saturation { joint: j, limit: (share * ctx.max_command(j)).max(ctx.saturation_floor[j]) }));
-        // each half starts where the set without a limit ended on it
+        terms.extend(joints.iter().zip(limits).map(|(&j, &l)| Term::Saturation { joint: j, limit: l.max(ctx.saturation_floor[j]) }));
         let earlier = |half: usize, designs: &[TermDesign]| vec![transfer(drive, &drive.halves[half], &terms, designs)];
-        let name =
-            format!("the servo's motor constants with rotor inertia, load-dependent and viscous friction and a torque limit at {:.0} % of the largest command", 100.0 * share);
-        Ok((share, try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)?))
+        let name = format!("the servo's motor constants with rotor inertia, load-dependent and viscous friction and a torque limit {what}");
+        try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)
     };
-    let best_of = |tries: Vec<(f64, Tried)>| tries.into_iter().min_by(|a, b| a.1.score.total_cmp(&b.1.score));
+    // (the share, for the grid's tries; what was tried, in words; the fit)
+    let try_share = |share: f64| -> Result<(Option<f64>, String, Tried)> {
+        let limits: Vec<f64> = joints.iter().map(|&j| share * ctx.max_command(j)).collect();
+        let what = format!("at {:.1} % of each joint's largest command", 100.0 * share);
+        Ok((Some(share), what.clone(), try_limits(&limits, what)?))
+    };
+    let best_of = |tries: Vec<(Option<f64>, String, Tried)>| tries.into_iter().min_by(|a, b| a.2.score.total_cmp(&b.2.score));
     let coarse = best_of(LIMIT_SHARES.into_iter().map(try_share).collect::<Result<_>>()?);
     let step = 0.5 * (LIMIT_SHARES[1] - LIMIT_SHARES[0]);
-    let at = coarse.as_ref().map_or(LIMIT_SHARES[0], |(s, _)| *s);
-    let near: Vec<(f64, Tried)> = [at - step, at + step].into_iter().filter(|s| *s > 0.0 && *s < 1.0).map(try_share).collect::<Result<_>>()?;
-    let Some((share, limited)) = best_of(coarse.into_iter().chain(near).collect()) else { return Ok((None, String::new())) };
+    let at = coarse.as_ref().and_then(|c| c.0).unwrap_or(LIMIT_SHARES[0]);
+    let near: Vec<(Option<f64>, String, Tried)> = [at - step, at + step].into_iter().filter(|s| *s > 0.0 && *s < 1.0).map(try_share).collect::<Result<_>>()?;
+    // at the clamp the motor constants were fitted with, and a step either side
+    let clamps: Option<Vec<servo::Clamp>> = scorer.prep.servo.as_ref().and_then(|c| joints.iter().map(|&j| c.clamp.get(j).copied().flatten()).collect());
+    let mut from_clamp = Vec::new();
+    if let Some(cl) = &clamps {
+        for f in [1.0, 1.0 / CLAMP_STEP, CLAMP_STEP] {
+            let limits: Vec<f64> = cl.iter().map(|c| f * c.limit).collect();
+            let what = format!(
+                "at {}the clamp the motor constants were fitted with ({})",
+                if f == 1.0 { String::new() } else { format!("{f:.3} times ") },
+                joints.iter().zip(&limits).map(|(&j, l)| format!("{l:.3} {} on {}", unit(j), scorer.model.joint_names()[j])).collect::<Vec<_>>().join(", ")
+            );
+            from_clamp.push((None, what.clone(), try_limits(&limits, what)?));
+        }
+    }
+    let Some((_, what, limited)) = best_of(coarse.into_iter().chain(near).chain(from_clamp).collect()) else { return Ok((None, String::new())) };
     let shares: Vec<String> = LIMIT_SHARES.iter().map(|s| format!("{:.0}", 100.0 * s)).collect();
     let head = format!(
-        "multiple shooting: the servo's set with a torque limit on its stalled joints at {:.1} % of each joint's largest command (the best of {} % and half a step either side of the best) predicts the fit runs at {:.4} of the nominal model's k-step error, against {:.4} without it",
-        100.0 * share,
+        "multiple shooting: the servo's set with a torque limit on its stalled or clamped joints {what} (the best of {} % of each joint's largest command, half a step either side of the best{}) predicts the fit runs at {:.4} of the nominal model's k-step error, against {:.4} without it",
         shares.join(", "),
+        if clamps.is_some() { format!(", and the clamp the motor constants were fitted with and {CLAMP_STEP} times either side") } else { String::new() },
         limited.score,
         drive.score
     );

@@ -216,3 +216,29 @@ fn assert_most_torque(r: &crate::Report, limit: f64) {
     let most = fitted * per_joint("torque_gain", "k").unwrap_or(1.0);
     assert!((most / limit - 1.0).abs() < 0.1, "the drive delivers at most {most} N·m (limit {fitted} of the command), hidden {limit}\n{}", r.summary());
 }
+
+/// A servo whose drive gives at most a quarter of its full-duty torque (3 N·m of 12) under a
+/// pendulum of 9.81 N·m stalls for most of its logs. Read as the law, the logs bias the motor
+/// constants; fitted with the torque clamped, the constants fit finds the clamp (3 N·m within
+/// 10 %) and the law's `kt/R` and `kt²/R` (both 1 within 10 %). The same servo without a limit,
+/// whose logs show no stall, is fitted unclamped.
+#[test]
+fn the_constants_fit_of_a_servo_held_at_a_quarter_of_its_stall_torque_finds_the_clamp_and_the_law() {
+    use crate::prepare::servo::{fit_constants, params, volts};
+    let model = Model::from_urdf_str(PENDULUM_URDF).unwrap();
+    let fit = |truth: &[Effect]| {
+        let runs =
+            [servo_log(&model, truth, &goal(&[1.2, 0.2, 0.1], 0.12), 10.0, 8.0, "fit-a"), servo_log(&model, truth, &goal(&[1.0, 0.3, 0.1], 0.15), 10.0, f64::INFINITY, "fit-b")];
+        let signals: Vec<(&Run, Vec<f64>)> = runs.iter().map(|r| (r, volts(r, &params(&model, r).unwrap()).unwrap())).collect();
+        fit_constants(&model, &signals, crate::prepare::PrepareOptions::default().window)
+    };
+    let c = fit(&[Effect::TorqueSaturation { limit: vec![3.0] }, Effect::ViscousFriction { b: vec![0.3] }]);
+    let clamp = c.clamp[0].unwrap_or_else(|| panic!("no clamp taken; notes: {:?}", c.notes));
+    assert!((clamp.limit / 3.0 - 1.0).abs() < 0.1, "clamp at {} N·m, hidden limit 3", clamp.limit);
+    let (drive, emf) = (c.kt[0] / c.r[0], c.kt[0] * c.kt[0] / c.r[0]);
+    assert!((drive - 1.0).abs() < 0.1 && (emf - 1.0).abs() < 0.1, "kt/R = {drive}, kt²/R = {emf} (truth 1 and 1); notes: {:?}", c.notes);
+    assert!(c.notes.iter().any(|n| n.contains("the clamped law's constants are taken")), "{:?}", c.notes);
+    let free = fit(&[Effect::ViscousFriction { b: vec![0.3] }]);
+    assert_eq!(free.clamp[0], None, "{:?}", free.notes);
+    assert!((free.kt[0] / free.r[0] - 1.0).abs() < 0.1, "unclamped kt/R = {}", free.kt[0] / free.r[0]);
+}
