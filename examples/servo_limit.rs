@@ -35,7 +35,7 @@ struct Outcome {
 }
 
 fn one(seed: u64, i: usize) -> Result<Outcome, String> {
-    let sc = selfcheck::servo_scenario(seed, i).map_err(|e| e.to_string())?;
+    let sc = selfcheck::servo_draw(seed, i, false).map_err(|e| e.to_string())?;
     let servo = sc.servo.clone().ok_or("no servo")?;
     let model = sc.model.clone();
     let n = model.dof();
