@@ -1,5 +1,6 @@
-//! Servos with a hidden torque limit, simulated: the servo scenarios of `simgap selfcheck`
-//! (seed SEED, scenarios 0..COUNT) with the drive of their first joint limited to 0.6 of the
+//! Servos with a hidden torque limit, simulated: the servo draws of `simgap selfcheck`
+//! ([`selfcheck::servo_draw`] without the self-check's own limit; seed SEED, scenarios
+//! 0..COUNT) with the drive of their first joint limited to 0.6 of the
 //! pendulum's gravity torque at the horizontal (or of the servo's stall torque, if smaller), and
 //! goals large enough to reach it. Prints, per scenario, the hidden effects, whether a fit log
 //! shows the servo stalled (and so whether the intervals took the delete-one-log jackknife), the

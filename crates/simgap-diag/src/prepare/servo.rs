@@ -189,10 +189,10 @@ pub(crate) struct Clamp {
 /// with `volts` their [`volts`] signals), smoothing with a window of `window` seconds.
 ///
 /// A servo's drive may be held below its law by a limit (a current limit, a weak supply), in a
-/// stall or while it moves, which read as the law biases the constants (a simulated limit at a
-/// sixth of the stall torque gave `kt/R` 3.3 times too small and `kt²/R` a hundredth of the
-/// truth; the diagnosis's torque gain and back-EMF cannot mend the latter, which the simulated
-/// drive clamps with the command). So the law is also fitted with its torque clamped,
+/// stall or while it moves, which read as the law biases the constants (simulated limits at a
+/// sixth to a quarter of the stall torque gave `kt/R` 3.4–7 times too small and `kt²/R` a
+/// hundredth of the truth or none; the diagnosis's torque gain and back-EMF cannot mend the
+/// latter, which the simulated drive clamps with the command). So the law is also fitted with its torque clamped,
 /// `clamp(a V duty − b q̇, ±L)`, for `L` on [`CLAMP_SHARES`] of the largest unclamped command,
 /// each fitted by reclassifying the samples the clamp holds until none changes. The best clamp
 /// is taken, and noted, where it explains at least [`CLAMP_GAIN`] of the residual the

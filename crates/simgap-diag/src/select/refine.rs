@@ -252,14 +252,14 @@ const LIMIT_SHARES: [f64; 4] = [0.45, 0.6, 0.75, 0.9];
 const CLAMP_STEP: f64 = 1.15;
 
 /// The servo's set `drive` with a torque limit on its driven joints that stalled or whose
-/// motor constants were fitted clamped (`limited`), fitted by
-/// multiple shooting: the limit (a share of each joint's largest command, the same share on
-/// every joint) searched over [`LIMIT_SHARES`] and then half a step either side of the best;
-/// and, where the motor constants were fitted clamped ([`servo::Clamp`]), the set with the
-/// limit at that clamp and [`CLAMP_STEP`] either side. A servo stops where its drive can give no more (a current limit, a
-/// stall), which a load-dependent friction also explains: the friction that stalls the drive
-/// at full duty then brakes it at every duty, and a servo held with a low gain, whose duty is
-/// small, is predicted too stiff. The limited set is returned when it predicts the fit runs
+/// motor constants were fitted clamped (`limited`), fitted by multiple shooting: the limit (a
+/// share of each joint's largest command, the same share on every joint) searched over
+/// [`LIMIT_SHARES`] and then half a step either side of the best; and, where the motor
+/// constants were fitted clamped ([`servo::Clamp`]), the set with the limit at that clamp and
+/// [`CLAMP_STEP`] either side. A servo stops where its drive can give no more (a current
+/// limit, a stall), which a load-dependent friction also explains: the friction that stalls
+/// the drive at full duty then brakes it at every duty, and a servo held with a low gain, whose
+/// duty is small, is predicted too stiff. The limited set is returned when it predicts the fit runs
 /// better than `drive` by [`ADD_GAIN`] (a limit is one more parameter) and than `drive` fitted
 /// again from the limited set's answer (where the limit only led the fit to a better answer of
 /// the others, that set is returned instead); the note says what was found either way.
