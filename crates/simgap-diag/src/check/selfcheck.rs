@@ -407,7 +407,17 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
 /// stay what they were): scenario `index` of seed `seed` is [`servo_scenario`]`(seed, index)`,
 /// scored by [`run_servo_scenario`].
 pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
-    servo_draw(seed, index, index % SATURATION_EVERY == 1)
+    servo_draw(seed, index, servo_family(index) == "servo_saturation")
+}
+
+/// The family of servo scenario `index`: `servo_saturation` for one in [`SATURATION_EVERY`],
+/// else `servo`.
+fn servo_family(index: usize) -> &'static str {
+    if index % SATURATION_EVERY == 1 {
+        "servo_saturation"
+    } else {
+        "servo"
+    }
 }
 
 /// Of every this many servo scenarios, one (`index % SATURATION_EVERY == 1`) has a torque
@@ -771,8 +781,7 @@ pub fn run_scenario(seed: u64, index: usize) -> ScenarioScore {
 /// fitted motor constants, and is not counted) and the motor constants the corrected model
 /// drives with, `kt/R` and `kt²/R`, are within 15 % of the servo's.
 pub fn run_servo_scenario(seed: u64, index: usize) -> ScenarioScore {
-    let family = if index % SATURATION_EVERY == 1 { "servo_saturation" } else { "servo" };
-    score(index, family, servo_scenario(seed, index))
+    score(index, servo_family(index), servo_scenario(seed, index))
 }
 
 /// Runs real-drive scenario `index` of seed `seed` ([`drive_scenario`](crate::check::drives::drive_scenario))
@@ -786,7 +795,11 @@ pub fn run_servo_scenario(seed: u64, index: usize) -> ScenarioScore {
 /// - `link_side`: the sensor offsets and the spring found, no rotor inertia selected (the
 ///   viscous frictions may be missed, and extra effects are listed in the rule).
 pub fn run_drive_scenario(seed: u64, index: usize) -> ScenarioScore {
-    score(index, crate::check::drives::drive_family_of(index), crate::check::drives::drive_scenario(seed, index))
+    let family = match crate::check::drives::drive_family_of(index) {
+        "servo" => servo_family(index),
+        other => other,
+    };
+    score(index, family, crate::check::drives::drive_scenario(seed, index))
 }
 
 /// The largest relative error, over the joints (named `joints`, model order) of a hidden torque

@@ -21,7 +21,8 @@
 //! rotor-inertia columns keep those effects out of the constants, and are left for the
 //! diagnosis to find. Runs with the drive disabled (a drop with torque off) tell the back-EMF
 //! `b` from viscous friction `c`; without any, `b` and `c` are one column and the report says
-//! the constants could not be separated.
+//! the constants could not be separated. A drive held below the law by a limit is fitted with
+//! the law clamped where that explains most of the residual ([`fit_constants`]).
 
 use simgap_core::{inverse_dynamics_into, Model, Workspace};
 use simgap_sim::{ControllerKind, Run, ServoParams};
@@ -172,9 +173,9 @@ pub(crate) struct Constants {
     pub source: &'static str,
     /// What could not be separated, per joint (empty when everything could).
     pub notes: Vec<String>,
-    /// Per joint, the clamp the constants were fitted with, where a fit log shows the servo
-    /// stalled and the clamp explains most of the law's residual (empty for priors): a limit
-    /// the diagnosis's torque-limit search tries.
+    /// Per joint, the clamp the constants were fitted with, where it explains at least half of
+    /// the unclamped law's residual (empty for priors): a limit the diagnosis's torque-limit
+    /// search tries.
     pub clamp: Vec<Option<Clamp>>,
 }
 
@@ -192,10 +193,10 @@ pub(crate) struct Clamp {
 /// stall or while it moves, which read as the law biases the constants (simulated limits at a
 /// sixth to a quarter of the stall torque gave `kt/R` 3.4–7 times too small and `kt²/R` a
 /// hundredth of the truth or none; the diagnosis's torque gain and back-EMF cannot mend the
-/// latter, which the simulated drive clamps with the command). So the law is also fitted with its torque clamped,
-/// `clamp(a V duty − b q̇, ±L)`, for `L` on [`CLAMP_SHARES`] of the largest unclamped command,
-/// each fitted by reclassifying the samples the clamp holds until none changes. The best clamp
-/// is taken, and noted, where it explains at least [`CLAMP_GAIN`] of the residual the
+/// latter, which the simulated drive clamps with the command). So the law is also fitted with
+/// its torque clamped, `clamp(a V duty − b q̇, ±L)`, for `L` on [`CLAMP_SHARES`] of the largest
+/// unclamped command, each fitted by reclassifying the samples the clamp holds until none
+/// changes. The best clamp is taken, and noted, where it explains at least [`CLAMP_GAIN`] of the residual the
 /// unclamped law leaves; the clamp itself is returned as [`Constants::clamp`], where the
 /// diagnosis's torque-limit search also looks. A smaller gain is noted and not taken: a
 /// load-dependent friction, which brakes the drive in proportion to its torque, is partly
@@ -256,7 +257,7 @@ pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f6
                 .filter(|(_, c, _)| c.is_finite())
                 .min_by(|a, b| a.1.total_cmp(&b.1));
             if let Some((limit, cost, th)) = best.filter(|(_, c, _)| *c < free_cost) {
-                let unit = if model.joints()[j].kind == simgap_core::JointKind::Prismatic { "N" } else { "N·m" };
+                let unit = simgap_sim::Quantity::Effort.unit(model.joints()[j].kind);
                 let gain = 1.0 - cost / free_cost;
                 let head = format!(
                     "{}: {}the motor law clamped at ±{limit:.3} {unit} fits the logs with {:.0} % less residual (kt/R = {:.4}, kt²/R = {:.4}, against {:.4} and {:.4} unclamped)",
@@ -302,8 +303,8 @@ pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f6
 }
 
 /// Shares of the largest unclamped command at which [`fit_constants`] tries a clamp: a
-/// geometric grid from 90 % down to 10 % (a servo's current limit may lie far below its stall
-/// torque).
+/// geometric grid from 90 % down to 12.5 % (a servo's current limit may lie far below its
+/// stall torque).
 const CLAMP_SHARES: [f64; 12] = [0.9, 0.75, 0.63, 0.53, 0.44, 0.37, 0.31, 0.26, 0.22, 0.18, 0.15, 0.125];
 
 /// Share of the unclamped law's residual sum of squares a clamp must explain to be taken.
@@ -318,20 +319,10 @@ pub(crate) const MIN_STALL: f64 = 0.1;
 /// dry-friction width (0.05 rad/s, 10 mm/s for the typical widths).
 pub(crate) const REST_WIDTHS: f64 = 5.0;
 
-/// [`REST_WIDTHS`] times each joint's typical dry-friction width, before the fit data's widths
-/// are known.
+/// [`REST_WIDTHS`] times each joint's typical dry-friction width ([`super::width::typical`]),
+/// before the fit data's widths are known [rad/s or m/s].
 fn rest_speeds(model: &Model) -> Vec<f64> {
-    model
-        .joints()
-        .iter()
-        .map(|j| {
-            REST_WIDTHS
-                * match j.kind {
-                    simgap_core::JointKind::Prismatic => super::width::TYPICAL_PRISMATIC,
-                    _ => super::width::TYPICAL_REVOLUTE,
-                }
-        })
-        .collect()
+    model.joints().iter().map(|j| REST_WIDTHS * super::width::typical(j.kind)).collect()
 }
 
 /// One sample of a joint in the constants fit: the columns `[en V duty, −en q̇, −q̇, −sign q̇,

@@ -76,11 +76,21 @@ pub(crate) fn dry_friction_widths(kinds: &[simgap_core::JointKind], runs: &[&[f6
         .iter()
         .enumerate()
         .map(|(j, kind)| {
-            let typical = if kind.is_rotational() { TYPICAL_REVOLUTE } else { TYPICAL_PRISMATIC };
+            let typical = typical(*kind);
             let w = speed_range(n, j, runs).map_or(typical, |r| r.clamp(typical));
             DryWidth { lo: w, hi: w }
         })
         .collect()
+}
+
+/// The typical width of a joint of type `kind` [rad/s or m/s]: [`TYPICAL_REVOLUTE`] for a
+/// turning joint, [`TYPICAL_PRISMATIC`] for a linear one.
+pub(crate) fn typical(kind: simgap_core::JointKind) -> f64 {
+    if kind.is_rotational() {
+        TYPICAL_REVOLUTE
+    } else {
+        TYPICAL_PRISMATIC
+    }
 }
 
 /// The widths joint `j`'s speeds allow, `[MIN_SHARE · v, MAX_SHARE · v]` with `v` the RMS of its

@@ -286,7 +286,7 @@ fn servo_limit(
     if joints.is_empty() {
         return Ok((None, "no driven servo joint stalled or was fitted clamped: no torque limit tried".into()));
     }
-    let unit = |j: usize| if scorer.model.joints()[j].kind == simgap_core::JointKind::Prismatic { "N" } else { "N·m" };
+    let unit = |j: usize| simgap_sim::Quantity::Effort.unit(scorer.model.joints()[j].kind);
     // the set with a limit `limits[i]` on `joints[i]`, each half started where the set without
     // a limit ended on it
     let try_limits = |limits: &[f64], what: String| -> Result<Tried> {
