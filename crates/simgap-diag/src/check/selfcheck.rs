@@ -803,19 +803,16 @@ pub fn run_drive_scenario(seed: u64, index: usize) -> ScenarioScore {
 }
 
 /// The largest relative error, over the joints (named `joints`, model order) of a hidden torque
-/// limit, of the most torque the selected drive delivers there (its limit times its torque gain; no limit selected is an
-/// infinite error); `None` without a hidden limit.
+/// limit, of the most torque the selected drive delivers there (its limit times its torque
+/// gain; no limit selected is an infinite error); `None` without a hidden limit.
 fn most_torque_error(joints: &[&str], hidden: &[Effect], selected: &[EffectReport]) -> Option<f64> {
     let limits = hidden.iter().find_map(|e| if let Effect::TorqueSaturation { limit } = e { Some(limit.clone()) } else { None })?;
-    // (a report's per-joint values follow its own list of joints)
-    let per_joint = |name: &str, key: &str, j: usize| {
-        selected.iter().find(|e| e.effect == name).and_then(|e| match e.parameters.get(key) {
-            Some(Param::PerJoint(v)) => e.joints.iter().position(|x| x == joints[j]).and_then(|i| v.get(i).copied()).filter(|x| x.is_finite()),
-            _ => None,
-        })
+    let value = |name: &str, key: &str, j: usize| {
+        let e = selected.iter().find(|e| e.effect == name)?;
+        crate::vocabulary::effects::per_joint(e, key).into_iter().find(|(at, _)| *at == joints[j]).map(|(_, v)| v).filter(|v| v.is_finite())
     };
-    let errors = limits.iter().enumerate().filter(|(_, l)| l.is_finite()).map(|(j, l)| match per_joint("torque_saturation", "limit", j) {
-        Some(fitted) => (fitted * per_joint("torque_gain", "k", j).unwrap_or(1.0) / l - 1.0).abs(),
+    let errors = limits.iter().enumerate().filter(|(_, l)| l.is_finite()).map(|(j, l)| match value("torque_saturation", "limit", j) {
+        Some(fitted) => (fitted * value("torque_gain", "k", j).unwrap_or(1.0) / l - 1.0).abs(),
         None => f64::INFINITY,
     });
     Some(errors.fold(0.0, f64::max))

@@ -210,18 +210,11 @@ pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f6
     let mut rows: Vec<Vec<Row>> = vec![Vec::new(); n];
     let mut ws = Workspace::new(model);
     let mut id = vec![0.0; n];
-    let rest = rest_speeds(model);
-    let mut stalled = vec![false; n];
     for (run, volts) in runs {
         let smoother = Smoother::new(&run.t, window);
         let valid = smoother.valid();
         if valid.len() < 20 {
             continue;
-        }
-        if let Ok(p) = params(model, run) {
-            for (s, now) in stalled.iter_mut().zip(stalls(run, &p, &rest, MIN_STALL)) {
-                *s |= now;
-            }
         }
         let q = smoother.apply(&run.q, n, 0);
         let qd = smoother.apply(&run.q, n, 1);
@@ -260,9 +253,8 @@ pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f6
                 let unit = simgap_sim::Quantity::Effort.unit(model.joints()[j].kind);
                 let gain = 1.0 - cost / free_cost;
                 let head = format!(
-                    "{}: {}the motor law clamped at ±{limit:.3} {unit} fits the logs with {:.0} % less residual (kt/R = {:.4}, kt²/R = {:.4}, against {:.4} and {:.4} unclamped)",
+                    "{}: the motor law clamped at ±{limit:.3} {unit} fits the logs with {:.0} % less residual (kt/R = {:.4}, kt²/R = {:.4}, against {:.4} and {:.4} unclamped)",
                     names[j],
-                    if stalled[j] { "a fit log shows the servo stalled; " } else { "" },
                     100.0 * gain,
                     th[0],
                     th[1],
@@ -318,12 +310,6 @@ pub(crate) const MIN_STALL: f64 = 0.1;
 /// The joint's speed below which a stalled joint counts as at rest: this many times its
 /// dry-friction width (0.05 rad/s, 10 mm/s for the typical widths).
 pub(crate) const REST_WIDTHS: f64 = 5.0;
-
-/// [`REST_WIDTHS`] times each joint's typical dry-friction width ([`super::width::typical`]),
-/// before the fit data's widths are known [rad/s or m/s].
-fn rest_speeds(model: &Model) -> Vec<f64> {
-    model.joints().iter().map(|j| REST_WIDTHS * super::width::typical(j.kind)).collect()
-}
 
 /// One sample of a joint in the constants fit: the columns `[en V duty, −en q̇, −q̇, −sign q̇,
 /// −q̈]`, the inverse dynamics `y` and whether the drive was enabled.

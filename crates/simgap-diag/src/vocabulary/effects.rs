@@ -202,7 +202,7 @@ pub(super) fn percent(x: f64) -> String {
 }
 
 /// The per-joint values of parameter `key` of a report entry, with their joints.
-pub(super) fn per_joint<'a>(e: &'a EffectReport, key: &str) -> Vec<(&'a str, f64)> {
+pub(crate) fn per_joint<'a>(e: &'a EffectReport, key: &str) -> Vec<(&'a str, f64)> {
     match e.parameters.get(key) {
         Some(Param::PerJoint(v)) => e.joints.iter().map(String::as_str).zip(v.iter().copied()).collect(),
         _ => vec![],
