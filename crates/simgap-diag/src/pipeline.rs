@@ -453,7 +453,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let units = Units::of(&kinds);
     let (headline, headline_reason) = headline(&prep.hold_runs, &before_runs, &after_runs, before, &units.position);
     progress(Progress { stage: "naming alternatives and notes", done: 0, total: 1 });
-    let mut alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects) } else { Vec::new() };
+    let mut alternatives = if moving { alternatives(&scorer, &groups, &alone_score, &selection.terms, final_score, &selected_effects, &sel_effects) } else { Vec::new() };
     for a in plausible::richer_alternatives(&selection.terms, &replacements) {
         if !alternatives.iter().any(|b| b.effects == a.effects) {
             alternatives.push(a);

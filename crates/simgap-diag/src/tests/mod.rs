@@ -1,5 +1,6 @@
 //! Tests of the stages' internals (the public API is tested from `tests/`).
 
+mod alternatives;
 mod common;
 mod delay_line;
 mod friction_filter;
