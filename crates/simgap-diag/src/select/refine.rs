@@ -307,16 +307,25 @@ fn servo_limit(
     let step = 0.5 * (LIMIT_SHARES[1] - LIMIT_SHARES[0]);
     let at = coarse.as_ref().and_then(|c| c.0).unwrap_or(LIMIT_SHARES[0]);
     let near: Vec<(Option<f64>, String, Tried)> = [at - step, at + step].into_iter().filter(|s| *s > 0.0 && *s < 1.0).map(try_share).collect::<Result<_>>()?;
-    // at the clamp the motor constants were fitted with, and a step either side
-    let clamps: Option<Vec<servo::Clamp>> = scorer.prep.servo.as_ref().and_then(|c| joints.iter().map(|&j| c.clamp.get(j).copied().flatten()).collect());
+    // at the clamp the motor constants were fitted with, and a step either side, on the joints
+    // fitted clamped; the others at the grid's best share
+    let grid = coarse.iter().chain(&near).min_by(|a, b| a.2.score.total_cmp(&b.2.score)).and_then(|b| b.0).unwrap_or(at);
+    let clamps: Vec<Option<servo::Clamp>> = joints.iter().map(|&j| scorer.prep.servo.as_ref().and_then(|c| c.clamp.get(j).copied().flatten())).collect();
+    let clamped = clamps.iter().any(Option::is_some);
     let mut from_clamp = Vec::new();
-    if let Some(cl) = &clamps {
+    if clamped {
         for f in [1.0, 1.0 / CLAMP_STEP, CLAMP_STEP] {
-            let limits: Vec<f64> = cl.iter().map(|c| f * c.limit).collect();
+            let limits: Vec<f64> = joints.iter().zip(&clamps).map(|(&j, c)| c.map_or(grid * ctx.max_command(j), |c| f * c.limit)).collect();
             let what = format!(
                 "at {}the clamp the motor constants were fitted with ({})",
                 if f == 1.0 { String::new() } else { format!("{f:.3} times ") },
-                joints.iter().zip(&limits).map(|(&j, l)| format!("{l:.3} {} on {}", unit(j), scorer.model.joint_names()[j])).collect::<Vec<_>>().join(", ")
+                joints
+                    .iter()
+                    .zip(&limits)
+                    .zip(&clamps)
+                    .map(|((&j, l), c)| format!("{l:.3} {} on {}{}", unit(j), scorer.model.joint_names()[j], if c.is_some() { "" } else { " at the grid's best share" }))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
             from_clamp.push((None, what.clone(), try_limits(&limits, what)?));
         }
@@ -326,7 +335,7 @@ fn servo_limit(
     let head = format!(
         "multiple shooting: the servo's set with a torque limit on its stalled or clamped joints {what} (the best of {} % of each joint's largest command, half a step either side of the best{}) predicts the fit runs at {:.4} of the nominal model's k-step error, against {:.4} without it",
         shares.join(", "),
-        if clamps.is_some() { format!(", and the clamp the motor constants were fitted with and {CLAMP_STEP} times either side") } else { String::new() },
+        if clamped { format!(", and the clamp the motor constants were fitted with and {CLAMP_STEP} times either side") } else { String::new() },
         limited.score,
         drive.score
     );
