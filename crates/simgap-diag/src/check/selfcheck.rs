@@ -711,6 +711,9 @@ pub struct ScenarioScore {
     pub intervals: Vec<(String, f64, f64, f64, bool)>,
     /// Coverage of each interval method on its own (name → (inside, count)), for comparison.
     pub interval_variants: BTreeMap<String, (usize, usize)>,
+    /// Each interval method's own half-widths (name → (parameter, truth, found, half-width)),
+    /// for studying how they combine.
+    pub variant_intervals: BTreeMap<String, Vec<(String, f64, f64, f64)>>,
     /// Held-out L² after / before.
     pub holdout_ratio: f64,
     /// Selected effects outside their physical range or consistent with no effect
@@ -737,6 +740,7 @@ impl ScenarioScore {
             parameter_errors: vec![],
             intervals: vec![],
             interval_variants: BTreeMap::new(),
+            variant_intervals: BTreeMap::new(),
             holdout_ratio: f64::NAN,
             implausible: vec![],
             error: Some(error),
@@ -944,7 +948,9 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
     // a friction outside the vocabulary has no true value of the vocabulary's parameters
     let truth_params: &[Effect] = if sc.family == "friction_shape" { &[] } else { &sc.effects };
     let reported = comparisons(&sc.model, truth_params, &d.report.selected_effects);
-    let interval_variants = d.interval_variants.iter().map(|(name, reports)| (name.to_string(), coverage_of(&comparisons(&sc.model, truth_params, reports)))).collect();
+    let variant_intervals: BTreeMap<String, Vec<Comparison>> =
+        d.interval_variants.iter().map(|(name, reports)| (name.to_string(), comparisons(&sc.model, truth_params, reports))).collect();
+    let interval_variants = variant_intervals.iter().map(|(name, c)| (name.clone(), coverage_of(c))).collect();
     ScenarioScore {
         index,
         robot: sc.model.name().into(),
@@ -957,6 +963,7 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
         parameter_errors: reported.iter().map(|c| (c.0.clone(), ((c.2 - c.1) / c.1).abs())).collect(),
         intervals: reported.iter().filter(|c| c.3.is_finite()).map(|c| (c.0.clone(), c.1, c.2, c.3, inside(c))).collect(),
         interval_variants,
+        variant_intervals,
         holdout_ratio: d.report.gap.ratio,
         truth: label(&truth),
         found: label(&found),
