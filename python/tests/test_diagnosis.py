@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import _thread
 import json
+import math
 import threading
 import time
 from pathlib import Path
@@ -70,20 +71,27 @@ def test_hidden_viscous_friction_is_recovered(report: simgap.Report) -> None:
     assert joints[0] in effect["joints"]
 
 
-def test_reported_half_width_is_the_larger_of_resampling_and_pipeline_error(report: simgap.Report) -> None:
+def test_reported_half_width_is_the_pipeline_error_plus_the_scatter_it_does_not_make(report: simgap.Report) -> None:
+    # |b| + 1.96 sqrt(σ_n² + δ²), the variants holding 1.96 σ, 1.96 |b|, 1.96 σ_n and 1.96 |δ|
     variants = report.interval_variants
-    assert {"block_bootstrap", "fold_jackknife", "resampling", "pipeline_error"} <= set(variants), variants.keys()
+    methods = ("block_bootstrap", "fold_jackknife", "resampling", "pipeline_error", "noise_resampling", "pipeline_error_change", "spread_or_bias")
+    assert set(methods) <= set(variants), variants.keys()
     for name, effects in variants.items():
         assert [e["effect"] for e in effects] == [e["effect"] for e in report.selected_effects], name
+    checked = 0
     for i, effect in enumerate(report.selected_effects):
         for p, u in effect["uncertainty"].items():
             if not isinstance(u, list) or p not in variants["resampling"][i]["uncertainty"]:
                 continue
-            boot, jack, res, bias = (variants[m][i]["uncertainty"][p] for m in ("block_bootstrap", "fold_jackknife", "resampling", "pipeline_error"))
-            if None in boot + jack + bias:
+            boot, jack, res, bias, noise, change, before = (variants[m][i]["uncertainty"][p] for m in methods)
+            if None in boot + jack + bias + noise + change:
                 continue  # a spread the method could not measure
             assert res == pytest.approx([max(a, b) for a, b in zip(boot, jack, strict=True)]), (effect["effect"], p)
-            assert u == pytest.approx([max(a, b) for a, b in zip(res, bias, strict=True)]), (effect["effect"], p)
+            assert all(0 <= n <= r * (1 + 1e-12) for n, r in zip(noise, res, strict=True)), (effect["effect"], p)
+            assert u == pytest.approx([b / 1.959963985 + math.hypot(n, d) for b, n, d in zip(bias, noise, change, strict=True)]), (effect["effect"], p)
+            assert before == pytest.approx([max(r, b) for r, b in zip(res, bias, strict=True)]), (effect["effect"], p)
+            checked += 1
+    assert checked, report.summary()
 
 
 def test_bias_corrected_variant_moves_each_value_by_the_pipeline_error(report: simgap.Report) -> None:

@@ -159,23 +159,32 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             None => {
                 let boot_std = bootstrap_std(&sel_grams, 100, 7);
                 let jack_std = lsq::jackknife_std(&sel_grams);
-                let sel_effects = effects::to_effects(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, None));
-                // the pipeline's shared error, from the fit runs re-simulated with the fitted effects
-                let synthetic = if sel_effects.is_empty() { Vec::new() } else { uncertainty::synthetic_runs(model, formulation, &sel_effects, &prep.fit_runs, true) };
-                let bias = uncertainty::pipeline_bias(model, formulation, &synthetic, &selection.terms, &selection.fit.theta, &options.prepare);
-                let sel_std = uncertainty::interval_std(&boot_std, &jack_std, bias.as_ref());
+                // the pipeline's error, from the fit runs re-simulated with the fitted effects
+                let measured = uncertainty::measure_pipeline(model, formulation, &prep.fit_runs, &selection.terms, &selection.designs, &selection.fit.theta, &options.prepare);
+                let bias = measured.as_ref().map(|m| m.bias.clone());
+                let sel_std = uncertainty::interval_std(&boot_std, &jack_std, measured.as_ref());
                 let fitted = fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(&sel_std));
-                // the same effects with the half-widths of each interval method alone, for the self-check
+                // the same effects with the half-widths of each interval method alone, and the
+                // rule before this one, for the self-check
                 let resampling = lsq::larger_spread(&boot_std, &jack_std);
                 let pipeline_error = bias.as_ref().map(|b| b.map(f64::abs));
-                let variants: Vec<(&'static str, Vec<EffectReport>)> =
-                    [("block_bootstrap", Some(&boot_std)), ("fold_jackknife", Some(&jack_std)), ("resampling", Some(&resampling)), ("pipeline_error", pipeline_error.as_ref())]
-                        .into_iter()
-                        .filter_map(|(name, sd)| Some((name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd?))))))
-                        .collect();
+                let spread_or_bias = uncertainty::spread_or_bias_std(&boot_std, &jack_std, bias.as_ref());
+                let noise = measured.as_ref().map(|m| uncertainty::noise_std(&boot_std, &jack_std, Some(m)));
+                let change = measured.as_ref().and_then(|m| m.change.as_ref()).map(|c| c.map(f64::abs));
+                let mut variants: Vec<(&'static str, Vec<EffectReport>)> = [
+                    ("block_bootstrap", Some(&boot_std)),
+                    ("fold_jackknife", Some(&jack_std)),
+                    ("resampling", Some(&resampling)),
+                    ("pipeline_error", pipeline_error.as_ref()),
+                    ("spread_or_bias", Some(&spread_or_bias)),
+                    ("noise_resampling", noise.as_ref()),
+                    ("pipeline_error_change", change.as_ref()),
+                ]
+                .into_iter()
+                .filter_map(|(name, sd)| Some((name, effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &selection.fit.theta, Some(sd?))))))
+                .collect();
                 // and the values less the pipeline's error with the resampling spread (a
                 // parametric bootstrap's bias correction), measured beside the reported ones
-                let mut variants = variants;
                 if let Some(b) = bias.as_ref().filter(|b| b.len() == selection.fit.theta.len()) {
                     let corrected = &selection.fit.theta - b;
                     variants.push(("bias_corrected", effects::to_reports(model, &fitted_terms(&selection.terms, &selection.designs, &corrected, Some(&resampling)))));

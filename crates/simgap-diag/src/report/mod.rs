@@ -426,12 +426,14 @@ pub struct Diagnosis {
     pub fit_data: Vec<FitData>,
     /// The selected effects with the 95 % half-widths of each interval method on its own, for
     /// the self-check's coverage comparison: for a torque-residual fit `block_bootstrap`,
-    /// `fold_jackknife`, `resampling` (the larger of the two) and `pipeline_error` (1.96 |b|, the
-    /// pipeline's shared error; the report takes the larger of it and `resampling`, see
-    /// [`crate::select::uncertainty`]) and `bias_corrected` (the values less that error `b`,
-    /// with the `resampling` half-widths: a parametric bootstrap's bias correction, measured
-    /// beside the reported intervals, not reported); for a fit by multiple shooting
-    /// `multiple_shooting`.
+    /// `fold_jackknife`, `resampling` (the larger of the two, 1.96 σ), `pipeline_error` (1.96 |b|,
+    /// the pipeline's measured error), `noise_resampling` (1.96 σ_n, the scatter that error does
+    /// not make), `pipeline_error_change` (1.96 |δ|, how far `b` moves measured again from the
+    /// corrected values): the report's half-width is `|b| + 1.96 sqrt(σ_n² + δ²)`, see
+    /// [`crate::select::uncertainty`]; `spread_or_bias` (1.96 max(σ, |b|), the rule before) and
+    /// `bias_corrected` (the values less `b`, with the `resampling` half-widths: a parametric
+    /// bootstrap's bias correction, measured beside the reported intervals, not reported); for a
+    /// fit by multiple shooting `multiple_shooting`.
     pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
 }
 

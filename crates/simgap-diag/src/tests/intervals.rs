@@ -2,7 +2,7 @@
 
 use crate::lsq::t_quantile_975;
 use crate::select::refine::jackknife_variance;
-use crate::select::uncertainty::interval_std;
+use crate::select::uncertainty::{interval_std, spread_or_bias_std, PipelineMeasure};
 use nalgebra::DVector;
 
 #[test]
@@ -16,19 +16,46 @@ fn student_quantile_matches_tables() {
 }
 
 #[test]
-fn interval_takes_the_pipeline_error_where_it_exceeds_the_larger_resampling_spread() {
+fn interval_is_the_measured_pipeline_error_plus_the_scatter_it_does_not_explain() {
+    const Z: f64 = 1.959_963_985;
+    let boot = DVector::from_vec(vec![1.0, 3.0, 2.0, 1.0, 5.0]);
+    let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN, 0.5, 1.0]);
+    // σ = 2, 3, 2, 1, 5; the synthetic runs scatter by σ_s; b measured again moves by δ
+    let measured = PipelineMeasure {
+        bias: DVector::from_vec(vec![0.0, 4.0, f64::NAN, -1.5, 2.0]),
+        spread: DVector::from_vec(vec![0.0, 3.0, 1.0, 0.6, f64::NAN]),
+        change: Some(DVector::from_vec(vec![0.0, 0.5, 0.0, -0.6, 0.1])),
+    };
+    let s = interval_std(&boot, &jack, Some(&measured));
+    let want = [
+        // no error, no synthetic scatter: the resampling spread
+        2.0,
+        // all the scatter the pipeline's own: |b| and δ only
+        4.0 / Z + 0.5,
+        // b unknown: the resampling spread
+        2.0,
+        // σ_n = sqrt(1 − 0.36) = 0.8, with δ = 0.6 in quadrature: 1.0
+        1.5 / Z + 1.0,
+        // σ_s unknown: |b| beyond the whole resampling spread
+        2.0 / Z + 5.0,
+    ];
+    for (i, (got, w)) in s.iter().zip(want).enumerate() {
+        assert!((got - w).abs() < 1e-12, "parameter {i}: {got} against {w}");
+    }
+    // δ not measured: |b| beyond the whole resampling spread
+    let once = PipelineMeasure { change: None, ..measured };
+    assert!((interval_std(&boot, &jack, Some(&once))[1] - (4.0 / Z + 3.0)).abs() < 1e-12);
+    // no error measured: the resampling spread alone
+    let s = interval_std(&boot, &jack, None);
+    assert_eq!(s.as_slice(), &[2.0, 3.0, 2.0, 1.0, 5.0]);
+}
+
+#[test]
+fn the_rule_before_took_the_larger_of_the_spread_and_the_pipeline_error() {
     let boot = DVector::from_vec(vec![1.0, 3.0, 2.0, 1.0]);
     let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN, 0.5]);
     let bias = DVector::from_vec(vec![0.0, 4.0, f64::NAN, -1.5]);
-    let s = interval_std(&boot, &jack, Some(&bias));
-    // the pipeline error (of either sign) where it shows beyond the scatter, else the scatter:
-    // one synthetic refit carries a scatter of about σ itself, so |b| ≤ σ is no shared error
-    assert_eq!(s.as_slice(), &[2.0, 4.0, 2.0, 1.5]);
-    let boot = DVector::from_vec(vec![1.0, 3.0, 2.0]);
-    let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN]);
-    // no bias known: the resampling spread alone
-    let s = interval_std(&boot, &jack, None);
-    assert_eq!(s.as_slice(), &[2.0, 3.0, 2.0]);
+    assert_eq!(spread_or_bias_std(&boot, &jack, Some(&bias)).as_slice(), &[2.0, 4.0, 2.0, 1.5]);
 }
 
 #[test]
