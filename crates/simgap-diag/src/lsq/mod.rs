@@ -572,12 +572,15 @@ pub(crate) fn fold_thetas(gr: &Grams) -> Vec<DVector<f64>> {
     (0..folds).map(|f| theta_without_from(gr, &|g| g == f, start.as_ref())).collect()
 }
 
+/// The 97.5 % quantile of the standard normal: a two-sided 95 % interval is ±`Z95` σ.
+pub(crate) const Z95: f64 = 1.959_963_985;
+
 /// The 97.5 % quantile of Student's t with `nu` degrees of freedom (the half-width of a
 /// two-sided 95 % interval in standard errors): the Cornish–Fisher expansion about the normal
 /// quantile 1.959964 to order `nu⁻⁴`, within 0.2 % of the exact value for `nu ≥ 3`; `nu = 1, 2`
 /// are the exact 12.706 and 4.303.
 pub(crate) fn t_quantile_975(nu: usize) -> f64 {
-    let z: f64 = 1.959_963_985;
+    let z = Z95;
     match nu {
         0 => f64::INFINITY,
         1 => 12.706_204_736,
@@ -613,7 +616,7 @@ pub(crate) fn jackknife_std(gr: &Grams) -> DVector<f64> {
     }
     let mean = thetas.iter().fold(DVector::zeros(gr.k), |a, t| a + t) / g as f64;
     let ss = thetas.iter().fold(DVector::zeros(gr.k), |a: DVector<f64>, t| a + (t - &mean).component_mul(&(t - &mean)));
-    let scale = t_quantile_975(g - 1) / 1.959_963_985;
+    let scale = t_quantile_975(g - 1) / Z95;
     (ss * ((g as f64 - 1.0) / g as f64)).map(|v| v.max(0.0).sqrt() * scale)
 }
 

@@ -47,7 +47,7 @@ use nalgebra::DVector;
 use simgap_core::{Formulation, Model};
 use simgap_sim::{Effect, Run, RunEnd};
 
-use crate::lsq::{grams, larger_spread, theta_without, Problem};
+use crate::lsq::{grams, larger_spread, theta_without, Problem, Z95};
 use crate::prepare::dataset::{FitData, PrepareOptions};
 use crate::vocabulary::{design, Term, TermDesign};
 
@@ -112,9 +112,6 @@ pub(crate) fn pipeline_error(model: &Model, formulation: Formulation, synthetic:
     let spread = larger_spread(&crate::lsq::bootstrap_std(&gr, 100, 7), &crate::lsq::jackknife_std(&gr));
     Some(PipelineError { bias: theta_star - theta, spread })
 }
-
-/// The 95 % z-value.
-const Z95: f64 = 1.959_963_985;
 
 /// What the pipeline's error measurement gives the intervals: the error `b` ([`pipeline_error`]),
 /// the synthetic runs' resampling spread `σ_s`, and `δ`, the change of `b` measured again from

@@ -17,7 +17,7 @@ fn student_quantile_matches_tables() {
 
 #[test]
 fn interval_is_the_measured_pipeline_error_plus_the_scatter_it_does_not_explain() {
-    const Z: f64 = 1.959_963_985;
+    const Z: f64 = crate::lsq::Z95;
     let boot = DVector::from_vec(vec![1.0, 3.0, 2.0, 1.0, 5.0]);
     let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN, 0.5, 1.0]);
     // σ = 2, 3, 2, 1, 5; the synthetic runs scatter by σ_s; b measured again moves by δ
