@@ -456,9 +456,13 @@ class Report:
     def interval_variants(self) -> dict[str, list[dict[str, Any]]]:
         """The selected effects with the 95 % half-widths of each interval method on its own:
         ``{method: [effect dicts]}``; for a torque-residual fit ``block_bootstrap``,
-        ``fold_jackknife``, ``resampling`` (the larger of the two) and ``pipeline_error``
-        (1.96 |b|, the pipeline's shared error: the report's ``uncertainty`` is the larger of
-        it and ``resampling``); for a fit by multiple shooting ``multiple_shooting``."""
+        ``fold_jackknife``, ``resampling`` (the larger of the two, 1.96 σ), ``pipeline_error``
+        (1.96 |b|, the pipeline's measured error), ``noise_resampling`` (1.96 σ_n, the scatter
+        that error does not make) and ``pipeline_error_change`` (1.96 |δ|, how far ``b`` moves
+        measured again from the corrected values): the report's ``uncertainty`` is
+        |b| + 1.96 sqrt(σ_n² + δ²); ``spread_or_bias`` (1.96 max(σ, |b|), the rule before) and
+        ``bias_corrected`` (the values less ``b``, with the ``resampling`` half-widths); for a
+        fit by multiple shooting ``multiple_shooting``."""
     @property
     def candidates(self) -> list[dict[str, Any]]:
         """Every effect tried, ranked: dicts with ``rank``, ``effect``, ``joints``,
