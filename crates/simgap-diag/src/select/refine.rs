@@ -307,9 +307,10 @@ fn servo_limit(
     let step = 0.5 * (LIMIT_SHARES[1] - LIMIT_SHARES[0]);
     let at = coarse.as_ref().and_then(|c| c.0).unwrap_or(LIMIT_SHARES[0]);
     let near: Vec<(Option<f64>, String, Tried)> = [at - step, at + step].into_iter().filter(|s| *s > 0.0 && *s < 1.0).map(try_share).collect::<Result<_>>()?;
+    let grid_best = best_of(coarse.into_iter().chain(near).collect());
     // at the clamp the motor constants were fitted with, and a step either side, on the joints
     // fitted clamped; the others at the grid's best share
-    let grid = coarse.iter().chain(&near).min_by(|a, b| a.2.score.total_cmp(&b.2.score)).and_then(|b| b.0).unwrap_or(at);
+    let grid = grid_best.as_ref().and_then(|b| b.0).unwrap_or(at);
     let clamps: Vec<Option<servo::Clamp>> = joints.iter().map(|&j| scorer.prep.servo.as_ref().and_then(|c| c.clamp.get(j).copied().flatten())).collect();
     let clamped = clamps.iter().any(Option::is_some);
     let mut from_clamp = Vec::new();
@@ -330,7 +331,7 @@ fn servo_limit(
             from_clamp.push((None, what.clone(), try_limits(&limits, what)?));
         }
     }
-    let Some((_, what, limited)) = best_of(coarse.into_iter().chain(near).chain(from_clamp).collect()) else { return Ok((None, String::new())) };
+    let Some((_, what, limited)) = best_of(grid_best.into_iter().chain(from_clamp).collect()) else { return Ok((None, String::new())) };
     let shares: Vec<String> = LIMIT_SHARES.iter().map(|s| format!("{:.0}", 100.0 * s)).collect();
     let head = format!(
         "multiple shooting: the servo's set with a torque limit on its stalled or clamped joints {what} (the best of {} % of each joint's largest command, half a step either side of the best{}) predicts the fit runs at {:.4} of the nominal model's k-step error, against {:.4} without it",

@@ -47,7 +47,7 @@ use nalgebra::DVector;
 use simgap_core::{Formulation, Model};
 use simgap_sim::{Effect, Run, RunEnd};
 
-use crate::lsq::{grams, larger_spread, theta_without, Problem, Z95};
+use crate::lsq::{grams, larger_spread, theta_without, Grams, Problem, Z95};
 use crate::prepare::dataset::{FitData, PrepareOptions};
 use crate::vocabulary::{design, Term, TermDesign};
 
@@ -75,28 +75,10 @@ pub(crate) fn synthetic_runs(model: &Model, formulation: Formulation, effects: &
         .collect()
 }
 
-/// The pipeline's error on synthetic runs whose truth is `theta` (the parameters of `terms`
-/// fitted on the real runs): `θ* − θ`, with `θ*` the same terms fitted to `synthetic` (see the
-/// module documentation). `None` when no synthetic run can be prepared.
-pub(crate) fn pipeline_bias(model: &Model, formulation: Formulation, synthetic: &[Run], terms: &[Term], theta: &DVector<f64>, prepare: &PrepareOptions) -> Option<DVector<f64>> {
-    pipeline_error(model, formulation, synthetic, terms, theta, prepare).map(|e| e.bias)
-}
-
-/// The pipeline's error on synthetic runs ([`pipeline_bias`]) with the resampling spread of the
-/// fit to them.
-pub(crate) struct PipelineError {
-    /// `θ* − θ`.
-    pub bias: DVector<f64>,
-    /// The larger of the block-bootstrap and fold-jackknife spreads of `θ*`: the scatter that
-    /// the pipeline's own error makes on data without noise (the synthetic runs hold none).
-    pub spread: DVector<f64>,
-}
-
-/// [`pipeline_bias`] with the resampling spread of the synthetic fit.
-pub(crate) fn pipeline_error(model: &Model, formulation: Formulation, synthetic: &[Run], terms: &[Term], theta: &DVector<f64>, prepare: &PrepareOptions) -> Option<PipelineError> {
-    if terms.is_empty() {
-        return Some(PipelineError { bias: DVector::zeros(0), spread: DVector::zeros(0) });
-    }
+/// The terms `terms` fitted to the synthetic runs `synthetic` through the same preparation:
+/// `θ*`, with the Gram blocks it came from (for their resampling spread). `None` when no
+/// synthetic run can be prepared.
+fn refit(model: &Model, formulation: Formulation, synthetic: &[Run], terms: &[Term], prepare: &PrepareOptions) -> Option<(DVector<f64>, Grams)> {
     let data: Vec<FitData> = synthetic.iter().filter_map(|r| FitData::new(model, formulation, r.clone(), prepare).ok()).collect();
     if data.is_empty() {
         return None;
@@ -105,16 +87,12 @@ pub(crate) fn pipeline_error(model: &Model, formulation: Formulation, synthetic:
     let designs: Vec<TermDesign> = terms.iter().map(|t| design(t, &data)).collect();
     let refs: Vec<&TermDesign> = designs.iter().collect();
     let gr = grams(&p, &refs);
-    let theta_star = theta_without(&gr, &|_| false);
-    if theta_star.len() != theta.len() {
-        return None;
-    }
-    let spread = larger_spread(&crate::lsq::bootstrap_std(&gr, 100, 7), &crate::lsq::jackknife_std(&gr));
-    Some(PipelineError { bias: theta_star - theta, spread })
+    Some((theta_without(&gr, &|_| false), gr))
 }
 
-/// What the pipeline's error measurement gives the intervals: the error `b` ([`pipeline_error`]),
-/// the synthetic runs' resampling spread `σ_s`, and `δ`, the change of `b` measured again from
+/// What the pipeline's error measurement gives the intervals: the error `b = θ* − θ̂` (the
+/// selected terms fitted to the fit runs re-simulated with their fitted effects, less the
+/// values fitted on the real runs), the synthetic runs' resampling spread `σ_s`, and `δ`, the change of `b` measured again from
 /// `θ̂ − b` (`None` when those runs could not be simulated or fitted).
 pub(crate) struct PipelineMeasure {
     /// `b = θ* − θ̂`.
@@ -142,14 +120,17 @@ pub(crate) fn measure_pipeline(
     if effects.is_empty() {
         return None;
     }
-    let first = pipeline_error(model, formulation, &synthetic_runs(model, formulation, &effects, fit_runs, true), terms, theta, prepare)?;
-    if first.bias.len() != theta.len() {
+    let (theta_star, gr) = refit(model, formulation, &synthetic_runs(model, formulation, &effects, fit_runs, true), terms, prepare)?;
+    if theta_star.len() != theta.len() {
         return None;
     }
-    let corrected = theta - &first.bias;
-    let again = pipeline_bias(model, formulation, &synthetic_runs(model, formulation, &effects_at(&corrected), fit_runs, true), terms, &corrected, prepare);
-    let change = again.filter(|b2| b2.len() == theta.len()).map(|b2| b2 - &first.bias);
-    Some(PipelineMeasure { bias: first.bias, spread: first.spread, change })
+    let bias = theta_star - theta;
+    let spread = larger_spread(&crate::lsq::bootstrap_std(&gr, 100, 7), &crate::lsq::jackknife_std(&gr));
+    // the same measurement from the corrected values
+    let corrected = theta - &bias;
+    let again = refit(model, formulation, &synthetic_runs(model, formulation, &effects_at(&corrected), fit_runs, true), terms, prepare);
+    let change = again.map(|(t, _)| t).filter(|t| t.len() == theta.len()).map(|t| t - &corrected - &bias);
+    Some(PipelineMeasure { bias, spread, change })
 }
 
 /// `σ_n`, the scatter the pipeline's own error does not make: `sqrt(σ² − σ_s²)` (at least 0),
