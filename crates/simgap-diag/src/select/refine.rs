@@ -158,7 +158,7 @@ pub(crate) fn refine_by_shooting(
         progress(Progress { stage: "refining by multiple shooting", done: sets.len(), total });
         // the joints a fit log shows stalled, and those whose motor constants were fitted
         // with their torque clamped
-        let mut limited_joints = stalled_joints(scorer);
+        let mut limited_joints = stalled_joints(scorer).to_vec();
         let clamped = scorer.prep.servo.as_ref().map(|c| c.clamp.iter().enumerate().filter(|(_, c)| c.is_some()).map(|(j, _)| j).collect::<Vec<_>>()).unwrap_or_default();
         limited_joints.extend(clamped);
         limited_joints.sort_unstable();
@@ -229,7 +229,12 @@ fn shooting_options(scorer: &Scorer<'_>) -> shooting::Options {
 
 /// The driven servo joints that some fit log shows stalled ([`servo::stalls`]): at full duty
 /// for [`servo::MIN_STALL`] or more, at rest. Only there is a torque limit evidenced.
-fn stalled_joints(scorer: &Scorer<'_>) -> Vec<usize> {
+/// Computed once per scorer (the fit logs do not change).
+pub(crate) fn stalled_joints<'s>(scorer: &'s Scorer<'_>) -> &'s [usize] {
+    scorer.stalled.get_or_init(|| stalled_joints_of(scorer))
+}
+
+fn stalled_joints_of(scorer: &Scorer<'_>) -> Vec<usize> {
     let (model, ctx, prep) = (scorer.model, scorer.ctx, scorer.prep);
     let n = model.dof();
     let rest: Vec<f64> = (0..n).map(|j| servo::REST_WIDTHS * ctx.dry_width[j].mid()).collect();

@@ -24,12 +24,15 @@ pub(crate) struct Scorer<'a> {
     /// Cross-validated errors of the sets scored so far (the selection revisits sets); `None`
     /// for a set that is no answer (inadmissible, or a prediction that failed).
     pub(crate) memo: std::sync::Mutex<std::collections::HashMap<Vec<TermKey>, Option<std::sync::Arc<kstep::Errors>>>>,
+    /// The driven servo joints some fit log shows stalled, once asked for
+    /// ([`crate::select::refine::stalled_joints`]).
+    pub(crate) stalled: std::sync::OnceLock<Vec<usize>>,
 }
 
 impl Scorer<'_> {
     pub(crate) fn new<'a>(model: &'a Model, formulation: Formulation, ctx: &'a Context<'a>, prep: &'a Prepared) -> Scorer<'a> {
         let folds = prep.fit_pred.iter().flat_map(|pr| pr.fold.iter().copied()).collect();
-        let mut s = Scorer { model, formulation, ctx, prep, nominal: Vec::new(), folds, memo: Default::default() };
+        let mut s = Scorer { model, formulation, ctx, prep, nominal: Vec::new(), folds, memo: Default::default(), stalled: Default::default() };
         s.nominal = s.cv(&[]);
         s
     }
