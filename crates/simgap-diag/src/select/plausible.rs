@@ -355,13 +355,16 @@ const CONSTANT_SHARE: f64 = 0.9;
 
 /// The alternatives parsimony replacements leave: per richer effect, the final set `set` with
 /// the richer effect back in place of the simpler terms it was replaced by (`replacements`:
-/// the richer term, its simpler terms, why).
+/// the richer term, its simpler terms, why). A replacement a later stage undid (none of its
+/// simpler terms is in the final set, or the richer term is back in it) leaves none: the set it
+/// would name is not the one selected.
 pub(crate) fn richer_alternatives(set: &[Term], replacements: &[Replacement]) -> Vec<Alternative> {
     let mut out: Vec<Alternative> = Vec::new();
+    let replacements: Vec<&Replacement> = replacements.iter().filter(|r| !set.contains(&r.0) && r.1.iter().any(|t| set.contains(t))).collect();
     let mut richer_names: Vec<&str> = replacements.iter().map(|r| r.0.effect_name()).collect();
     richer_names.dedup();
     for richer in richer_names {
-        let of: Vec<&Replacement> = replacements.iter().filter(|r| r.0.effect_name() == richer).collect();
+        let of: Vec<&Replacement> = replacements.iter().copied().filter(|r| r.0.effect_name() == richer).collect();
         let replaced: Vec<&Term> = of.iter().flat_map(|r| r.1.iter()).collect();
         let mut effects: Vec<String> = Vec::new();
         for t in set.iter().filter(|t| !replaced.contains(t)) {
@@ -510,5 +513,19 @@ mod tests {
         let parts = affine_torque_joints(&term, &[0.05], &data);
         assert!(parts.len() == 1 && parts[0].rotor && !parts[0].offset);
         assert!(affine_torque_joints(&term, &[-0.05], &data).is_empty());
+    }
+
+    #[test]
+    fn a_replacement_a_later_stage_undid_names_no_alternative() {
+        let (coulomb, load, viscous) = (Term::Coulomb { joint: 0, w: 0.01 }, Term::LoadFriction { joint: 0, w: 0.01 }, Term::Viscous(0));
+        let replaced: Replacement = (load.clone(), vec![coulomb.clone()], "the simpler predicts as well".into());
+        // the simpler term selected: the richer one is the alternative
+        let a = richer_alternatives(&[coulomb.clone(), viscous.clone()], std::slice::from_ref(&replaced));
+        assert_eq!(a.len(), 1);
+        assert_eq!(a[0].effects, vec!["viscous_friction".to_string(), "load_friction".to_string()]);
+        assert!(a[0].why.contains("in place of the selected coulomb_friction"), "{}", a[0].why);
+        // a later stage selected the richer term again, or dropped the simpler one: none
+        assert!(richer_alternatives(&[load, viscous.clone()], std::slice::from_ref(&replaced)).is_empty());
+        assert!(richer_alternatives(&[viscous], std::slice::from_ref(&replaced)).is_empty());
     }
 }
