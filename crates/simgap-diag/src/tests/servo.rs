@@ -242,3 +242,42 @@ fn the_constants_fit_of_a_servo_held_at_a_quarter_of_its_stall_torque_finds_the_
     assert_eq!(free.clamp[0], None, "{:?}", free.notes);
     assert!((free.kt[0] / free.r[0] - 1.0).abs() < 0.1, "unclamped kt/R = {}", free.kt[0] / free.r[0]);
 }
+
+/// Two servos on the double pendulum, the shoulder's drive limited to 3.5 N·m (a fifth of its
+/// stall torque, below the arm's weight at the horizontal) and the elbow's not: the constants
+/// fit takes the clamp on the shoulder alone (within 15 % of the limit, as the self-check's
+/// limits; 3.80 N·m here) and fits both joints' law (`kt/R` and `kt²/R` within 10 %).
+#[test]
+fn on_a_two_servo_arm_the_constants_fit_clamps_only_the_limited_joint() {
+    use crate::check::bench::{generate_servo, random_fourier, ServoSpec};
+    use crate::prepare::servo::{fit_constants, params, volts};
+    use rand::SeedableRng;
+    let model = crate::selfcheck::double_pendulum();
+    let h = simgap_core::mass_matrix(&model, &mut simgap_core::Workspace::new(&model), &[0.0, 0.0]);
+    let (volts_v, kt) = (12.0, [1.2, 0.6]);
+    let stall = [18.0, 9.0];
+    let r: Vec<f64> = (0..2).map(|j| kt[j] * volts_v / stall[j]).collect();
+    let w = std::f64::consts::TAU * 2.0;
+    let servo = ServoSpec { duty_gain: (0..2).map(|j| w * w * h[(j, j)] / stall[j]).collect(), volts: volts_v, kt: kt.to_vec(), r: r.clone() };
+    let limit = 3.5;
+    let effects = [Effect::TorqueSaturation { limit: vec![limit, f64::INFINITY] }, Effect::ViscousFriction { b: vec![0.2, 0.1] }];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let runs: Vec<Run> = [5.0, 5.0, f64::INFINITY]
+        .iter()
+        .enumerate()
+        .map(|(i, &off)| generate_servo(&model, &effects, &servo, &random_fourier(2, 0.9, &mut rng), 8.0, off, 0.005, 1_024_000.0, &format!("fit{i}")).unwrap())
+        .collect();
+    let signals: Vec<(&Run, Vec<f64>)> = runs.iter().map(|r| (r, volts(r, &params(&model, r).unwrap()).unwrap())).collect();
+    let c = fit_constants(&model, &signals, crate::prepare::PrepareOptions::default().window);
+    if std::env::var_os("SIMGAP_SHOW").is_some() {
+        println!("clamps {:?}, kt {:?}, R {:?}\nnotes {:#?}", c.clamp, c.kt, c.r, c.notes);
+    }
+    let clamp = c.clamp[0].unwrap_or_else(|| panic!("no clamp on the shoulder; notes: {:?}", c.notes));
+    assert!((clamp.limit / limit - 1.0).abs() < 0.15, "shoulder clamp at {} N·m, hidden limit {limit}; notes: {:?}", clamp.limit, c.notes);
+    assert_eq!(c.clamp[1], None, "the elbow has no limit; notes: {:?}", c.notes);
+    for j in 0..2 {
+        let (drive, emf) = (c.kt[j] / c.r[j], c.kt[j] * c.kt[j] / c.r[j]);
+        let (drive0, emf0) = (kt[j] / r[j], kt[j] * kt[j] / r[j]);
+        assert!((drive / drive0 - 1.0).abs() < 0.1 && (emf / emf0 - 1.0).abs() < 0.1, "joint {j}: kt/R = {drive} ({drive0}), kt²/R = {emf} ({emf0}); notes: {:?}", c.notes);
+    }
+}
