@@ -17,7 +17,7 @@ use crate::report::verdict::{headline, residual_notes, verdict};
 use crate::report::{pitfalls, residual, Candidate, Decision, Diagnosis, Gap, KStep, Report, RunKStep, WindowStart};
 use crate::select::alternatives::alternatives;
 use crate::select::prediction::{fits_in, prune_and_complete, rank_selected, ADD_GAIN};
-use crate::select::refine::{refine_by_shooting, refit, shooting_score};
+use crate::select::refine::{self, refine_by_shooting, refit, shooting_score};
 use crate::select::scorer::Scorer;
 use crate::select::screen::{candidate_groups, drop_passive_actuator_terms, select_nothing};
 use crate::select::{self, plausible, select, uncertainty, Context};
@@ -136,6 +136,38 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         }
         None => (final_score, final_cv),
     };
+    // on a one-joint servo arm, the drive's gain and rotor inertia in place of an inertial
+    // correction that is the same dynamics, where they predict the fit runs as well
+    if let Some(r) = refined.as_ref() {
+        let (swapped, notes) = refine::drive_in_place_of_inertia(&scorer, r, options)?;
+        shooting_notes.extend(notes);
+        if let Some(s) = swapped {
+            for t in selection.terms.iter().filter(|t| !s.terms.contains(t)) {
+                selection.log.push(select::Step {
+                    term: t.clone(),
+                    cv_mse: f64::NAN,
+                    accepted: false,
+                    reason: format!(
+                        "replaced by {} (cross-validated k-step score {:.4} against {:.4}): on one turning joint the same dynamics up to friction",
+                        s.name, s.score, r.score
+                    ),
+                });
+            }
+            for t in s.terms.iter().filter(|t| !selection.terms.contains(t)) {
+                selection.log.push(select::Step {
+                    term: t.clone(),
+                    cv_mse: f64::NAN,
+                    accepted: true,
+                    reason: format!("added as part of {}: the fit runs' cross-validated k-step error is {:.4} of the nominal model's", s.name, s.score),
+                });
+            }
+            selection.terms = s.terms.clone();
+            final_score = s.score;
+            final_cv = s.cv.clone();
+            refined = Some(s);
+        }
+    }
+    check_stop(options)?;
 
     // the selected set, fitted on all fit data, with uncertainties; a term the plausibility
     // check finds no finding (at the edge of its physical range, or its interval holding its

@@ -95,12 +95,12 @@ fn servo_scenarios_find_the_hidden_mechanics_and_the_motor_constants() {
     assert_eq!(limited.len(), 3);
     assert!(limited.iter().all(|s| s.found.iter().any(|f| f.starts_with("torque_saturation@"))), "a hidden limit not found");
     let right = scores.iter().filter(|s| s.right).count();
-    // measured 10 of 12 on this build, short of the 90 % target: on a one-joint pendulum an
-    // inertial correction was added beside the hidden rotor inertia and Coulomb friction (3;
-    // the report lists it as what it is on one joint, a torque gain of 1.018 on the fitted
-    // motor constants with 0.0109 kg·m² more rotor inertia), and beside a double pendulum's
-    // limit and viscous friction a load-dependent friction (5)
-    assert!(right >= 10, "{right} of {} servo scenarios right", scores.len());
+    // measured 11 of 12 on this build, short of the 90 % target: beside a double pendulum's
+    // limit and viscous friction a load-dependent friction (5). (Scenario 3, a one-joint
+    // pendulum with rotor inertia and Coulomb friction, had an inertial correction added that is
+    // a torque gain of 1.018 on the fitted motor constants with 0.0109 kg·m² more rotor inertia;
+    // on a one-joint servo arm the drive's terms now take its place where they predict as well.)
+    assert!(right >= 11, "{right} of {} servo scenarios right", scores.len());
 }
 
 #[test]
