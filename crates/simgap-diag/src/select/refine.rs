@@ -684,10 +684,16 @@ pub(crate) fn shooting_score(scorer: &Scorer<'_>, r: &Refined, terms: &[Term], o
 /// [`try_set`] of `terms`, each half started also from `r`'s answer on that half where they
 /// share terms.
 fn try_from(scorer: &Scorer<'_>, sopts: &shooting::Options, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<Tried> {
-    let (t, d, h) = &r.halves;
-    let before = Tried { name: r.name.clone(), terms: t.clone(), designs: d.clone(), halves: h.clone(), cv: r.cv.clone(), score: r.score, test: kstep::FoldTest::of(&[]) };
+    let before = as_tried(r);
     let earlier = |half: usize, designs: &[TermDesign]| before.halves.get(half).map(|h| transfer(&before, h, terms, designs)).into_iter().collect::<Vec<_>>();
     try_set(scorer, &r.runs, sopts, &r.name, terms, &earlier, options.stop.as_deref())
+}
+
+/// The set of `r` as its two-fold cross-validation fitted it (terms, designs, each half's
+/// answer), the starts of a set with a term more or less ([`transfer`]).
+fn as_tried(r: &Refined) -> Tried {
+    let (terms, designs, halves) = &r.halves;
+    Tried { name: r.name.clone(), terms: terms.clone(), designs: designs.clone(), halves: halves.clone(), cv: r.cv.clone(), score: r.score, test: kstep::FoldTest::of(&[]) }
 }
 
 /// On a one-joint servo arm, the set of `r` with the drive's torque gain and rotor inertia in
@@ -730,12 +736,11 @@ pub(crate) fn drive_in_place_of_inertia(scorer: &Scorer<'_>, r: &Refined, option
     }
     // each half also from its own answer's equivalent: the gain and rotor inertia set, the
     // other shared terms at that answer's values
-    let (ht, hd, hh) = &r.halves;
-    let before = Tried { name: r.name.clone(), terms: ht.clone(), designs: hd.clone(), halves: hh.clone(), cv: r.cv.clone(), score: r.score, test: kstep::FoldTest::of(&[]) };
+    let before = as_tried(r);
     let earlier = |half: usize, designs: &[TermDesign]| -> Vec<nalgebra::DVector<f64>> {
         let Some(answer) = before.halves.get(half) else { return Vec::new() };
         let mut start = transfer(&before, answer, &terms, designs);
-        let mut plain = vec![start.clone()];
+        let mut from = vec![start.clone()];
         if let Some(e) = equivalent(&before.terms, &before.designs, answer) {
             // `k τ = (H + ia) q̈ + g + k F`: the torques that act beside the drive (frictions,
             // cogging) scale by k; a load friction's share of the drive's torque and the
@@ -752,9 +757,9 @@ pub(crate) fn drive_in_place_of_inertia(scorer: &Scorer<'_>, r: &Refined, option
                 }
                 c += k;
             }
-            plain.push(start);
+            from.push(start);
         }
-        plain
+        from
     };
     let sopts = shooting_options(scorer);
     let name = "the selected set with the drive's torque gain and rotor inertia in place of the inertial correction";
