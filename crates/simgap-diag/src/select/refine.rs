@@ -230,7 +230,7 @@ fn shooting_options(scorer: &Scorer<'_>) -> shooting::Options {
 /// The driven servo joints that some fit log shows stalled ([`servo::stalls`]): at full duty
 /// for [`servo::MIN_STALL`] or more, at rest. Only there is a torque limit evidenced.
 /// Computed once per scorer (the fit logs do not change).
-pub(crate) fn stalled_joints<'s>(scorer: &'s Scorer<'_>) -> &'s [usize] {
+fn stalled_joints<'s>(scorer: &'s Scorer<'_>) -> &'s [usize] {
     scorer.stalled.get_or_init(|| stalled_joints_of(scorer))
 }
 
