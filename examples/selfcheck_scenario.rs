@@ -35,7 +35,8 @@ fn main() {
             std::process::exit(1);
         }
     };
-    let mut options = DiagnoseOptions { directional_friction: scenario.directional_friction, ..DiagnoseOptions::default() };
+    let mut options =
+        DiagnoseOptions { directional_friction: scenario.directional_friction, load_stribeck_friction: scenario.load_stribeck_friction, ..DiagnoseOptions::default() };
     options.prepare.link_side_torque = args.iter().any(|a| a == "--link-side-torque");
     println!("family {}, hidden: {:?}", scenario.family, scenario.truth);
     match diagnose(&scenario.diagnosis_model, Formulation::EulerLagrange, &scenario.fit, &scenario.holdout, &options, &mut |_| {}) {

@@ -83,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--voltage", choices=["nominal", "logged"], default="nominal", help="the converter's voltage choice (see bam_to_simgap.py)")
     ap.add_argument("--only", choices=TRAJECTORIES, default=None, help="one fold only")
+    ap.add_argument("--load-stribeck-friction", action="store_true", help="diagnose with the load friction rising at rest tried (simgap diagnose --load-stribeck-friction)")
     args = ap.parse_args(argv)
     out = args.out
     logs_dir = out / "logs"
@@ -96,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
         hold = [n for n, m in kinds.items() if m["trajectory"] == kind]
         fit = [n for n in kinds if n not in hold]
         cmd = [str(args.bin), "diagnose", "--urdf", str(urdf)]
+        if args.load_stribeck_friction:
+            cmd.append("--load-stribeck-friction")
         for n in fit:
             cmd += ["--log", str(logs_dir / f"{n}.csv")]
         for n in hold:

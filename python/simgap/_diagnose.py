@@ -55,6 +55,7 @@ def diagnose(
     progress: bool | ProgressCallback | None = None,
     urdf: str | PathLike[str] | None = None,
     directional_friction: bool = False,
+    load_stribeck_friction: bool = False,
     link_side_torque: bool = False,
 ) -> _simgap.Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
@@ -80,6 +81,11 @@ def diagnose(
     (levels and slopes per direction) in place of each joint's Coulomb and viscous friction,
     for ball screws and worn gearboxes (the CLI's ``--directional-friction``; off by default).
 
+    ``load_stribeck_friction``: on servo logs, also try the servo's load friction rising at rest
+    (a breakaway level ``fs + mus·|τ_drive|`` above the moving ``fc + mu·|τ_drive|``), for a
+    servo that stops short of its goal and stays there while its duty rises (the CLI's
+    ``--load-stribeck-friction``; off by default).
+
     ``link_side_torque``: the logged effort is measured on the link side of the gearbox
     (joint-torque sensors, as on torque-sensing arms), so no rotor inertia or back-EMF is tried:
     both act before such a sensor (the CLI's ``--link-side-torque``; off by default).
@@ -98,7 +104,7 @@ def diagnose(
     else:
         raise TypeError(f"progress: expected True, False, None or a callable (stage, done, total), got {type(progress).__name__}")
     try:
-        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, directional_friction=directional_friction, link_side_torque=link_side_torque)  # type: ignore[arg-type]
+        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, directional_friction=directional_friction, load_stribeck_friction=load_stribeck_friction, link_side_torque=link_side_torque)  # type: ignore[arg-type]
     finally:
         if close is not None:
             close()

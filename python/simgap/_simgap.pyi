@@ -572,6 +572,7 @@ def diagnose(
     progress: Callable[[str, int, int], object] | None = None,
     urdf: str | PathLike[str] | None = None,
     directional_friction: bool = False,
+    load_stribeck_friction: bool = False,
     link_side_torque: bool = False,
 ) -> Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
@@ -587,6 +588,8 @@ def diagnose(
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
     ``directional_friction``: also try friction that differs with the direction of motion in
     place of each joint's Coulomb and viscous friction (the CLI's ``--directional-friction``).
+    ``load_stribeck_friction``: on servo logs, also try the servo's load friction rising at
+    rest, a breakaway level above the moving one (the CLI's ``--load-stribeck-friction``).
     ``link_side_torque``: the logged effort is measured on the link side of the gearbox
     (joint-torque sensors), so no rotor inertia or back-EMF is tried (``--link-side-torque``).
 

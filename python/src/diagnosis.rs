@@ -81,6 +81,9 @@ struct Job {
     experiment: Option<Experiment>,
     /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
     directional_friction: bool,
+    /// Also try `load_stribeck_friction` on servo logs
+    /// ([`DiagnoseOptions::load_stribeck_friction`]).
+    load_stribeck_friction: bool,
     /// The logged effort is measured on the link side of the gearbox
     /// ([`simgap_diag::PrepareOptions::link_side_torque`]).
     link_side_torque: bool,
@@ -114,7 +117,12 @@ impl Job {
                 *latest = Some((p.stage.to_string(), p.done, p.total));
             }
         };
-        let mut options = DiagnoseOptions { stop: Some(stop.clone()), directional_friction: self.directional_friction, ..DiagnoseOptions::default() };
+        let mut options = DiagnoseOptions {
+            stop: Some(stop.clone()),
+            directional_friction: self.directional_friction,
+            load_stribeck_friction: self.load_stribeck_friction,
+            ..DiagnoseOptions::default()
+        };
         options.prepare.link_side_torque = self.link_side_torque;
         simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &options, &mut progress)
     }
@@ -181,7 +189,10 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// URDF file `model` was loaded from, kept for `Report.export_urdf`. `directional_friction`:
 /// also try friction that differs with the direction of motion (levels and slopes per
 /// direction) in place of each joint's Coulomb and viscous friction, for ball screws and worn
-/// gearboxes (the CLI's `--directional-friction`; off by default). `link_side_torque`: the
+/// gearboxes (the CLI's `--directional-friction`; off by default). `load_stribeck_friction`:
+/// on servo logs, also try the servo's load friction rising at rest (a breakaway level above
+/// the moving one), for a servo that stops short of its goal and stays there while its duty
+/// rises (the CLI's `--load-stribeck-friction`; off by default). `link_side_torque`: the
 /// logged effort is measured on the link side of the gearbox (joint-torque sensors), so no rotor
 /// inertia or back-EMF is tried (the CLI's `--link-side-torque`; off by default).
 ///
@@ -190,7 +201,7 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
 /// TypeError for arguments that are neither runs nor paths.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, directional_friction = false, link_side_torque = false))]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, directional_friction = false, load_stribeck_friction = false, link_side_torque = false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -202,6 +213,7 @@ pub(crate) fn diagnose(
     progress: Option<Bound<'_, PyAny>>,
     urdf: Option<PathBuf>,
     directional_friction: bool,
+    load_stribeck_friction: bool,
     link_side_torque: bool,
 ) -> PyResult<PyReport> {
     let progress = progress.filter(|p| !p.is_none());
@@ -219,6 +231,7 @@ pub(crate) fn diagnose(
         holdout: Source::from_arg("holdout", holdout)?,
         experiment,
         directional_friction,
+        load_stribeck_friction,
         link_side_torque,
         latest: Latest::default(),
     };

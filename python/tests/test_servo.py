@@ -64,3 +64,6 @@ def test_a_servo_log_without_its_duty_gain_is_refused_by_the_diagnosis(tmp_path:
     (tmp_path / "servo.experiment.json").write_text(json.dumps({"controller": "servo", "joints": "hinge", "supply_voltage": "12"}))
     with pytest.raises(simgap.SimgapError, match="duty_gain"):
         simgap.diagnose(simgap.Model.from_urdf(PENDULUM), [str(csv)], progress=False)
+    # the same with the load friction rising at rest asked for (the CLI's --load-stribeck-friction)
+    with pytest.raises(simgap.SimgapError, match="duty_gain"):
+        simgap.diagnose(simgap.Model.from_urdf(PENDULUM), [str(csv)], progress=False, load_stribeck_friction=True)

@@ -77,6 +77,11 @@ pub(crate) struct Args {
     /// gearboxes.
     #[arg(long = "directional-friction")]
     directional_friction: bool,
+    /// On servo logs, also try the load friction rising at rest (a breakaway level above the
+    /// moving one, both growing with the drive's torque): for a servo that stops short of its
+    /// goal and stays there while its duty rises.
+    #[arg(long = "load-stribeck-friction")]
+    load_stribeck_friction: bool,
     /// The logged effort is measured on the link side of the gearbox (joint-torque sensors, as
     /// on torque-sensing arms): no rotor inertia or back-EMF is tried, since both act before
     /// such a sensor.
@@ -109,6 +114,9 @@ pub(crate) struct Job<'a> {
     pub(crate) export_mjcf: Option<&'a Path>,
     /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
     pub(crate) directional_friction: bool,
+    /// Also try `load_stribeck_friction` on servo logs
+    /// ([`DiagnoseOptions::load_stribeck_friction`]).
+    pub(crate) load_stribeck_friction: bool,
     /// The logged effort is measured on the link side of the gearbox
     /// ([`simgap::diag::PrepareOptions::link_side_torque`]).
     pub(crate) link_side_torque: bool,
@@ -132,6 +140,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         export_urdf: args.export_urdf.as_deref(),
         export_mjcf: args.export_mjcf.as_deref(),
         directional_friction: args.directional_friction,
+        load_stribeck_friction: args.load_stribeck_friction,
         link_side_torque: args.link_side_torque,
         timings: args.timings,
     })?;
@@ -180,7 +189,12 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     };
     // Ctrl-C stops the diagnosis at its next step (exit 130, nothing written)
     super::interrupt::cooperate();
-    let mut options = DiagnoseOptions { stop: Some(super::interrupt::STOP.clone()), directional_friction: job.directional_friction, ..DiagnoseOptions::default() };
+    let mut options = DiagnoseOptions {
+        stop: Some(super::interrupt::STOP.clone()),
+        directional_friction: job.directional_friction,
+        load_stribeck_friction: job.load_stribeck_friction,
+        ..DiagnoseOptions::default()
+    };
     options.prepare.link_side_torque = job.link_side_torque;
     let result = diagnose(job.model, job.formulation, &fit, &holdout, &options, &mut on_progress);
     bar.finish_and_clear();

@@ -22,6 +22,14 @@ pub struct DiagnoseOptions {
     /// near-tie on one fold and made its held-out prediction 2.5 times worse; on a drive
     /// expected to differ by direction (a ball screw, a worn gearbox) turn it on.
     pub directional_friction: bool,
+    /// On servo logs, also try the servo's load friction rising at rest
+    /// (`load_stribeck_friction`: a breakaway level `fs + mus |τ_drive|` above the moving
+    /// `fc + mu |τ_drive|`; default false), for a servo that stops short of its goal and stays
+    /// while its duty rises. Off by default: on the Rhoban XL330 logs, with one trajectory kind
+    /// held out at a time, it predicted no held-out kind better (and one fold's held-out logs
+    /// worse, where it led the fit to another answer of the other parameters), at up to twice
+    /// the time.
+    pub load_stribeck_friction: bool,
     /// When set (e.g. by Ctrl-C), the diagnosis stops at its next step with
     /// [`Error::Interrupted`].
     pub stop: Option<Arc<AtomicBool>>,

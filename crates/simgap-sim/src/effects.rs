@@ -98,7 +98,9 @@ pub fn stiff_band(effects: &[Effect], out: &mut [f64]) {
         for i in 0..out.len() {
             let band = match e {
                 Effect::CoulombFriction { w, .. } | Effect::DirectionalFriction { w, .. } | Effect::LoadFriction { w, .. } if w[i] > 0.0 => STIFF_WIDTHS * w[i],
-                Effect::StribeckFriction { vs, w, .. } if w[i] > 0.0 => (STIFF_WIDTHS * w[i]).max(STIFF_STRIBECK_VELOCITIES * vs[i].max(0.0)),
+                Effect::StribeckFriction { vs, w, .. } | Effect::LoadStribeckFriction { vs, w, .. } if w[i] > 0.0 => {
+                    (STIFF_WIDTHS * w[i]).max(STIFF_STRIBECK_VELOCITIES * vs[i].max(0.0))
+                }
                 _ => 0.0,
             };
             out[i] = out[i].max(band);
@@ -140,6 +142,10 @@ fn slope_bound(effects: &[Effect], dry: f64, hump_scale: f64, out: &mut [f64]) {
                 // the load-independent level; the load part is bounded by the simulator from
                 // the effort limits (it scales with the drive's torque)
                 Effect::LoadFriction { fc, w, .. } => over(fc[i].abs(), w[i]),
+                Effect::LoadStribeckFriction { fc, fs, vs, w, .. } => {
+                    let hump = if vs[i] > 0.0 { hump_scale * 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
+                    over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
+                }
                 _ => 0.0,
             };
         }
@@ -270,6 +276,27 @@ pub enum Effect {
         /// Widths of the smoothed sign.
         w: Vec<f64>,
     },
+    /// Load-dependent friction whose level at rest rises above its level in motion (a gear
+    /// train's breakaway, as in BAM's load-dependent Stribeck models): `τ += −(fc + mu |τ_drive|
+    /// + ((fs − fc) + (mus − mu) |τ_drive|) e^{−(q̇/vs)²}) tanh(q̇ / w)`, `τ_drive` as in
+    /// [`Effect::LoadFriction`]; `fc`, `fs` [N·m or N], `mu`, `mus` [–], `vs`, `w` [rad/s or
+    /// m/s] (`vs ≤ 0` drops the rise; `w = 0`: the exact sign, integrated as stick–slip, the
+    /// joint held while the torque that would move it is below `fs + mus |τ_drive|`), all `>= 0`.
+    /// Applied by the [`Stepper`](crate::step::Stepper), which knows the drive torque.
+    LoadStribeckFriction {
+        /// Load-independent levels in motion.
+        fc: Vec<f64>,
+        /// Friction per unit of drive torque in motion.
+        mu: Vec<f64>,
+        /// Load-independent levels at rest.
+        fs: Vec<f64>,
+        /// Friction per unit of drive torque at rest.
+        mus: Vec<f64>,
+        /// Stribeck velocities.
+        vs: Vec<f64>,
+        /// Widths of the smoothed sign.
+        w: Vec<f64>,
+    },
     /// Back-EMF: `τ += −kb q̇` while the drive is enabled (absent with torque off, which tells
     /// it from viscous friction); `kb` [N·m·s/rad or N·s/m] (a motor's `kt²/R` through its
     /// gearbox) may be negative as a correction of a servo's own back-EMF. Applied by the
@@ -299,6 +326,7 @@ impl Effect {
             Effect::JointSpring { .. } => EffectKind::JointSpring,
             Effect::DirectionalFriction { .. } => EffectKind::DirectionalFriction,
             Effect::LoadFriction { .. } => EffectKind::LoadFriction,
+            Effect::LoadStribeckFriction { .. } => EffectKind::LoadStribeckFriction,
             Effect::BackEmf { .. } => EffectKind::BackEmf,
         }
     }
@@ -306,6 +334,25 @@ impl Effect {
     /// The contract name (`viscous_friction`, ..., `coriolis_structure`).
     pub fn name(&self) -> &'static str {
         self.kind().as_str()
+    }
+
+    /// The level of a load-dependent friction on joint `i` at velocity `qd` with the drive's
+    /// torque `tau_drive` [N·m or N]: `fc + mu |τ_drive|` ([`Effect::LoadFriction`]), `fc + mu
+    /// |τ_drive| + ((fs − fc) + (mus − mu) |τ_drive|) e^{−(q̇/vs)²}`
+    /// ([`Effect::LoadStribeckFriction`]); 0 for any other effect.
+    ///
+    /// # Panics
+    /// If `i` is not a joint of the effect's vectors.
+    pub fn load_level(&self, i: usize, qd: f64, tau_drive: f64) -> f64 {
+        let load = tau_drive.abs();
+        match self {
+            Effect::LoadFriction { fc, mu, .. } => fc[i] + mu[i] * load,
+            Effect::LoadStribeckFriction { fc, mu, fs, mus, vs, .. } => {
+                let rise = if vs[i] > 0.0 { (-(qd / vs[i]).powi(2)).exp() } else { 0.0 };
+                fc[i] + mu[i] * load + rise * ((fs[i] - fc[i]) + (mus[i] - mu[i]) * load)
+            }
+            _ => 0.0,
+        }
     }
 
     /// Joints (model indices, ascending) where a per-joint effect is not neutral; the joints
@@ -323,6 +370,7 @@ impl Effect {
             Effect::JointSpring { k, .. } => nonzero(k),
             Effect::BackEmf { kb } => nonzero(kb),
             Effect::LoadFriction { fc, mu, .. } => (0..fc.len()).filter(|&i| fc[i] != 0.0 || mu.get(i).is_some_and(|x| *x != 0.0)).collect(),
+            Effect::LoadStribeckFriction { fc, mu, fs, mus, .. } => (0..fc.len()).filter(|&i| [fc, mu, fs, mus].iter().any(|v| v.get(i).is_some_and(|x| *x != 0.0))).collect(),
             Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, .. } => {
                 (0..fc_pos.len()).filter(|&i| [fc_pos, fc_neg, b_pos, b_neg].iter().any(|v| v.get(i).is_some_and(|x| *x != 0.0))).collect()
             }
@@ -415,6 +463,14 @@ impl Effect {
             Effect::LoadFriction { fc, mu, w } => {
                 check("fc", fc, true, false)?;
                 check("mu", mu, true, false)?;
+                check("w", w, true, false)
+            }
+            Effect::LoadStribeckFriction { fc, mu, fs, mus, vs, w } => {
+                check("fc", fc, true, false)?;
+                check("mu", mu, true, false)?;
+                check("fs", fs, true, false)?;
+                check("mus", mus, true, false)?;
+                check("vs", vs, true, false)?;
                 check("w", w, true, false)
             }
             Effect::BackEmf { kb } => check("kb", kb, false, false),
@@ -557,6 +613,9 @@ impl Effect {
                 Effect::DirectionalFriction { fc_pos: per_joint("fc_pos")?, fc_neg: per_joint("fc_neg")?, b_pos: per_joint("b_pos")?, b_neg: per_joint("b_neg")?, w: width("w")? }
             }
             EffectKind::LoadFriction => Effect::LoadFriction { fc: per_joint("fc")?, mu: per_joint("mu")?, w: width("w")? },
+            EffectKind::LoadStribeckFriction => {
+                Effect::LoadStribeckFriction { fc: per_joint("fc")?, mu: per_joint("mu")?, fs: per_joint("fs")?, mus: per_joint("mus")?, vs: per_joint("vs")?, w: width("w")? }
+            }
             EffectKind::BackEmf => Effect::BackEmf { kb: per_joint("kb")? },
         };
         effect.validate(dof)?;
@@ -626,8 +685,9 @@ pub fn friction_torque_smooth(effects: &[Effect], q: &[f64], qd: &[f64], out: &m
 /// The levels [N·m or N] of the dry frictions of width `w = 0` at velocity `qd`, for motion
 /// forward (`pos`) and back (`neg`), into `pos` and `neg` (overwritten): Coulomb `fc`,
 /// Stribeck `fc + (fs − fc) e^{−(q̇/vs)²}`, directional `fc_pos` / `fc_neg`, load friction
-/// `fc + mu |τ_drive|` with `tau_drive` the drive's torque. The simulator holds a joint at rest
-/// while the torque that would move it is below the level (stick–slip).
+/// `fc + mu |τ_drive|` with `tau_drive` the drive's torque (and its Stribeck form, see
+/// [`Effect::load_level`]). The simulator holds a joint at rest while the torque that would
+/// move it is below the level (stick–slip).
 ///
 /// # Panics
 /// If a length differs from `qd.len()`.
@@ -643,8 +703,8 @@ pub fn exact_dry_levels(effects: &[Effect], qd: &[f64], tau_drive: &[f64], pos: 
                     (level, level)
                 }
                 Effect::DirectionalFriction { fc_pos, fc_neg, w, .. } if w[i] <= 0.0 => (fc_pos[i], fc_neg[i]),
-                Effect::LoadFriction { fc, mu, w } if w[i] <= 0.0 => {
-                    let level = fc[i] + mu[i] * tau_drive[i].abs();
+                Effect::LoadFriction { w, .. } | Effect::LoadStribeckFriction { w, .. } if w[i] <= 0.0 => {
+                    let level = e.load_level(i, qd[i], tau_drive[i]);
                     (level, level)
                 }
                 _ => (0.0, 0.0),
@@ -662,7 +722,7 @@ pub fn has_exact_dry_friction(effects: &[Effect]) -> bool {
         Effect::CoulombFriction { fc, w } => fc.iter().zip(w).any(|(f, w)| *f != 0.0 && *w <= 0.0),
         Effect::StribeckFriction { fc, fs, w, .. } => (0..fc.len()).any(|i| (fc[i] != 0.0 || fs[i] != 0.0) && w[i] <= 0.0),
         Effect::DirectionalFriction { fc_pos, fc_neg, w, .. } => (0..w.len()).any(|i| (fc_pos[i] != 0.0 || fc_neg[i] != 0.0) && w[i] <= 0.0),
-        Effect::LoadFriction { fc, mu, w } => (0..w.len()).any(|i| (fc[i] != 0.0 || mu[i] != 0.0) && w[i] <= 0.0),
+        Effect::LoadFriction { w, .. } | Effect::LoadStribeckFriction { w, .. } => e.joints_acted().iter().any(|&i| w[i] <= 0.0),
         _ => false,
     })
 }
@@ -670,7 +730,7 @@ pub fn has_exact_dry_friction(effects: &[Effect]) -> bool {
 /// Whether the effects hold a term the drive's torque or enable state changes (back-EMF,
 /// load friction): the simulator then evaluates the drive torque at every stage.
 pub fn has_drive_effects(effects: &[Effect]) -> bool {
-    effects.iter().any(|e| matches!(e, Effect::BackEmf { .. } | Effect::LoadFriction { .. }))
+    effects.iter().any(|e| matches!(e, Effect::BackEmf { .. } | Effect::LoadFriction { .. } | Effect::LoadStribeckFriction { .. }))
 }
 
 /// The torque of the drive and the load friction at velocity `qd` [N·m or N], into `out`:
@@ -716,10 +776,13 @@ pub fn drive_torque(
     }
     out.copy_from_slice(drive);
     for e in effects {
-        if let Effect::LoadFriction { fc, mu, w } = e {
+        if let Effect::LoadFriction { w, .. } | Effect::LoadStribeckFriction { w, .. } = e {
             for i in 0..n {
-                if w[i] > 0.0 && (fc[i] != 0.0 || mu[i] != 0.0) {
-                    out[i] -= (fc[i] + mu[i] * drive[i].abs()) * smooth_sign(qd[i], w[i]);
+                if w[i] > 0.0 {
+                    let level = e.load_level(i, qd[i], drive[i]);
+                    if level != 0.0 {
+                        out[i] -= level * smooth_sign(qd[i], w[i]);
+                    }
                 }
             }
         }

@@ -45,6 +45,10 @@ pub enum EffectKind {
     DirectionalFriction,
     /// `load_friction`: dry friction growing with the drive's torque through the gearbox.
     LoadFriction,
+    /// `load_stribeck_friction`: a load-dependent friction whose level at rest (breakaway,
+    /// `fs + mus |τ_drive|`) rises above its level in motion (`fc + mu |τ_drive|`) below a
+    /// Stribeck velocity.
+    LoadStribeckFriction,
     /// `back_emf`: `−kb q̇` while the drive is enabled.
     BackEmf,
 }
@@ -171,12 +175,20 @@ const DIRECTIONAL: &[ParamSpec] = &[
     p("w", Width, None, false),
 ];
 const LOAD: &[ParamSpec] = &[p("fc", Effort, Some(0.0), true), p("mu", Ratio, Some(0.0), true), p("w", Width, None, false)];
+const LOAD_STRIBECK: &[ParamSpec] = &[
+    p("fc", Effort, Some(0.0), true),
+    p("mu", Ratio, Some(0.0), true),
+    p("fs", Effort, Some(0.0), true),
+    p("mus", Ratio, Some(0.0), true),
+    p("vs", Velocity, None, false),
+    p("w", Width, None, false),
+];
 const BACK_EMF: &[ParamSpec] = &[p("kb", Damping, Some(0.0), true)];
 const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.
-    pub const ALL: [EffectKind; 16] = [
+    pub const ALL: [EffectKind; 17] = [
         EffectKind::ViscousFriction,
         EffectKind::CoulombFriction,
         EffectKind::StribeckFriction,
@@ -192,6 +204,7 @@ impl EffectKind {
         EffectKind::JointSpring,
         EffectKind::DirectionalFriction,
         EffectKind::LoadFriction,
+        EffectKind::LoadStribeckFriction,
         EffectKind::BackEmf,
     ];
 
@@ -213,6 +226,7 @@ impl EffectKind {
             EffectKind::JointSpring => "joint_spring",
             EffectKind::DirectionalFriction => "directional_friction",
             EffectKind::LoadFriction => "load_friction",
+            EffectKind::LoadStribeckFriction => "load_stribeck_friction",
             EffectKind::BackEmf => "back_emf",
         }
     }
@@ -235,6 +249,7 @@ impl EffectKind {
             EffectKind::JointSpring => SPRING,
             EffectKind::DirectionalFriction => DIRECTIONAL,
             EffectKind::LoadFriction => LOAD,
+            EffectKind::LoadStribeckFriction => LOAD_STRIBECK,
             EffectKind::BackEmf => BACK_EMF,
         }
     }

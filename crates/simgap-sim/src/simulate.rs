@@ -354,12 +354,23 @@ pub(crate) fn substeps_for_rate(period: f64, lambda: f64, base: usize) -> usize 
 /// A load friction's slope grows with the drive's torque: bounded from the effort limits.
 fn add_load_friction_slope(plant: &Plant, slope: &mut [f64]) {
     for e in plant.effects() {
-        if let crate::effects::Effect::LoadFriction { mu, w, .. } = e {
-            for (i, s) in slope.iter_mut().enumerate() {
-                let limit = plant.effort_limits()[i];
-                if w[i] > 0.0 && limit.is_finite() {
-                    *s += mu[i] * limit / w[i];
-                }
+        use crate::effects::Effect;
+        // the load part's step over w (its largest per unit torque) and, in Stribeck form, its
+        // rise over vs (slope at most 2 |mus − mu| |τ| / vs)
+        let (mu, rise, w) = match e {
+            Effect::LoadFriction { mu, w, .. } => (mu, None, w),
+            Effect::LoadStribeckFriction { mu, mus, vs, w, .. } => (mu, Some((mus, vs)), w),
+            _ => continue,
+        };
+        for (i, s) in slope.iter_mut().enumerate() {
+            let limit = plant.effort_limits()[i];
+            if w[i] > 0.0 && limit.is_finite() {
+                let (most, hump) = match rise {
+                    Some((mus, vs)) if vs[i] > 0.0 => (mu[i].max(mus[i]), 2.0 * (mus[i] - mu[i]).abs() / vs[i]),
+                    Some((mus, _)) => (mu[i].max(mus[i]), 0.0),
+                    None => (mu[i], 0.0),
+                };
+                *s += most * limit / w[i] + hump * limit;
             }
         }
     }

@@ -60,6 +60,7 @@ fn every_effect_name_parses() {
         "joint_spring:k=3,0.5;q0=0.1,-0.2",
         "directional_friction:fc_pos=1,2;fc_neg=0.5,1;b_pos=0.1,0.2;b_neg=0.3,0.4;w=0.01",
         "load_friction:fc=0.1,0.2;mu=0.3,0.1;w=0",
+        "load_stribeck_friction:fc=0.1,0.2;mu=0.3,0.1;fs=0.2,0.3;mus=0.5,0.2;vs=0.05;w=0",
         "back_emf:kb=0.04,0.02",
     ];
     assert_eq!(specs.len(), EffectKind::ALL.len(), "one spelling per effect");

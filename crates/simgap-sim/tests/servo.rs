@@ -137,6 +137,37 @@ fn load_friction_lets_a_servo_stall_short_of_its_goal() {
 }
 
 #[test]
+fn a_load_stribeck_friction_rises_from_its_moving_level_to_its_level_at_rest() {
+    // −(fc + mu |τ| + ((fs − fc) + (mus − mu) |τ|) e^{−(q̇/vs)²}) tanh(q̇/w) on the drive torque τ
+    let (fc, mu, fs, mus, vs, w) = (0.02, 0.3, 0.05, 0.6, 0.1, 0.01);
+    let effects = [Effect::LoadStribeckFriction { fc: vec![fc], mu: vec![mu], fs: vec![fs], mus: vec![mus], vs: vec![vs], w: vec![w] }];
+    let (cmd, emf) = ([0.5], [0.0]);
+    for qd in [0.0, 0.003, 0.05, 0.1, 2.0] {
+        let (mut scratch, mut drive, mut out) = ([0.0], [0.0], [0.0]);
+        drive_torque(&effects, None, &cmd, &emf, &[1.0], &[qd], &mut scratch, &mut drive, &mut out);
+        let level = fc + mu * 0.5 + ((fs - fc) + (mus - mu) * 0.5) * (-(qd / vs).powi(2)).exp();
+        assert!((out[0] - (0.5 - level * (qd / w).tanh())).abs() < 1e-15, "q̇ = {qd}: {out:?}");
+        assert!((effects[0].load_level(0, qd, -0.5) - level).abs() < 1e-15, "the level takes |τ|");
+    }
+    // far above vs it is the load friction of its moving levels
+    let moving = Effect::LoadFriction { fc: vec![fc], mu: vec![mu], w: vec![w] };
+    assert!((effects[0].load_level(0, 2.0, 0.5) - moving.load_level(0, 2.0, 0.5)).abs() < 1e-15);
+}
+
+#[test]
+fn a_servo_at_rest_stays_while_its_drive_is_below_the_level_at_rest_and_above_the_moving_level() {
+    // at q = 0 (no weight) the drive is 3 N·m per unit duty × (goal − q) = 0.3 N·m: above the
+    // moving level 0.5 × 0.3 = 0.15, below the level at rest 0.1 + 0.9 × 0.3 = 0.37
+    let (gain, goal) = (1.0, 0.1);
+    let moving = Effect::LoadFriction { fc: vec![0.0], mu: vec![0.5], w: vec![0.0] };
+    let held = Effect::LoadStribeckFriction { fc: vec![0.0], mu: vec![0.5], fs: vec![0.1], mus: vec![0.9], vs: vec![0.05], w: vec![0.0] };
+    let moved = run(&[moving], &mut servo(gain, 1.0), goal, &params(2.0, 0.0, 0.0));
+    let stayed = run(&[held], &mut servo(gain, 1.0), goal, &params(2.0, 0.0, 0.0));
+    assert!(last(&moved).0 > 0.01, "the moving level alone lets it go: q = {}", last(&moved).0);
+    assert!(stayed.q.iter().all(|q| q.abs() < 1e-12), "held at rest: it reached {}", stayed.q.iter().fold(0.0f64, |m, q| m.max(q.abs())));
+}
+
+#[test]
 fn a_servo_experiment_without_its_keys_is_refused_naming_them() {
     let exp = |extra: &[(&str, &str)]| Experiment {
         controller: ControllerKind::Servo,

@@ -51,6 +51,9 @@ pub struct Scenario {
     /// The diagnosis is asked to try friction that differs by direction (as
     /// `--directional-friction`).
     pub directional_friction: bool,
+    /// The diagnosis is asked to try a servo's load friction rising at rest (as
+    /// `--load-stribeck-friction`).
+    pub load_stribeck_friction: bool,
 }
 
 impl Scenario {
@@ -59,7 +62,20 @@ impl Scenario {
     /// no servo, directional friction not tried).
     pub(crate) fn simulated(index: usize, model: Model, effects: Vec<Effect>, fit: Vec<Run>, holdout: Vec<Run>, family: &'static str) -> Scenario {
         let truth = truth_set(&model, &effects);
-        Scenario { index, diagnosis_model: model.clone(), model, effects, truth, fit, holdout, family, glitch: None, servo: None, directional_friction: false }
+        Scenario {
+            index,
+            diagnosis_model: model.clone(),
+            model,
+            effects,
+            truth,
+            fit,
+            holdout,
+            family,
+            glitch: None,
+            servo: None,
+            directional_friction: false,
+            load_stribeck_friction: false,
+        }
     }
 }
 
@@ -384,7 +400,20 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
                 "random" => "closed_loop",
                 f => f,
             };
-            return Ok(Scenario { index, model, diagnosis_model, effects, truth, fit, holdout, family, glitch, servo: None, directional_friction: false });
+            return Ok(Scenario {
+                index,
+                model,
+                diagnosis_model,
+                effects,
+                truth,
+                fit,
+                holdout,
+                family,
+                glitch,
+                servo: None,
+                directional_friction: false,
+                load_stribeck_friction: false,
+            });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every draw diverged")))
@@ -401,22 +430,58 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
 /// instead: the same servo and mechanics, its first joint's drive limited to 45–75 % of that
 /// joint's gravity torque at the horizontal (a current limit well below the stall torque, drawn
 /// apart so that the rest of the draw stays what it was), and goals of 0.9 rad (two joints) or
-/// 1.2 rad (one), large enough to reach it.
+/// 1.2 rad (one), large enough to reach it. Another (`index % 4 == 3`) draws a
+/// `servo_breakaway` scenario: its first hidden effect is a load friction rising at rest
+/// (`load_stribeck_friction`: moving `fc` 1–3 % of the stall torque and `mu` 0.15–0.35, at rest
+/// `fs` 1–3 % of the stall torque higher and `mus` 0.2–0.4 higher, `vs` 0.05–0.3 rad/s), and the
+/// diagnosis is asked to try it (`--load-stribeck-friction`).
 ///
 /// The servo family is drawn apart from the [`CYCLE`] (so that the scenarios of earlier seeds
 /// stay what they were): scenario `index` of seed `seed` is [`servo_scenario`]`(seed, index)`,
 /// scored by [`run_servo_scenario`].
 pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
-    servo_draw(seed, index, servo_family(index) == "servo_saturation")
+    let family = servo_family(index);
+    let sc = servo_draw(seed, index, family == "servo_saturation")?;
+    if family != "servo_breakaway" {
+        return Ok(sc);
+    }
+    // the same draw with its first effect a load friction rising at rest (drawn apart)
+    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(5_000_011).wrapping_add(index as u64));
+    let n = sc.model.dof();
+    let servo = sc.servo.clone().ok_or_else(|| crate::Error::Input(format!("scenario {index}: a servo scenario without its servo")))?;
+    let joint = sc.effects.iter().flat_map(|e| e.joints_acted()).next().unwrap_or(0);
+    let stall = servo.kt[joint] / servo.r[joint] * servo.volts;
+    let v = |value: f64| -> Vec<f64> { (0..n).map(|i| if i == joint { value } else { 0.0 }).collect() };
+    let (fc, mu) = (rng.random_range(0.01..0.03) * stall, rng.random_range(0.15..0.35));
+    let rise = Effect::LoadStribeckFriction {
+        fc: v(fc),
+        mu: v(mu),
+        fs: v(fc + rng.random_range(0.01..0.03) * stall),
+        mus: v(mu + rng.random_range(0.2..0.4)),
+        vs: v(rng.random_range(0.05..0.3)),
+        w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n],
+    };
+    // the rise takes the place of the first effect (and of a second dry friction)
+    let dry = |e: &Effect| matches!(e, Effect::CoulombFriction { .. } | Effect::LoadFriction { .. });
+    let mut effects = vec![rise];
+    effects.extend(sc.effects.iter().skip(1).filter(|e| !dry(e)).cloned());
+    let goal_amp = if n > 1 { 0.5 } else { 0.7 };
+    let gen = |i: usize, off: f64, rng: &mut ChaCha8Rng, name: String| {
+        crate::check::bench::generate_servo(&sc.model, &effects, &servo, &crate::check::bench::random_fourier(n, goal_amp, rng), 8.0, off, 0.005, 1_024_000.0, &name)
+            .map_err(|e| crate::Error::Input(format!("scenario {index}, log {i}: {e}")))
+    };
+    let fit = (0..3).map(|i| gen(i, if i < 2 { 5.0 } else { f64::INFINITY }, &mut rng, format!("s{index}-fit{i}"))).collect::<crate::Result<Vec<Run>>>()?;
+    let hold = gen(3, f64::INFINITY, &mut rng, format!("s{index}-holdout"))?;
+    Ok(Scenario { servo: Some(servo), load_stribeck_friction: true, ..Scenario::simulated(index, sc.model, effects, fit, vec![hold], "servo_breakaway") })
 }
 
 /// The family of servo scenario `index`: `servo_saturation` for one in [`SATURATION_EVERY`],
-/// else `servo`.
+/// `servo_breakaway` for another, else `servo`.
 fn servo_family(index: usize) -> &'static str {
-    if index % SATURATION_EVERY == 1 {
-        "servo_saturation"
-    } else {
-        "servo"
+    match index % SATURATION_EVERY {
+        1 => "servo_saturation",
+        3 => "servo_breakaway",
+        _ => "servo",
     }
 }
 
@@ -580,6 +645,11 @@ fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectReport]) -> Vec
                 out.extend(per_joint("fc", fc));
                 out.extend(per_joint("mu", mu));
             }
+            Effect::LoadStribeckFriction { fc, mu, fs, mus, .. } => {
+                for (key, v) in [("fc", fc), ("mu", mu), ("fs", fs), ("mus", mus)] {
+                    out.extend(per_joint(key, v));
+                }
+            }
             Effect::DirectionalFriction { fc_pos, fc_neg, b_pos, b_neg, .. } => {
                 for (key, v) in [("fc_pos", fc_pos), ("fc_neg", fc_neg), ("b_pos", b_pos), ("b_neg", b_neg)] {
                     out.extend(per_joint(key, v));
@@ -662,6 +732,10 @@ pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<
                 "stribeck_friction" => (nonneg(&["fc", "fs"]), vec![("fc", 0.0), ("fs", 0.0)]),
                 "joint_spring" => (nonneg(&["k"]), vec![("k", 0.0)]),
                 "load_friction" => (nonneg(&["fc", "mu"]) && !(value("mu") > 1.0), vec![("fc", 0.0), ("mu", 0.0)]),
+                "load_stribeck_friction" => (
+                    nonneg(&["fc", "mu"]) && !(value("fs") < value("fc") - 1e-9) && !(value("mus") < value("mu") - 1e-9) && !(value("mus") > 1.0),
+                    vec![("fc", 0.0), ("mu", 0.0), ("fs", 0.0), ("mus", 0.0)],
+                ),
                 "directional_friction" => (nonneg(&["fc_pos", "fc_neg", "b_pos", "b_neg"]), vec![("fc_pos", 0.0), ("fc_neg", 0.0), ("b_pos", 0.0), ("b_neg", 0.0)]),
                 _ => (true, vec![]),
             };
@@ -856,7 +930,7 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
         let n = fit[r].dof();
         fit[r].q[k * n + j] = GLITCH_VALUE;
     }
-    let options = DiagnoseOptions { directional_friction: sc.directional_friction, ..DiagnoseOptions::default() };
+    let options = DiagnoseOptions { directional_friction: sc.directional_friction, load_stribeck_friction: sc.load_stribeck_friction, ..DiagnoseOptions::default() };
     let d = match diagnose(&sc.diagnosis_model, Formulation::EulerLagrange, &fit, &sc.holdout, &options, &mut |_| {}) {
         Ok(d) => d,
         Err(e) => return ScenarioScore::failed(index, sc.model.name().into(), sc.family.into(), label(&truth), e.to_string()),
@@ -886,7 +960,7 @@ fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioSco
             let flagged = d.report.notes.iter().any(|n| n.contains(&format!("joint {passive} is passive")));
             ((exact || in_alternatives) && !actuator && flagged, format!("no actuator effect on the passive joint {passive} (one found: {actuator}); flagged passive: {flagged}"))
         }
-        "servo" | "servo_saturation" => {
+        "servo" | "servo_saturation" | "servo_breakaway" => {
             // the motor constants are fitted: a torque gain or back-EMF corrects them, and the
             // constants the corrected model drives with must be the servo's; a limit must be
             // found on its joint, the most the drive delivers (the limit times the gain) within

@@ -115,6 +115,9 @@ pub(super) fn how_to_apply(effect: &str, format: Format) -> String {
         ("load_friction", _) => format!(
             "Add −(fc + mu·|τ_drive|)·tanh(q̇/w), τ_drive the torque the drive applies at the joint, {each_step}: dry friction that grows with the drive torque, which no joint attribute sees."
         ),
+        ("load_stribeck_friction", _) => format!(
+            "Add −(fc + mu·|τ_drive| + ((fs − fc) + (mus − mu)·|τ_drive|)·exp(−(q̇/vs)²))·tanh(q̇/w), τ_drive the torque the drive applies at the joint, {each_step}: dry friction that grows with the drive torque and is higher at rest (w = 0: hold the joint while the torque that would move it is below fs + mus·|τ_drive|)."
+        ),
         ("back_emf", _) => "Add −kb·q̇ while the drive is enabled (torque on) and nothing with torque off; a robot whose torque is always on may add kb to the joint's damping instead.".into(),
         ("joint_spring", Format::Urdf) => format!("Add −k·(q − q0) {each_step} (MJCF: joint stiffness = k, springref = q0)."),
         ("coriolis_structure", _) => "Pinocchio and MuJoCo compute the true (Euler–Lagrange) Coriolis torque: with the simplified C under test that is already the correction; with the Euler–Lagrange C under test the robot behaves as the simplified C = Ḣ/2, which neither can simulate.".into(),

@@ -482,6 +482,32 @@ mod tests {
     }
 
     #[test]
+    fn a_load_friction_whose_rise_at_rest_is_too_small_to_matter_is_the_load_friction_nested_in_it() {
+        let data = demo_fit_data();
+        let term = Term::LoadStribeck { joint: 1, vs: 0.1, w: 0.01 };
+        let d = crate::vocabulary::design(&term, &data);
+        let names = ["a".to_string(), "b".to_string()];
+        // columns (fc, mu, fs − fc, mus − mu): a rise of 1e-4 N·m and 1e-5 × |τ| is nothing
+        let small = [1.0, 0.25, 1e-4, 1e-5];
+        match judge(&term, &d, &small, &[0.01; 4], &[0.01, 0.01, 1e-6, 1e-7], &data, &names) {
+            Judgment::Simpler { terms, extra, why } => {
+                assert_eq!(terms, [Term::LoadFriction { joint: 1, w: 0.01 }]);
+                assert_eq!(extra, [2, 3]);
+                assert!(why.contains("too small to matter"), "{why}");
+            }
+            other => panic!("{other:?}"),
+        }
+        // a breakaway a third above the moving level, load-dependent, is a finding
+        let j = judge(&term, &d, &[1.0, 0.25, 0.5, 0.3], &[0.01; 4], &[0.01; 4], &data, &names);
+        assert!(matches!(j, Judgment::Finding), "{j:?}");
+        // a Stribeck velocity within twice the sign's width is no rise the runs resolve
+        let narrow = Term::LoadStribeck { joint: 1, vs: 0.015, w: 0.01 };
+        let d = crate::vocabulary::design(&narrow, &data);
+        let j = judge(&narrow, &d, &[1.0, 0.25, 0.5, 0.3], &[0.01; 4], &[0.01; 4], &data, &names);
+        assert!(matches!(j, Judgment::Simpler { .. }), "{j:?}");
+    }
+
+    #[test]
     fn an_unknown_spread_decides_nothing() {
         let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[f64::NAN], &[f64::NAN], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");

@@ -48,6 +48,8 @@ pub(crate) struct Tried {
     /// The fits on each half of the fit runs.
     pub(crate) halves: Vec<nalgebra::DVector<f64>>,
     pub(crate) cv: Vec<f64>,
+    /// Cross-validated k-step RMS per horizon of each fit run [rad] (empty where not kept).
+    pub(crate) cv_per_run: Vec<Vec<f64>>,
     pub(crate) score: f64,
     /// Whether its gain over the nominal model holds fold by fold.
     pub(crate) test: kstep::FoldTest,
@@ -143,8 +145,9 @@ pub(crate) fn refine_by_shooting(
     let shoot_runs = std::sync::Arc::new(shooting::shooting_runs(&prep.fit_pred, options.prepare.window, &sopts));
     let stop = options.stop.as_deref();
     let mut tried: Vec<Tried> = Vec::new();
-    // the sets, the servo's set with a torque limit, the chosen set on all fit runs
-    let total = sets.len() + usize::from(servo) + 1;
+    // the sets, the servo's set with a torque limit, with friction rising at rest, the chosen
+    // set on all fit runs
+    let total = sets.len() + usize::from(servo) * (1 + usize::from(options.load_stribeck_friction)) + 1;
     for (si, (name, terms)) in sets.iter().enumerate() {
         progress(Progress { stage: "refining by multiple shooting", done: si, total });
         check_stop(options)?;
@@ -172,6 +175,16 @@ pub(crate) fn refine_by_shooting(
             // (on servo logs the servo's set is the last set tried)
             let (limited, note) = servo_limit(scorer, &shoot_runs, &sopts, drive, &limited_joints, stop)?;
             tried.extend(limited);
+            limit_notes.push(note);
+        }
+        // the servo's set (with its limit, if that predicts better) with its load friction
+        // rising at rest, when asked for
+        let of_servo = |t: &&Tried| t.terms.iter().any(|x| matches!(x, Term::LoadFriction { .. })) && t.terms.iter().any(|x| matches!(x, Term::Gain(_)));
+        let base = tried.iter().skip(sets.len() - 1).filter(of_servo).min_by(|a, b| a.score.total_cmp(&b.score));
+        if let (Some(base), true) = (base, options.load_stribeck_friction) {
+            progress(Progress { stage: "refining by multiple shooting", done: sets.len() + 1, total });
+            let (risen, note) = load_friction_at_rest(scorer, &shoot_runs, &sopts, base, stop)?;
+            tried.extend(risen);
             limit_notes.push(note);
         }
     }
@@ -365,6 +378,69 @@ fn servo_limit(
     }
 }
 
+/// The servo's set `base` (the lower-scoring of its set with and without a torque limit) with
+/// each load friction replaced by a load Stribeck friction (`load_stribeck_friction`: its
+/// level rises at rest, `fs + mus |τ|` above `fc + mu |τ|`), the Stribeck velocity searched
+/// over [`load_stribeck::VS_GRID`](crate::vocabulary::LOAD_STRIBECK_VS_GRID) times each
+/// joint's width, each fitted by multiple shooting, each half started where `base` ended on it
+/// (the moving levels as `base` fitted them, no rise). Returned when it predicts the fit runs
+/// better than `base` by [`ADD_GAIN`] (two parameters more per joint); the note says what was
+/// found either way.
+///
+/// On the Rhoban XL330 logs the arm lifting towards a goal stops short of it and stays there
+/// for seconds while the P loop's duty rises by up to 29 % (the `up_and_down` trajectory): a
+/// friction that grows with the drive's torque and brakes the arm in motion cannot also hold
+/// it, unless its level at rest is higher.
+fn load_friction_at_rest(
+    scorer: &Scorer<'_>,
+    shoot_runs: &[kstep::PredictionRun],
+    sopts: &shooting::Options,
+    base: &Tried,
+    stop: Option<&std::sync::atomic::AtomicBool>,
+) -> Result<(Option<Tried>, String)> {
+    let grid = crate::vocabulary::LOAD_STRIBECK_VS_GRID;
+    let try_vs = |ratio: f64| -> Result<Tried> {
+        let terms: Vec<Term> =
+            base.terms.iter().map(|t| if let Term::LoadFriction { joint, w } = *t { Term::LoadStribeck { joint, vs: ratio * w, w } } else { t.clone() }).collect();
+        // each half from `base`'s answer on it, the load Stribeck friction's moving levels
+        // from its load friction and no rise
+        let earlier = |half: usize, designs: &[TermDesign]| {
+            let mut theta = transfer(base, &base.halves[half], &terms, designs);
+            let at: Vec<usize> = base.designs.iter().scan(0, |c, d| Some(std::mem::replace(c, *c + d.cols.len()))).collect();
+            let mut c = 0;
+            for (t, d) in terms.iter().zip(designs) {
+                if let Term::LoadStribeck { joint, w, .. } = *t {
+                    if let Some(i) = base.terms.iter().position(|b| *b == Term::LoadFriction { joint, w }) {
+                        theta[c] = base.halves[half][at[i]];
+                        theta[c + 1] = base.halves[half][at[i] + 1];
+                    }
+                }
+                c += d.cols.len();
+            }
+            vec![theta]
+        };
+        let name = format!("{} with its load friction rising at rest (load Stribeck friction, vs = {ratio} w)", base.name);
+        try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)
+    };
+    let tries: Vec<Tried> = grid.iter().map(|&r| try_vs(r)).collect::<Result<_>>()?;
+    let scores: Vec<String> = grid.iter().zip(&tries).map(|(r, t)| format!("{:.4} at vs = {r} w", t.score)).collect();
+    let Some(best) = tries.into_iter().min_by(|a, b| a.score.total_cmp(&b.score)) else { return Ok((None, String::new())) };
+    let head = format!(
+        "multiple shooting: {} with its load friction rising at rest (a load Stribeck friction, vs searched over {} times the joint's width w) predicts the fit runs at {}, against {:.4} without the rise",
+        base.name,
+        grid.map(|r| r.to_string()).join(", "),
+        scores.join(", "),
+        base.score
+    );
+    let ratios: Vec<String> = best.cv_per_run.iter().zip(&base.cv_per_run).map(|(a, b)| format!("{:.3}", kstep::score(a, b))).collect();
+    let head = format!("{head} (fit run by fit run, against the set without the rise: {})", ratios.join(", "));
+    if best.score < base.score * (1.0 - ADD_GAIN) {
+        Ok((Some(best), format!("{head}: tried as a set of its own")))
+    } else {
+        Ok((None, format!("{head}: not better by {:.0} %, so not tried further", 100.0 * ADD_GAIN)))
+    }
+}
+
 /// θ of the set `to` from the answer `theta` of the set `from`: shared terms keep their values,
 /// the others start at 0 (no friction, no rotor inertia, the URDF's inertia), so that a larger
 /// set starts where a smaller one ended.
@@ -460,7 +536,8 @@ fn try_set(
     let cv = all.rms();
     let score = kstep::score(&cv, &scorer.nominal);
     let test = scorer.against_nominal(&all);
-    Ok(Tried { name: name.to_string(), terms: terms.to_vec(), designs, halves, cv, score, test })
+    let cv_per_run = merged.iter().map(kstep::Errors::rms).collect();
+    Ok(Tried { name: name.to_string(), terms: terms.to_vec(), designs, halves, cv, cv_per_run, score, test })
 }
 
 /// The set `best` fitted on all fit runs (from its torque-residual fit and its halves' answers),
@@ -693,7 +770,16 @@ fn try_from(scorer: &Scorer<'_>, sopts: &shooting::Options, r: &Refined, terms: 
 /// answer), the starts of a set with a term more or less ([`transfer`]).
 fn as_tried(r: &Refined) -> Tried {
     let (terms, designs, halves) = &r.halves;
-    Tried { name: r.name.clone(), terms: terms.clone(), designs: designs.clone(), halves: halves.clone(), cv: r.cv.clone(), score: r.score, test: kstep::FoldTest::of(&[]) }
+    Tried {
+        name: r.name.clone(),
+        terms: terms.clone(),
+        designs: designs.clone(),
+        halves: halves.clone(),
+        cv: r.cv.clone(),
+        cv_per_run: Vec::new(),
+        score: r.score,
+        test: kstep::FoldTest::of(&[]),
+    }
 }
 
 /// On a one-joint servo arm, the set of `r` with the drive's torque gain and rotor inertia in
@@ -752,7 +838,9 @@ pub(crate) fn drive_in_place_of_inertia(scorer: &Scorer<'_>, r: &Refined, option
                     Term::Gain(_) if k == 1 => start[c] = 1.0 - e.k,
                     Term::Armature(_) if k == 1 => start[c] = e.k * start[c] + e.ia,
                     Term::LoadFriction { .. } if k >= 1 => start[c] *= e.k,
-                    Term::BackEmf(_) | Term::LoadFriction { .. } => {}
+                    // (fc, mu, fs − fc, mus − mu): the load-independent levels
+                    Term::LoadStribeck { .. } if k == 4 => [c, c + 2].into_iter().for_each(|i| start[i] *= e.k),
+                    Term::BackEmf(_) | Term::LoadFriction { .. } | Term::LoadStribeck { .. } => {}
                     _ => (c..c + k).for_each(|i| start[i] *= e.k),
                 }
                 c += k;

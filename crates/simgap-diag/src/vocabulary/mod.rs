@@ -14,6 +14,8 @@
 //! coriolis       r   ∋  (C_other − C) q̇                 (fixed coefficient, no parameter)
 //! joint_spring   r_j ∋  k_j q_j − k_j q0_j              (k ≥ 0, k q0 free)
 //! load_friction  r_j ∋  (fc + mu |τ_j|) tanh(q̇_j / w)   (fc ≥ 0, 0 ≤ mu ≤ 1)
+//! load_stribeck  r_j ∋  (fc + mu |τ| + ((fs − fc) + (mus − mu) |τ|) e^{−(q̇/vs)²}) tanh(q̇/w)
+//!                                                       (rises at rest: fs ≥ fc, mus ≥ mu)
 //! back_emf       r_j ∋  kb_j en_j q̇_j                   (en the drive's enable)
 //! directional    r_j ∋  s⁺ (fc⁺ + b⁺ q̇) − s⁻ (fc⁻ − b⁻ q̇) (s± = (1 ± tanh(q̇/w)) / 2, all ≥ 0)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
@@ -30,6 +32,7 @@ pub(crate) mod effects;
 mod friction;
 mod inertial;
 mod load_friction;
+mod load_stribeck;
 mod payload;
 pub(crate) mod rotor;
 mod spring;
@@ -38,6 +41,7 @@ pub use effects::{EffectReport, Param};
 
 pub(crate) use crate::lsq::design::{Column, TermDesign};
 pub(crate) use friction::resolvable as stribeck_resolvable;
+pub(crate) use load_stribeck::VS_GRID as LOAD_STRIBECK_VS_GRID;
 pub(crate) use payload::{largest_command, payload_basis_rows, payload_linear_design, payload_mass_bound, point_mass_parameters};
 
 use std::sync::Arc;
@@ -78,6 +82,16 @@ pub(crate) enum Term {
     LoadFriction {
         /// Joint index.
         joint: usize,
+        /// Width of the smoothed sign [rad/s or m/s] ([`FitData::dry_width`]).
+        w: f64,
+    },
+    /// Load-dependent dry friction on a joint whose level rises at rest below a Stribeck
+    /// velocity `vs`, its sign smoothed as tanh(q̇ / w).
+    LoadStribeck {
+        /// Joint index.
+        joint: usize,
+        /// Stribeck velocity [rad/s or m/s].
+        vs: f64,
         /// Width of the smoothed sign [rad/s or m/s] ([`FitData::dry_width`]).
         w: f64,
     },
@@ -145,6 +159,7 @@ impl Term {
             Term::Coulomb { .. } => EffectKind::CoulombFriction,
             Term::Stribeck { .. } => EffectKind::StribeckFriction,
             Term::LoadFriction { .. } => EffectKind::LoadFriction,
+            Term::LoadStribeck { .. } => EffectKind::LoadStribeckFriction,
             Term::BackEmf(_) => EffectKind::BackEmf,
             Term::Directional { .. } => EffectKind::DirectionalFriction,
             Term::Armature(_) => EffectKind::Armature,
@@ -172,6 +187,7 @@ impl Term {
             Term::Coulomb { joint, .. }
             | Term::Stribeck { joint, .. }
             | Term::LoadFriction { joint, .. }
+            | Term::LoadStribeck { joint, .. }
             | Term::Directional { joint, .. }
             | Term::Saturation { joint, .. }
             | Term::Cogging { joint, .. } => Some(joint),
@@ -197,7 +213,7 @@ impl Term {
     /// [`Term::shares_slot`]).
     pub(crate) fn slot(&self) -> (Slot, Option<usize>) {
         let slot = match self {
-            Term::Coulomb { .. } | Term::Stribeck { .. } | Term::LoadFriction { .. } | Term::Directional { .. } => Slot::DryFriction,
+            Term::Coulomb { .. } | Term::Stribeck { .. } | Term::LoadFriction { .. } | Term::LoadStribeck { .. } | Term::Directional { .. } => Slot::DryFriction,
             Term::Payload { .. } | Term::InertialError { .. } => Slot::Inertia,
             other => Slot::Effect(other.kind()),
         };
@@ -230,7 +246,7 @@ impl Term {
             | Term::Coulomb { w: x, .. }
             | Term::LoadFriction { w: x, .. }
             | Term::Directional { w: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
-            Term::Stribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
+            Term::Stribeck { vs, w, .. } | Term::LoadStribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
             Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
             Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
             _ => TermKey(k, joint, 0, [0; 3]),
@@ -243,7 +259,7 @@ impl Term {
 pub(crate) enum Slot {
     /// Its own effect.
     Effect(EffectKind),
-    /// Dry friction: Coulomb, Stribeck or load-dependent.
+    /// Dry friction: Coulomb, Stribeck, load-dependent (either form) or directional.
     DryFriction,
     /// The rigid-body parameters: a payload or an inertial error.
     Inertia,
@@ -272,6 +288,7 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
     match term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::design(term, data),
         Term::LoadFriction { joint, w } => load_friction::design(*joint, *w, data),
+        Term::LoadStribeck { joint, vs, w } => load_stribeck::design(*joint, *vs, *w, data),
         Term::BackEmf(j) => back_emf::design(*j, data),
         Term::Directional { joint, w } => directional::design(*joint, *w, data),
         Term::Armature(j) => rotor::design(*j, data),
@@ -295,6 +312,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
     match term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::physical(term, theta),
         Term::LoadFriction { .. } => load_friction::physical(theta),
+        Term::LoadStribeck { .. } => load_stribeck::physical(theta),
         Term::Directional { .. } => directional::physical(theta),
         Term::Armature(_) => rotor::physical(theta),
         Term::Gain(_) | Term::Offset(_) | Term::Saturation { .. } => actuator::physical(term, theta),
@@ -309,7 +327,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
 pub(crate) fn n_params(term: &Term, d: &TermDesign) -> usize {
     d.cols.len()
         + match term {
-            Term::Stribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
+            Term::Stribeck { .. } | Term::LoadStribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
             Term::Payload { .. } => 3,
             _ => 0,
         }
@@ -321,6 +339,7 @@ fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
     match &f.term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::apply(f, n, out),
         Term::LoadFriction { .. } => load_friction::apply(f, n, out),
+        Term::LoadStribeck { .. } => load_stribeck::apply(f, n, out),
         Term::BackEmf(j) => back_emf::apply(*j, &f.theta, n, out),
         Term::Directional { .. } => directional::apply(f, n, out),
         Term::Armature(j) => rotor::apply(*j, &f.theta, n, out),
@@ -341,6 +360,7 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
     match &f.term {
         Term::Viscous(_) | Term::Coulomb { .. } | Term::Stribeck { .. } => friction::report(f, entry),
         Term::LoadFriction { .. } => load_friction::report(f, entry),
+        Term::LoadStribeck { .. } => load_stribeck::report(f, entry),
         Term::BackEmf(_) => entry.push("kb", th[0], ci(sd[0])),
         Term::Directional { .. } => directional::report(f, entry),
         Term::Armature(_) => entry.push("ia", th[0], ci(sd[0])),
@@ -359,6 +379,7 @@ fn describe(model: &Model, e: &EffectReport) -> String {
     match e.effect.parse::<EffectKind>() {
         Ok(EffectKind::ViscousFriction | EffectKind::CoulombFriction | EffectKind::StribeckFriction) => friction::describe(e),
         Ok(EffectKind::LoadFriction) => load_friction::describe(e),
+        Ok(EffectKind::LoadStribeckFriction) => load_stribeck::describe(e),
         Ok(EffectKind::BackEmf) => back_emf::describe(e),
         Ok(EffectKind::Armature) => rotor::describe(e),
         Ok(EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation) => actuator::describe(e),
@@ -392,6 +413,7 @@ pub(crate) fn simpler(term: &Term, data: &[FitData]) -> Option<Nested> {
     match term {
         Term::Stribeck { .. } => friction::simpler(term, data),
         Term::LoadFriction { joint, w } => Some(load_friction::simpler(*joint, *w)),
+        Term::LoadStribeck { joint, vs, w } => Some(load_stribeck::simpler(*joint, *vs, *w)),
         Term::Spring(j) => Some(spring::simpler(*j)),
         _ => None,
     }
@@ -399,10 +421,12 @@ pub(crate) fn simpler(term: &Term, data: &[FitData]) -> Option<Nested> {
 
 /// A term's parameters as the effect states them, from its fitted column coefficients: the
 /// same numbers except for Stribeck friction, fitted as `(fc, fs − fc)` (both ≥ 0, so that
-/// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)`.
+/// `fs ≥ fc ≥ 0` is a box) and stated as `(fc, fs)` (the load Stribeck friction likewise), and
+/// a spring's rest position.
 pub(crate) fn contract_parameters(term: &Term, raw: &[f64]) -> Vec<f64> {
     match term {
         Term::Stribeck { .. } => friction::contract_stribeck(raw),
+        Term::LoadStribeck { .. } => load_stribeck::contract(raw),
         Term::Spring(_) => spring::contract(raw),
         _ => raw.to_vec(),
     }
@@ -422,6 +446,9 @@ pub(crate) fn fitted_terms(terms: &[Term], designs: &[TermDesign], theta: &DVect
         }
         if matches!(t, Term::Spring(_)) {
             spring::contract_std(&th, &mut sd);
+        }
+        if matches!(t, Term::LoadStribeck { .. }) {
+            load_stribeck::contract_std(&mut sd);
         }
         out.push(FittedTerm { term: t.clone(), theta: th, std: sd });
         c += k;
