@@ -385,7 +385,8 @@ fn servo_limit(
 /// joint's width, each fitted by multiple shooting, each half started where `base` ended on it
 /// (the moving levels as `base` fitted them, no rise). Returned when it predicts the fit runs
 /// better than `base` by [`ADD_GAIN`] (two parameters more per joint); the note says what was
-/// found either way.
+/// found either way, with the ratio of its error to `base`'s on each fit run. Tried only when
+/// [`DiagnoseOptions::load_stribeck_friction`] asks (see there why it is off by default).
 ///
 /// On the Rhoban XL330 logs the arm lifting towards a goal stops short of it and stays there
 /// for seconds while the P loop's duty rises by up to 29 % (the `up_and_down` trajectory): a
