@@ -63,13 +63,15 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     cols.dedup();
     // whole names, each column as wide as its name
     let widths: Vec<usize> = cols.iter().map(|c| c.chars().count().max(3) + 2).collect();
-    let _ = write!(s, "  {:<20}", "");
+    // the rows' names as wide as the longest
+    let label = sum.confusion.keys().map(|r| r.chars().count()).fold(20, usize::max);
+    let _ = write!(s, "  {:<label$}", "");
     for (c, w) in cols.iter().zip(&widths) {
         let _ = write!(s, "{c:>w$}");
     }
     let _ = writeln!(s);
     for (row, m) in &sum.confusion {
-        let _ = write!(s, "  {row:<20}");
+        let _ = write!(s, "  {row:<label$}");
         for (c, w) in cols.iter().zip(&widths) {
             let v = m.get(c).copied().unwrap_or(0);
             let _ = write!(s, "{:>w$}", if v == 0 { ".".to_string() } else { v.to_string() });
