@@ -110,28 +110,18 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     check_stop(options)?;
     let (mut final_score, mut final_cv) = match &refined {
         Some(r) => {
-            let before: Vec<Term> = selection.terms.clone();
-            for t in before.iter().filter(|t| !r.terms.contains(t)) {
-                selection.log.push(select::Step {
-                    term: t.clone(),
-                    cv_mse: f64::NAN,
-                    accepted: false,
-                    reason: format!("replaced by {}, fitted by multiple shooting (cross-validated k-step score {:.4} against {final_score:.4})", r.name, r.score),
-                });
-            }
-            for t in &r.terms {
-                let how = if before.contains(t) { "parameters refitted by multiple shooting" } else { "added by multiple shooting" };
-                selection.log.push(select::Step {
-                    term: t.clone(),
-                    cv_mse: f64::NAN,
-                    accepted: true,
-                    reason: format!(
-                        "{how} as part of {}: the fit runs' cross-validated k-step error is {:.4} of the nominal model's (torque-residual fit of the set before: {final_score:.4})",
-                        r.name, r.score
-                    ),
-                });
-            }
-            selection.terms = r.terms.clone();
+            let why = |how: &str| {
+                format!(
+                    "{how} as part of {}: the fit runs' cross-validated k-step error is {:.4} of the nominal model's (torque-residual fit of the set before: {final_score:.4})",
+                    r.name, r.score
+                )
+            };
+            let texts = Replacement {
+                dropped: format!("replaced by {}, fitted by multiple shooting (cross-validated k-step score {:.4} against {final_score:.4})", r.name, r.score),
+                kept: Some(why("parameters refitted by multiple shooting")),
+                added: why("added by multiple shooting"),
+            };
+            log_replacement(&mut selection, &r.terms, texts);
             (r.score, r.cv.clone())
         }
         None => (final_score, final_cv),
@@ -142,26 +132,15 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         let (swapped, notes) = refine::drive_in_place_of_inertia(&scorer, r, options)?;
         shooting_notes.extend(notes);
         if let Some(s) = swapped {
-            for t in selection.terms.iter().filter(|t| !s.terms.contains(t)) {
-                selection.log.push(select::Step {
-                    term: t.clone(),
-                    cv_mse: f64::NAN,
-                    accepted: false,
-                    reason: format!(
-                        "replaced by {} (cross-validated k-step score {:.4} against {:.4}): on one turning joint the same dynamics up to friction",
-                        s.name, s.score, r.score
-                    ),
-                });
-            }
-            for t in s.terms.iter().filter(|t| !selection.terms.contains(t)) {
-                selection.log.push(select::Step {
-                    term: t.clone(),
-                    cv_mse: f64::NAN,
-                    accepted: true,
-                    reason: format!("added as part of {}: the fit runs' cross-validated k-step error is {:.4} of the nominal model's", s.name, s.score),
-                });
-            }
-            selection.terms = s.terms.clone();
+            let texts = Replacement {
+                dropped: format!(
+                    "replaced by {} (cross-validated k-step score {:.4} against {:.4}): on one turning joint the same dynamics up to friction",
+                    s.name, s.score, r.score
+                ),
+                kept: None,
+                added: format!("added as part of {}: the fit runs' cross-validated k-step error is {:.4} of the nominal model's", s.name, s.score),
+            };
+            log_replacement(&mut selection, &s.terms, texts);
             final_score = s.score;
             final_cv = s.cv.clone();
             refined = Some(s);
@@ -688,5 +667,32 @@ fn whole_run_mae(model: &Model, formulation: Formulation, effects: &[Effect], ru
             q.iter().zip(&run.q).map(|(a, b)| (a - b).abs()).sum::<f64>() / run.q.len().max(1) as f64
         }
         _ => f64::INFINITY,
+    }
+}
+
+/// The selection log's words for a set of terms replacing the selection.
+struct Replacement {
+    /// For a selected term the new set drops.
+    dropped: String,
+    /// For a selected term the new set keeps (not logged when `None`).
+    kept: Option<String>,
+    /// For a term the new set adds.
+    added: String,
+}
+
+/// Replaces the selected terms by `terms`, logging each term dropped, kept and added with the
+/// words of `texts`.
+fn log_replacement(selection: &mut select::Selection, terms: &[Term], texts: Replacement) {
+    let step = |term: &Term, accepted: bool, reason: &str| select::Step { term: term.clone(), cv_mse: f64::NAN, accepted, reason: reason.to_string() };
+    let before = std::mem::replace(&mut selection.terms, terms.to_vec());
+    for t in before.iter().filter(|t| !terms.contains(t)) {
+        selection.log.push(step(t, false, &texts.dropped));
+    }
+    for t in terms {
+        match (before.contains(t), &texts.kept) {
+            (true, Some(kept)) => selection.log.push(step(t, true, kept)),
+            (true, None) => {}
+            (false, _) => selection.log.push(step(t, true, &texts.added)),
+        }
     }
 }
