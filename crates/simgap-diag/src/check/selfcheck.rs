@@ -919,7 +919,7 @@ pub fn run_mixed_scenario(seed: u64, index: usize) -> ScenarioScore {
 }
 
 /// Diagnoses a generated scenario and scores it by its family's rule.
-fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioScore {
+pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> ScenarioScore {
     let sc = match sc {
         Ok(s) => s,
         Err(e) => return ScenarioScore::failed(index, String::new(), family.into(), vec![], e.to_string()),
