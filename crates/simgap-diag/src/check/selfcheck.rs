@@ -441,17 +441,14 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
 /// scored by [`run_servo_scenario`].
 pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
     let family = servo_family(index);
-    let sc = servo_draw(seed, index, family == "servo_saturation")?;
-    if family != "servo_breakaway" {
-        return Ok(sc);
-    }
-    // the same draw with its first effect a load friction rising at rest (drawn apart)
-    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(5_000_011).wrapping_add(index as u64));
-    let n = sc.model.dof();
-    let servo = sc.servo.clone().ok_or_else(|| crate::Error::Input(format!("scenario {index}: a servo scenario without its servo")))?;
-    let joint = sc.effects.iter().flat_map(|e| e.joints_acted()).next().unwrap_or(0);
-    let stall = servo.kt[joint] / servo.r[joint] * servo.volts;
-    let v = |value: f64| -> Vec<f64> { (0..n).map(|i| if i == joint { value } else { 0.0 }).collect() };
+    draw_servo(seed, index, family == "servo_saturation", family == "servo_breakaway")
+}
+
+/// `effects` (of a `dof`-joint robot) with their first a load friction rising at rest on
+/// `joint` (of stall torque `stall`), drawn from `rng` (see [`servo_scenario`]), and without a
+/// second dry friction.
+fn rising_at_rest(effects: &[Effect], dof: usize, joint: usize, stall: f64, rng: &mut ChaCha8Rng) -> Vec<Effect> {
+    let v = |value: f64| -> Vec<f64> { (0..dof).map(|i| if i == joint { value } else { 0.0 }).collect() };
     let (fc, mu) = (rng.random_range(0.01..0.03) * stall, rng.random_range(0.15..0.35));
     let rise = Effect::LoadStribeckFriction {
         fc: v(fc),
@@ -459,20 +456,10 @@ pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
         fs: v(fc + rng.random_range(0.01..0.03) * stall),
         mus: v(mu + rng.random_range(0.2..0.4)),
         vs: v(rng.random_range(0.05..0.3)),
-        w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n],
+        w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; dof],
     };
-    // the rise takes the place of the first effect (and of a second dry friction)
     let dry = |e: &Effect| matches!(e, Effect::CoulombFriction { .. } | Effect::LoadFriction { .. });
-    let mut effects = vec![rise];
-    effects.extend(sc.effects.iter().skip(1).filter(|e| !dry(e)).cloned());
-    let goal_amp = if n > 1 { 0.5 } else { 0.7 };
-    let gen = |i: usize, off: f64, rng: &mut ChaCha8Rng, name: String| {
-        crate::check::bench::generate_servo(&sc.model, &effects, &servo, &crate::check::bench::random_fourier(n, goal_amp, rng), 8.0, off, 0.005, 1_024_000.0, &name)
-            .map_err(|e| crate::Error::Input(format!("scenario {index}, log {i}: {e}")))
-    };
-    let fit = (0..3).map(|i| gen(i, if i < 2 { 5.0 } else { f64::INFINITY }, &mut rng, format!("s{index}-fit{i}"))).collect::<crate::Result<Vec<Run>>>()?;
-    let hold = gen(3, f64::INFINITY, &mut rng, format!("s{index}-holdout"))?;
-    Ok(Scenario { servo: Some(servo), load_stribeck_friction: true, ..Scenario::simulated(index, sc.model, effects, fit, vec![hold], "servo_breakaway") })
+    std::iter::once(rise).chain(effects.iter().skip(1).filter(|e| !dry(e)).cloned()).collect()
 }
 
 /// The family of servo scenario `index`: `servo_saturation` for one in [`SATURATION_EVERY`],
@@ -495,6 +482,12 @@ pub const SATURATION_EVERY: usize = 4;
 /// # Errors
 /// [`crate::Error::Input`] when every draw diverged.
 pub fn servo_draw(seed: u64, index: usize, limited: bool) -> crate::Result<Scenario> {
+    draw_servo(seed, index, limited, false)
+}
+
+/// [`servo_draw`], or with `breakaway` the same draw with its first effect a load friction
+/// rising at rest (its parameters and the logs' goals drawn apart, see [`servo_scenario`]).
+fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool) -> crate::Result<Scenario> {
     use crate::check::bench::{generate_servo, random_fourier, ServoSpec};
     // the limit's share of the gravity torque, drawn apart from the rest
     let limit_share = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(4_000_037).wrapping_add(index as u64)).random_range(0.45..0.75);
@@ -546,14 +539,24 @@ pub fn servo_draw(seed: u64, index: usize, limited: bool) -> crate::Result<Scena
         if limited {
             effects.push(Effect::TorqueSaturation { limit: (0..n).map(|j| if j == 0 { limit_share * gravity[0].max(1.0) } else { f64::INFINITY }).collect() });
         }
-        let family = if limited { "servo_saturation" } else { "servo" };
+        let family = match (limited, breakaway) {
+            (true, _) => "servo_saturation",
+            (false, true) => "servo_breakaway",
+            (false, false) => "servo",
+        };
+        // a breakaway draw's friction and goals come from a stream of their own
+        let mut apart = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(5_000_011).wrapping_add(index as u64));
+        if breakaway {
+            effects = rising_at_rest(&effects, n, joint, kt[joint] / r[joint] * volts, &mut apart);
+        }
+        let logs: &mut ChaCha8Rng = if breakaway { &mut apart } else { &mut *rng };
         let goal = |rng: &mut ChaCha8Rng| random_fourier(n, amp, rng);
         let gen =
             |i: usize, off: f64, rng: &mut ChaCha8Rng, name: String| generate_servo(&model, &effects, &servo, &goal(rng), 8.0, off, 0.005, 1_024_000.0, &name).map_err(|e| (i, e));
-        let fit: std::result::Result<Vec<Run>, _> = (0..3).map(|i| gen(i, if i < 2 { 5.0 } else { f64::INFINITY }, rng, format!("s{index}-fit{i}"))).collect();
-        let hold = gen(3, f64::INFINITY, rng, format!("s{index}-holdout"));
+        let fit: std::result::Result<Vec<Run>, _> = (0..3).map(|i| gen(i, if i < 2 { 5.0 } else { f64::INFINITY }, logs, format!("s{index}-fit{i}"))).collect();
+        let hold = gen(3, f64::INFINITY, logs, format!("s{index}-holdout"));
         if let (Ok(fit), Ok(hold)) = (fit, hold) {
-            return Ok(Scenario { servo: Some(servo), ..Scenario::simulated(index, model, effects, fit, vec![hold], family) });
+            return Ok(Scenario { servo: Some(servo), load_stribeck_friction: breakaway, ..Scenario::simulated(index, model, effects, fit, vec![hold], family) });
         }
     }
     Err(crate::Error::Input(format!("scenario {index}: every servo draw diverged")))
