@@ -2,19 +2,21 @@
 //! summary (selected effects, alternatives, held-out k-step errors against the
 //! constant-velocity floor) and its notes: how a figure quoted for one scenario is reproduced.
 //!
-//! `cargo run --release --example selfcheck_scenario -- SEED KIND INDEX [--link-side-torque]`
+//! `cargo run --release --example selfcheck_scenario -- SEED KIND INDEX [--link-side-torque]
+//! [--truth] [--steps]`
 //!
 //! KIND is `cycle` for the scenarios of the cycle of 13 (INDEX as `simgap selfcheck` numbers
 //! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
 //! them) or `servo` for the servo scenarios. `--link-side-torque` diagnoses as
-//! `simgap diagnose --link-side-torque` does.
+//! `simgap diagnose --link-side-torque` does. `--truth` prints the simulated effects with their
+//! parameters and stops; `--steps` adds the selection's steps (each decision and why).
 
 use simgap::core::Formulation;
 use simgap::diag::{diagnose, drives, selfcheck, DiagnoseOptions};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque]";
+    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps]";
     let (Some(seed), Some(kind), Some(index)) = (args.first().and_then(|s| s.parse::<u64>().ok()), args.get(1), args.get(2).and_then(|s| s.parse::<usize>().ok())) else {
         eprintln!("{usage}");
         std::process::exit(2);
@@ -39,8 +41,20 @@ fn main() {
         DiagnoseOptions { directional_friction: scenario.directional_friction, load_stribeck_friction: scenario.load_stribeck_friction, ..DiagnoseOptions::default() };
     options.prepare.link_side_torque = args.iter().any(|a| a == "--link-side-torque");
     println!("family {}, hidden: {:?}", scenario.family, scenario.truth);
+    println!("simulated with: {:?}", scenario.effects);
+    if args.iter().any(|a| a == "--truth") {
+        return;
+    }
     match diagnose(&scenario.diagnosis_model, Formulation::EulerLagrange, &scenario.fit, &scenario.holdout, &options, &mut |_| {}) {
-        Ok(d) => println!("{}", d.report.summary()),
+        Ok(d) => {
+            println!("{}", d.report.summary());
+            if args.iter().any(|a| a == "--steps") {
+                println!("SELECTION STEPS");
+                for s in &d.report.selection_log {
+                    println!("  {} {:?} {}: {}", s.effect, s.joint, if s.accepted { "in" } else { "out" }, s.reason);
+                }
+            }
+        }
         Err(e) => {
             eprintln!("diagnosis failed: {e}");
             std::process::exit(1);

@@ -223,6 +223,24 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         // it shares), except after a term left by its interval, which traded with a partner
         // whose value then lacks its share: the set is then fitted again ([`refit`])
         let mut kept: (Vec<TermDesign>, Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
+        // on a servo, a correction of its motor constants (torque gain, back-EMF) is tested by
+        // prediction after the mechanical terms whose intervals hold no effect: a back-EMF and
+        // a viscous friction both brake in proportion to q̇ while the drive is on, and the one
+        // tested first leaves while its partner takes its share. The servo's motor law is in
+        // the model already, so the term a user would add to their simulator earns its place
+        // first (on a simulated servo with a hidden load friction rising at rest, the back-EMF
+        // correction had left and a viscous friction stayed in its place)
+        let drive_waits = moving && prep.servo.is_some() && {
+            let mut c = 0;
+            terms.iter().zip(&designs).any(|(t, d)| {
+                let k = d.cols.len();
+                let (th, sd) = (&theta.as_slice()[c..c + k], &raw_std.as_slice()[c.min(raw_std.len())..(c + k).min(raw_std.len())]);
+                c += k;
+                !t.corrects_motor_constants() && !kept_needed.contains(t) && plausible::interval_holds_no_effect(d, th, sd)
+            })
+        };
+        // a correction of the motor constants that waited this round (tested in the next)
+        let mut deferred = false;
         let mut c = 0;
         for (t, d) in terms.iter().zip(&designs) {
             let k = d.cols.len();
@@ -266,6 +284,10 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             // the prune tolerance instead, a DFKI double pendulum lost a Coulomb friction that
             // predicted its fit runs 0.1 % better and its held-out run 12 % better.)
             let judgment = match judgment {
+                plausible::Judgment::Finding if drive_waits && t.corrects_motor_constants() && !kept_needed.contains(t) && plausible::interval_holds_no_effect(d, th, sd) => {
+                    deferred = true;
+                    plausible::Judgment::Finding
+                }
                 plausible::Judgment::Finding if moving && !partner_left && !kept_needed.contains(t) && plausible::interval_holds_no_effect(d, th, sd) => {
                     let without: Vec<Term> = terms.iter().filter(|x| *x != t).cloned().collect();
                     // scored as the model the report states is fitted: a set multiple shooting
@@ -326,7 +348,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 }
             }
         }
-        if !changed || rounds >= 2 {
+        if !(changed || deferred) || rounds >= 2 {
             break (fitted, variants);
         }
         rounds += 1;

@@ -101,11 +101,12 @@ fn servo_scenarios_find_the_hidden_mechanics_and_the_motor_constants() {
     // with viscous friction) beat the servo's sets, its motor constants fitted 60 % off
     assert!(risen >= 2, "a load friction rising at rest found in {risen} of 3");
     let right = scores.iter().filter(|s| s.right).count();
-    // measured 10 of 12 on this build, short of the 90 % target: beside a double pendulum's
-    // limit and viscous friction a load-dependent friction (5), and scenario 11 above.
-    // (Scenario 3 was a one-joint pendulum with rotor inertia and Coulomb friction before it
-    // drew a load friction rising at rest, and was right.)
-    assert!(right >= 10, "{right} of {} servo scenarios right", scores.len());
+    // measured 11 of 12 (91.7 %, the 90 % target): scenario 11 above is wrong. It was 10 of 12
+    // while a correction of the motor constants and a mechanical term whose intervals both
+    // held no effect were tested in the set's order: scenario 5 then kept a load-dependent
+    // friction beside its limit and viscous friction (the mechanical terms are now tested
+    // first, see the pipeline's plausibility rounds).
+    assert!(right >= 11, "{right} of {} servo scenarios right", scores.len());
 }
 
 #[test]

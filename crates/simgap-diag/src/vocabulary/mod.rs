@@ -180,6 +180,13 @@ impl Term {
         self.kind().as_str()
     }
 
+    /// Whether the term corrects a servo's motor law (its drive gain kt/R, its back-EMF kt²/R)
+    /// rather than adding a mechanical effect: the report folds these into the motor constants
+    /// it states.
+    pub(crate) fn corrects_motor_constants(&self) -> bool {
+        matches!(self, Term::Gain(_) | Term::BackEmf(_))
+    }
+
     /// The joint of a per-joint term.
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
