@@ -129,7 +129,9 @@ fn slope_bound(effects: &[Effect], dry: f64, hump_scale: f64, out: &mut [f64]) {
             out[i] += match e {
                 Effect::ViscousFriction { b } => b[i].abs(),
                 Effect::CoulombFriction { fc, w } => over(fc[i].abs(), w[i]),
-                Effect::StribeckFriction { fc, fs, vs, w } => {
+                // a load Stribeck friction's load-independent levels as a Stribeck friction's;
+                // its load part is bounded as a load friction's (below)
+                Effect::StribeckFriction { fc, fs, vs, w } | Effect::LoadStribeckFriction { fc, fs, vs, w, .. } => {
                     let hump = if vs[i] > 0.0 { hump_scale * 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
                     over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
                 }
@@ -142,10 +144,6 @@ fn slope_bound(effects: &[Effect], dry: f64, hump_scale: f64, out: &mut [f64]) {
                 // the load-independent level; the load part is bounded by the simulator from
                 // the effort limits (it scales with the drive's torque)
                 Effect::LoadFriction { fc, w, .. } => over(fc[i].abs(), w[i]),
-                Effect::LoadStribeckFriction { fc, fs, vs, w, .. } => {
-                    let hump = if vs[i] > 0.0 { hump_scale * 2.0 * (fs[i] - fc[i]).abs() / vs[i] } else { 0.0 };
-                    over(fc[i].abs().max(fs[i].abs()), w[i]) + hump
-                }
                 _ => 0.0,
             };
         }
