@@ -386,7 +386,8 @@ const VS_BISECTIONS: usize = 2;
 /// each load friction replaced by a load Stribeck friction (`load_stribeck_friction`: its
 /// level rises at rest, `fs + mus |τ|` above `fc + mu |τ|`), the Stribeck velocity searched
 /// over [`load_stribeck::VS_GRID`](crate::vocabulary::LOAD_STRIBECK_VS_GRID) times each
-/// joint's width, each fitted by multiple shooting, each half started where `base` ended on it
+/// joint's width and, where the rise predicts better, [`VS_BISECTIONS`] times more around the
+/// best, each fitted by multiple shooting, each half started where `base` ended on it
 /// (the moving levels as `base` fitted them, no rise). Returned when it predicts the fit runs
 /// better than `base` by [`ADD_GAIN`] (two parameters more per joint); the note says what was
 /// found either way, with the ratio of its error to `base`'s on each fit run. Tried only when
