@@ -107,6 +107,9 @@ fn servo_scenarios_find_the_hidden_mechanics_and_the_motor_constants() {
     // friction beside its limit and viscous friction (the mechanical terms are now tested
     // first, see the pipeline's plausibility rounds).
     assert!(right >= 11, "{right} of {} servo scenarios right", scores.len());
+    // scenario 5, named above
+    let five = &scores[5];
+    assert!(five.right && !five.found.iter().any(|f| f.starts_with("load_friction@")), "scenario 5: found {:?}, {}", five.found, five.rule);
 }
 
 #[test]
