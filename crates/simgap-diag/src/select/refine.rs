@@ -434,8 +434,7 @@ fn load_friction_at_rest(
     // geometric midpoints between the best vs and its nearest tried neighbours (rounded to a
     // tenth of w, so that the note states the vs used). A vs off the truth biases the levels
     // (on a simulated servo, vs = 30 w for a true 25.5 w fitted fc 20 % low, 25.5 w within 1 %)
-    let rises = |tries: &[(f64, Tried)]| best_of(tries).is_some_and(|i| tries[i].1.score < base.score * (1.0 - ADD_GAIN));
-    if rises(&tries) {
+    if best_of(&tries).is_some_and(|i| tries[i].1.score < base.score * (1.0 - ADD_GAIN)) {
         for _ in 0..VS_BISECTIONS {
             let Some(b) = best_of(&tries).map(|i| tries[i].0) else { break };
             let below = tries.iter().map(|t| t.0).filter(|&r| r < b).max_by(f64::total_cmp);
