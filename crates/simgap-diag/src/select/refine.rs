@@ -378,16 +378,11 @@ fn servo_limit(
     }
 }
 
-/// Halvings (in log) of the interval around the best Stribeck velocity of a load friction
-/// rising at rest, after the grid, where the rise predicts better ([`load_friction_at_rest`]).
-const VS_BISECTIONS: usize = 2;
-
 /// The servo's set `base` (the lower-scoring of its set with and without a torque limit) with
 /// each load friction replaced by a load Stribeck friction (`load_stribeck_friction`: its
 /// level rises at rest, `fs + mus |τ|` above `fc + mu |τ|`), the Stribeck velocity searched
 /// over [`load_stribeck::VS_GRID`](crate::vocabulary::LOAD_STRIBECK_VS_GRID) times each
-/// joint's width and, where the rise predicts better, [`VS_BISECTIONS`] times more around the
-/// best, each fitted by multiple shooting, each half started where `base` ended on it
+/// joint's width, each fitted by multiple shooting, each half started where `base` ended on it
 /// (the moving levels as `base` fitted them, no rise). Returned when it predicts the fit runs
 /// better than `base` by [`ADD_GAIN`] (two parameters more per joint); the note says what was
 /// found either way, with the ratio of its error to `base`'s on each fit run. Tried only when
@@ -428,34 +423,13 @@ fn load_friction_at_rest(
         let name = format!("{} with its load friction rising at rest (load Stribeck friction, vs = {ratio} w)", base.name);
         try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)
     };
-    let mut tries: Vec<(f64, Tried)> = grid.iter().map(|&r| Ok((r, try_vs(r)?))).collect::<Result<_>>()?;
-    let best_of = |tries: &[(f64, Tried)]| tries.iter().enumerate().min_by(|a, b| a.1 .1.score.total_cmp(&b.1 .1.score)).map(|(i, _)| i);
-    // where the rise predicts better, its vs is searched further: [`VS_BISECTIONS`] times, the
-    // geometric midpoints between the best vs and its nearest tried neighbours (rounded to a
-    // tenth of w, so that the note states the vs used). A vs off the truth biases the levels
-    // (on a simulated servo, vs = 30 w for a true 25.5 w fitted fc 20 % low, 25.5 w within 1 %)
-    if best_of(&tries).is_some_and(|i| tries[i].1.score < base.score * (1.0 - ADD_GAIN)) {
-        for _ in 0..VS_BISECTIONS {
-            let Some(b) = best_of(&tries).map(|i| tries[i].0) else { break };
-            let below = tries.iter().map(|t| t.0).filter(|&r| r < b).max_by(f64::total_cmp);
-            let above = tries.iter().map(|t| t.0).filter(|&r| r > b).min_by(f64::total_cmp);
-            for n in [below, above].into_iter().flatten() {
-                let r = ((n * b).sqrt() * 10.0).round() / 10.0;
-                if tries.iter().all(|t| (t.0 - r).abs() > 1e-9) {
-                    tries.push((r, try_vs(r)?));
-                }
-            }
-        }
-    }
-    tries.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let further = if tries.len() > grid.len() { ", then around the best" } else { "" };
-    let scores: Vec<String> = tries.iter().map(|(r, t)| format!("{:.4} at vs = {r} w", t.score)).collect();
-    let Some(best) = best_of(&tries).map(|i| tries.swap_remove(i).1) else { return Ok((None, String::new())) };
+    let tries: Vec<Tried> = grid.iter().map(|&r| try_vs(r)).collect::<Result<_>>()?;
+    let scores: Vec<String> = grid.iter().zip(&tries).map(|(r, t)| format!("{:.4} at vs = {r} w", t.score)).collect();
+    let Some(best) = tries.into_iter().min_by(|a, b| a.score.total_cmp(&b.score)) else { return Ok((None, String::new())) };
     let head = format!(
-        "multiple shooting: {} with its load friction rising at rest (a load Stribeck friction, vs searched over {} times the joint's width w{}) predicts the fit runs at {}, against {:.4} without the rise",
+        "multiple shooting: {} with its load friction rising at rest (a load Stribeck friction, vs searched over {} times the joint's width w) predicts the fit runs at {}, against {:.4} without the rise",
         base.name,
         grid.map(|r| r.to_string()).join(", "),
-        further,
         scores.join(", "),
         base.score
     );

@@ -11,8 +11,7 @@
 //! their coefficients `fc ≥ 0`, `0 ≤ mu ≤ 1`, `fs − fc ≥ 0`, `0 ≤ mus − mu ≤ 1` (a rise, not a
 //! dip; see [`super::load_friction::MU_MAX`]; [`physical`] also asks `mus ≤ 1`); stated as
 //! `(fc, mu, fs, mus)`. The Stribeck
-//! velocity `vs` is searched ([`VS_GRID`], then around the best where the rise predicts
-//! better); with `fs = fc` and `mus = mu` it is the load
+//! velocity `vs` is searched ([`VS_GRID`]); with `fs = fc` and `mus = mu` it is the load
 //! friction (the nested, simpler effect, see [`simpler`]). It occupies the dry-friction slot.
 
 use simgap_sim::effects::smooth_sign;
