@@ -223,6 +223,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         // it shares), except after a term left by its interval, which traded with a partner
         // whose value then lacks its share: the set is then fitted again ([`refit`])
         let mut kept: (Vec<TermDesign>, Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
+        // the coefficients of the term at columns c..c + k, with their standard deviations
+        let coefficients = |c: usize, k: usize| (&theta.as_slice()[c..c + k], &raw_std.as_slice()[c.min(raw_std.len())..(c + k).min(raw_std.len())]);
         // on a servo, a correction of its motor constants (torque gain, back-EMF) is tested by
         // prediction after the mechanical terms whose intervals hold no effect: a back-EMF and
         // a viscous friction both brake in proportion to q̇ while the drive is on, and the one
@@ -234,7 +236,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             let mut c = 0;
             terms.iter().zip(&designs).any(|(t, d)| {
                 let k = d.cols.len();
-                let (th, sd) = (&theta.as_slice()[c..c + k], &raw_std.as_slice()[c.min(raw_std.len())..(c + k).min(raw_std.len())]);
+                let (th, sd) = coefficients(c, k);
                 c += k;
                 !t.corrects_motor_constants() && !kept_needed.contains(t) && plausible::interval_holds_no_effect(d, th, sd)
             })
@@ -244,7 +246,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         let mut c = 0;
         for (t, d) in terms.iter().zip(&designs) {
             let k = d.cols.len();
-            let (th, sd) = (&theta.as_slice()[c..c + k], &raw_std.as_slice()[c.min(raw_std.len())..(c + k).min(raw_std.len())]);
+            let (th, sd) = coefficients(c, k);
             let own = refined.as_ref().map(|r| r.own_std.as_slice()[c.min(r.own_std.len())..(c + k).min(r.own_std.len())].to_vec()).unwrap_or_default();
             c += k;
             let mut keep = |t: Term, d: TermDesign, cols: &[usize], next: &mut Vec<Term>| {
