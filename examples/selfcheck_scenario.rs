@@ -42,6 +42,17 @@ fn main() {
     options.prepare.link_side_torque = args.iter().any(|a| a == "--link-side-torque");
     println!("family {}, hidden: {:?}", scenario.family, scenario.truth);
     println!("simulated with: {:?}", scenario.effects);
+    if let Some(s) = &scenario.servo {
+        let per_joint = |f: &dyn Fn(usize) -> f64| (0..s.kt.len()).map(|j| format!("{:.4}", f(j))).collect::<Vec<_>>().join(", ");
+        println!(
+            "servos: supply {:.3} V, kt [{}] N·m/A, R [{}] Ω, kt/R [{}] N·m/V, kt²/R [{}] N·m·s/rad",
+            s.volts,
+            per_joint(&|j| s.kt[j]),
+            per_joint(&|j| s.r[j]),
+            per_joint(&|j| s.kt[j] / s.r[j]),
+            per_joint(&|j| s.kt[j] * s.kt[j] / s.r[j])
+        );
+    }
     if args.iter().any(|a| a == "--truth") {
         return;
     }

@@ -57,6 +57,8 @@ fn table(sum: &Summary, n: usize, seed: u64) -> String {
     }
     let (odd, selected) = sum.implausible;
     let _ = writeln!(s, "selected effects outside their physical range or whose interval holds no effect: {odd} of {selected}");
+    let (odd, selected) = sum.contradicted;
+    let _ = writeln!(s, "selected effects the report's own selection log last rejected: {odd} of {selected}");
     let _ = writeln!(s, "\nconfusion (rows: hidden effect, columns: selected effect; a scenario counts once per pair)");
     let mut cols: Vec<String> = sum.confusion.values().flat_map(|m| m.keys().cloned()).collect();
     cols.sort();

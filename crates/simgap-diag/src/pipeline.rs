@@ -151,9 +151,14 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // the selected set, fitted on all fit data, with uncertainties; a term the plausibility
     // check finds no finding (at the edge of its physical range, or its interval holding its
     // neutral value) leaves the set, a richer one its extra parameters do not support becomes
-    // the simpler nested in it, and the rest is fitted again (at most three rounds)
+    // the simpler nested in it, and the rest is fitted again (three rounds of judgments at
+    // most; what the third changes is fitted once more and stated as it is)
     progress(Progress { stage: "intervals and plausibility", done: 0, total: 1 });
+    const JUDGED_ROUNDS: usize = 3;
     let mut rounds = 0;
+    // the score of the set a round left unchanged (a correction of the motor constants waited),
+    // which the next round's tests compare with
+    let mut unchanged_score: Option<f64> = None;
     let mut kept_needed: Vec<Term> = Vec::new();
     let (fitted, interval_variants) = loop {
         let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
@@ -204,6 +209,9 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             }
         };
         check_stop(options)?;
+        if rounds >= JUDGED_ROUNDS {
+            break (fitted, variants);
+        }
         let (terms, designs, theta) = match &refined {
             Some(r) => (r.terms.clone(), r.designs.clone(), r.shot.theta.clone()),
             None => (selection.terms.clone(), selection.designs.clone(), selection.fit.theta.clone()),
@@ -215,7 +223,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         // holds no effect, leaves nothing they lack)
         let mut edge_left = false;
         // the score of this round's set, once one term's interval asked for it
-        let mut with_score_of_round: Option<f64> = None;
+        let mut with_score_of_round: Option<f64> = unchanged_score.take();
         let mut next: Vec<Term> = Vec::new();
         // the shooting answer kept for the terms that stay (its own fit is not redone: as the
         // shooting stage leaves out a term at its bound 0, a term that is no finding leaves
@@ -232,7 +240,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
         // the model already, so the term a user would add to their simulator earns its place
         // first (on a simulated servo with a hidden load friction rising at rest, the back-EMF
         // correction had left and a viscous friction stayed in its place)
-        let drive_waits = moving && prep.servo.is_some() && {
+        // (not in the last round of judgments, which has no next round to test it in)
+        let drive_waits = moving && prep.servo.is_some() && rounds + 1 < JUDGED_ROUNDS && {
             let mut c = 0;
             terms.iter().zip(&designs).any(|(t, d)| {
                 let k = d.cols.len();
@@ -350,8 +359,11 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 }
             }
         }
-        if !(changed || deferred) || rounds >= 2 {
+        if !(changed || deferred) {
             break (fitted, variants);
+        }
+        if !changed {
+            unchanged_score = with_score_of_round;
         }
         rounds += 1;
         selection.terms = next.clone();

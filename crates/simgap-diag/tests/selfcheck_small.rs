@@ -50,6 +50,14 @@ fn fit_recovers_known_effects_in_blind_scenarios() {
     // hold two thirds of them here; the 200-scenario run measures the coverage
     let (inside, count) = sum.coverage;
     assert!(count == 0 || inside * 3 >= count * 2, "reported intervals hold only {inside} of {count} true values");
+    every_report_states_what_its_log_kept(&scores);
+}
+
+/// No report states an effect its own selection log last rejected.
+fn every_report_states_what_its_log_kept(scores: &[simgap_diag::selfcheck::ScenarioScore]) {
+    for s in scores {
+        assert!(s.contradicted.is_empty(), "scenario {} ({}): selected {:?}, which its selection log last rejected", s.index, s.family, s.contradicted);
+    }
 }
 
 #[test]
@@ -110,6 +118,7 @@ fn servo_scenarios_find_the_hidden_mechanics_and_the_motor_constants() {
     // scenario 5, named above
     let five = &scores[5];
     assert!(five.right && !five.found.iter().any(|f| f.starts_with("load_friction@")), "scenario 5: found {:?}, {}", five.found, five.rule);
+    every_report_states_what_its_log_kept(&scores);
 }
 
 #[test]
@@ -144,4 +153,5 @@ fn real_drive_families_are_diagnosed_right_with_plausible_effects() {
         assert_eq!(right, scores.len(), "{right} of {} real-drive scenarios right", scores.len());
     }
     assert_eq!(sum.implausible.0, 0, "selected effects outside their physical range or consistent with no effect");
+    every_report_states_what_its_log_kept(&scores);
 }

@@ -756,6 +756,22 @@ pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<
     out
 }
 
+/// The selected effects of `report` (`effect@joint`) whose last decision in the report's
+/// selection log is a rejection: a report that states an effect its own log says left.
+pub fn contradicted(report: &crate::Report) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in &report.selected_effects {
+        let joints: Vec<Option<&String>> = if e.joints.is_empty() { vec![None] } else { e.joints.iter().map(Some).collect() };
+        for j in joints {
+            let last = report.selection_log.iter().rev().find(|d| d.effect == e.effect && (j.is_none() || d.joint.as_ref() == j));
+            if last.is_some_and(|d| !d.accepted) {
+                out.push(j.map_or(e.effect.clone(), |j| format!("{}@{j}", e.effect)));
+            }
+        }
+    }
+    out
+}
+
 /// The score of one scenario.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ScenarioScore {
@@ -796,6 +812,8 @@ pub struct ScenarioScore {
     /// Selected effects outside their physical range or consistent with no effect
     /// ([`implausible`]).
     pub implausible: Vec<String>,
+    /// Selected effects the report's own selection log last rejected ([`contradicted`]).
+    pub contradicted: Vec<String>,
     /// An error, if the diagnosis failed.
     pub error: Option<String>,
 }
@@ -820,6 +838,7 @@ impl ScenarioScore {
             variant_intervals: BTreeMap::new(),
             holdout_ratio: f64::NAN,
             implausible: vec![],
+            contradicted: vec![],
             error: Some(error),
         }
     }
@@ -1045,6 +1064,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
         truth: label(&truth),
         found: label(&found),
         implausible: implausible(&sc.model, &sc.fit, &d.report.selected_effects),
+        contradicted: contradicted(&d.report),
         error: None,
     }
 }
@@ -1070,6 +1090,9 @@ pub struct Summary {
     pub median_parameter_error: f64,
     /// Median held-out L² after/before where the true effects were found.
     pub median_holdout_ratio: f64,
+    /// Selected effects the report's selection log last rejected ([`contradicted`]): (count,
+    /// selected).
+    pub contradicted: (usize, usize),
     /// Selected effects ([`implausible`]): (outside their physical range or consistent with no
     /// effect, selected in all).
     pub implausible: (usize, usize),
@@ -1102,6 +1125,7 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
     let mut ratios = Vec::new();
     let mut failures = 0;
     let mut implausible = (0, 0);
+    let mut contradicted = (0, 0);
     let base = |s: &str| s.split('@').next().unwrap_or(s).to_string();
     for s in scores {
         let f = by_family.entry(s.family.clone()).or_insert((0, 0, Vec::new()));
@@ -1151,6 +1175,8 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
         perr.extend(s.parameter_errors.iter().map(|p| p.1));
         implausible.0 += s.implausible.len();
         implausible.1 += s.found.len();
+        contradicted.0 += s.contradicted.len();
+        contradicted.1 += s.found.len();
         if s.exact && !true_effects.is_empty() {
             ratios.push(s.holdout_ratio);
         }
@@ -1166,6 +1192,7 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
         median_parameter_error: median(perr),
         median_holdout_ratio: median(ratios),
         implausible,
+        contradicted,
         failures,
     }
 }
