@@ -3,20 +3,21 @@
 //! constant-velocity floor) and its notes: how a figure quoted for one scenario is reproduced.
 //!
 //! `cargo run --release --example selfcheck_scenario -- SEED KIND INDEX [--link-side-torque]
-//! [--truth] [--steps]`
+//! [--truth] [--steps] [--priors]`
 //!
 //! KIND is `cycle` for the scenarios of the cycle of 13 (INDEX as `simgap selfcheck` numbers
 //! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
 //! them) or `servo` for the servo scenarios. `--link-side-torque` diagnoses as
 //! `simgap diagnose --link-side-torque` does. `--truth` prints the simulated effects with their
-//! parameters and stops; `--steps` adds the selection's steps (each decision and why).
+//! parameters and stops; `--steps` adds the selection's steps (each decision and why); `--priors` gives a servo
+//! scenario's logs the true motor constants as priors.
 
 use simgap::core::Formulation;
 use simgap::diag::{diagnose, drives, selfcheck, DiagnoseOptions};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps]";
+    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps] [--priors]";
     let (Some(seed), Some(kind), Some(index)) = (args.first().and_then(|s| s.parse::<u64>().ok()), args.get(1), args.get(2).and_then(|s| s.parse::<usize>().ok())) else {
         eprintln!("{usage}");
         std::process::exit(2);
@@ -37,6 +38,17 @@ fn main() {
             std::process::exit(1);
         }
     };
+    // `--priors`: every log's experiment states the servos' true kt and R, as a datasheet would
+    let mut scenario = scenario;
+    if let (true, Some(s)) = (args.iter().any(|a| a == "--priors"), scenario.servo.clone()) {
+        let list = |v: &[f64]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",");
+        for run in scenario.fit.iter_mut().chain(scenario.holdout.iter_mut()) {
+            if let Some(e) = run.experiment.as_mut() {
+                e.extra.insert("kt".into(), list(&s.kt));
+                e.extra.insert("R".into(), list(&s.r));
+            }
+        }
+    }
     let mut options =
         DiagnoseOptions { directional_friction: scenario.directional_friction, load_stribeck_friction: scenario.load_stribeck_friction, ..DiagnoseOptions::default() };
     options.prepare.link_side_torque = args.iter().any(|a| a == "--link-side-torque");
