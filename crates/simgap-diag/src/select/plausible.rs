@@ -99,6 +99,9 @@ pub(crate) fn at_edge(design: &TermDesign, theta: &[f64]) -> Option<(f64, f64)> 
     })
 }
 
+/// How [`judge`] ends the reason of a term whose every interval holds its neutral value.
+pub(crate) const HOLDS_NO_EFFECT: &str = "holds its neutral value (no effect) in every parameter";
+
 /// Judges one selected term from its column coefficients `theta` and their standard deviations
 /// (the design's coordinates, see [`TermDesign`]): `std`, the data's own spread, decides whether
 /// the term is there at all; `shape_std`, which may add the pipeline's shared error, whether a
@@ -128,7 +131,7 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
     }
     // every parameter consistent with its neutral value
     if theta.iter().zip(std).all(|(t, s)| holds_zero(*t, *s)) && std.iter().any(|s| s.is_finite()) {
-        return Judgment::NoFinding(format!("not a finding: the 95 % interval of {name} holds its neutral value (no effect) in every parameter"));
+        return Judgment::NoFinding(format!("not a finding: the 95 % interval of {name} {HOLDS_NO_EFFECT}"));
     }
     // a richer shape whose extra parameters are consistent with the simpler one
     if let Some(nested) = simpler(term, data) {
