@@ -9,11 +9,12 @@
 //! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
 //! them) or `servo` for the servo scenarios. `--link-side-torque` diagnoses as
 //! `simgap diagnose --link-side-torque` does. `--truth` prints the simulated effects with their
-//! parameters and stops; `--steps` adds the selection's steps (each decision and why); `--priors` gives a servo
-//! scenario's logs the true motor constants as priors.
+//! parameters and stops; `--steps` adds the selection's steps (each decision and why);
+//! `--priors` gives a servo scenario's logs the true motor constants as priors.
 
 use simgap::core::Formulation;
 use simgap::diag::{diagnose, drives, selfcheck, DiagnoseOptions};
+use simgap::sim::controller::servo_keys;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -44,8 +45,8 @@ fn main() {
         let list = |v: &[f64]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",");
         for run in scenario.fit.iter_mut().chain(scenario.holdout.iter_mut()) {
             if let Some(e) = run.experiment.as_mut() {
-                e.extra.insert("kt".into(), list(&s.kt));
-                e.extra.insert("R".into(), list(&s.r));
+                e.extra.insert(servo_keys::KT.into(), list(&s.kt));
+                e.extra.insert(servo_keys::R.into(), list(&s.r));
             }
         }
     }
