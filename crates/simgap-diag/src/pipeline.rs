@@ -294,12 +294,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
             // not (on a simulated servo, seed 2's scenario 56, with its constants fitted from
             // the samples in motion alone, 1 % and 14 % off, the back-EMF correction had left by
             // its interval and the held-out k-step error rose 50-fold; tested, it stayed)
-            let judgment = match judgment {
-                plausible::Judgment::NoFinding(why) if prep.servo.is_some() && t.corrects_motor_constants() && why.ends_with(plausible::HOLDS_NO_EFFECT) => {
-                    plausible::Judgment::Finding
-                }
-                j => j,
-            };
+            let judgment = if prep.servo.is_some() && t.corrects_motor_constants() && judgment.holds_no_effect() { plausible::Judgment::Finding } else { judgment };
             // a finding by the data's own spread whose reported interval still holds its
             // neutral value (the pipeline's shared error, or a partner it trades with, e.g.
             // viscous friction beside a servo's back-EMF) stays only where prediction needs it:

@@ -43,6 +43,14 @@ pub(crate) enum Judgment {
     NoFinding(String),
 }
 
+impl Judgment {
+    /// Whether this is no finding because every interval, by the data's own spread, holds its
+    /// neutral value (not because the term is too small to matter or at the edge of its range).
+    pub(crate) fn holds_no_effect(&self) -> bool {
+        matches!(self, Judgment::NoFinding(why) if why.ends_with(HOLDS_NO_EFFECT))
+    }
+}
+
 /// A richer term replaced by the simpler terms nested in it, and why.
 pub(crate) type Replacement = (Term, Vec<Term>, String);
 
@@ -99,8 +107,9 @@ pub(crate) fn at_edge(design: &TermDesign, theta: &[f64]) -> Option<(f64, f64)> 
     })
 }
 
-/// How [`judge`] ends the reason of a term whose every interval holds its neutral value.
-pub(crate) const HOLDS_NO_EFFECT: &str = "holds its neutral value (no effect) in every parameter";
+/// How [`judge`] ends the reason of a term whose every interval holds its neutral value
+/// ([`Judgment::holds_no_effect`]).
+const HOLDS_NO_EFFECT: &str = "holds its neutral value (no effect) in every parameter";
 
 /// Judges one selected term from its column coefficients `theta` and their standard deviations
 /// (the design's coordinates, see [`TermDesign`]): `std`, the data's own spread, decides whether
