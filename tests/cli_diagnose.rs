@@ -12,7 +12,7 @@ use std::sync::OnceLock;
 use serde_json::Value;
 
 mod common;
-use common::bin;
+use common::{bin, Scratch};
 
 fn simgap(args: &[&str]) -> Output {
     Command::new(bin()).args(args).output().expect("simgap runs")
@@ -22,11 +22,8 @@ fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("simgap-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    Scratch::new("cli", name)
 }
 
 fn s(p: &Path) -> &str {
@@ -39,7 +36,7 @@ const PENDULUM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/simgap-core/
 fn demo() -> &'static (PathBuf, String, Value) {
     static DEMO: OnceLock<(PathBuf, String, Value)> = OnceLock::new();
     DEMO.get_or_init(|| {
-        let dir = scratch("demo");
+        let dir = scratch("demo").keep();
         let o = simgap(&["demo", "--out-dir", s(&dir)]);
         assert!(o.status.success(), "simgap demo failed:\n{}", text(&o));
         let report: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
@@ -143,7 +140,8 @@ fn diagnose_on_the_demo_files_reproduces_the_demo() {
 fn link_side_torque_tries_no_rotor_inertia_and_says_so() {
     // the demo's logs, told that their effort was measured on the link side of the gearbox
     let (dir, _, _) = demo();
-    let json = scratch("link-side").join("r.json");
+    let out = scratch("link-side");
+    let json = out.join("r.json");
     #[rustfmt::skip]
     let o = simgap(&[
         "diagnose", "--urdf", s(&dir.join("paper_arm.urdf")), "--log", s(&dir.join("fit-step.mcap")),

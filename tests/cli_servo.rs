@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 mod common;
-use common::bin;
+use common::{bin, Scratch};
 
 const PENDULUM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/simgap-core/models/pendulum.urdf");
 
@@ -18,11 +18,8 @@ fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("simgap-servo-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    Scratch::new("servo", name)
 }
 
 const SIDECAR: &str = r#"{"controller": "servo", "joints": "hinge", "duty_gain": "2", "supply_voltage": "12"}"#;

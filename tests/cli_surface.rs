@@ -3,14 +3,14 @@
 //! non-finite results refused, the summary's SELECTED in rank order with joints in model order,
 //! and no internal document named in any help text.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
 mod common;
-use common::bin;
+use common::{bin, Scratch};
 
 fn simgap(args: &[&str]) -> Output {
     Command::new(bin()).args(args).output().expect("simgap runs")
@@ -20,11 +20,8 @@ fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("simgap-surface-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    Scratch::new("surface", name)
 }
 
 fn s(p: &Path) -> &str {
@@ -67,7 +64,8 @@ fn other_numeric_options_are_checked() {
     refused(&["simulate", "--noise=-1"], &["invalid noise_std: -1 rad is out of range; expected 0 ≤ noise_std ≤ 1 rad"]);
     refused(&["simulate", "--duration", "86401"], &["invalid duration: 86401 s is out of range"]);
     // a CSV log is written from the run in memory; an MCAP log as the run goes, whatever its length
-    let csv = scratch("long-csv").join("long.csv");
+    let dir = scratch("long-csv");
+    let csv = dir.join("long.csv");
     refused(&["simulate", "--duration", "80000", "--sample-period", "0.001", "--out", s(&csv)], &["long.csv", "8e7 samples", "a CSV log holds at most 1e7"]);
     assert!(!csv.exists());
     refused(&["simulate", "--duration", "1000", "--substeps", "5000"], &["integration steps", "expected at most 1e9"]);

@@ -2,7 +2,8 @@
 //!
 //! `$SIMGAP_BIN` when set; else `target/release/simgap` when it is newer than every source file
 //! (as after `make test`'s release build; the diagnosis tests are far slower in a debug build);
-//! else the debug binary cargo built for the test.
+//! else the debug binary cargo built for the test. And [`Scratch`], a test's own folder under
+//! the system's temporary one, removed when the test ends.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -51,4 +52,46 @@ fn newest(path: &Path) -> Option<std::time::SystemTime> {
             }
         })
         .max()
+}
+
+/// A test's scratch folder, `<temp>/simgap-<test>-<pid>-<name>`, empty when made and removed
+/// (with what the test wrote) when dropped, also when the test fails.
+#[allow(dead_code)] // not every test crate that includes this module makes one
+pub(crate) struct Scratch(PathBuf);
+
+#[allow(dead_code)]
+impl Scratch {
+    /// An empty folder for `test`'s `name`.
+    pub(crate) fn new(test: &str, name: &str) -> Scratch {
+        let d = std::env::temp_dir().join(format!("simgap-{test}-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        Scratch(d)
+    }
+
+    /// The folder, kept after the test (for one shared by tests through a `static`, which is
+    /// never dropped).
+    pub(crate) fn keep(self) -> PathBuf {
+        let me = std::mem::ManuallyDrop::new(self);
+        me.0.clone()
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
