@@ -3,14 +3,16 @@
 //! constant-velocity floor) and its notes: how a figure quoted for one scenario is reproduced.
 //!
 //! `cargo run --release --example selfcheck_scenario -- SEED KIND INDEX [--link-side-torque]
-//! [--truth] [--steps] [--priors]`
+//! [--truth] [--steps] [--priors] [--write DIR]`
 //!
 //! KIND is `cycle` for the scenarios of the cycle of 13 (INDEX as `simgap selfcheck` numbers
 //! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
 //! them) or `servo` for the servo scenarios. `--link-side-torque` diagnoses as
 //! `simgap diagnose --link-side-torque` does. `--truth` prints the simulated effects with their
 //! parameters and stops; `--steps` adds the selection's steps (each decision and why);
-//! `--priors` gives a servo scenario's logs the true motor constants as priors.
+//! `--priors` gives a servo scenario's logs the true motor constants as priors; `--write DIR`
+//! writes its fit and held-out logs there as CSV with their sidecars (`fit-<i>.csv`,
+//! `holdout-<i>.csv`), to be read or diagnosed with `simgap diagnose`.
 
 use simgap::core::Formulation;
 use simgap::diag::{diagnose, drives, selfcheck, DiagnoseOptions};
@@ -18,7 +20,7 @@ use simgap::sim::controller::servo_keys;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps] [--priors]";
+    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps] [--priors] [--write DIR]";
     let (Some(seed), Some(kind), Some(index)) = (args.first().and_then(|s| s.parse::<u64>().ok()), args.get(1), args.get(2).and_then(|s| s.parse::<usize>().ok())) else {
         eprintln!("{usage}");
         std::process::exit(2);
@@ -65,6 +67,22 @@ fn main() {
             per_joint(&|j| s.kt[j] / s.r[j]),
             per_joint(&|j| s.kt[j] * s.kt[j] / s.r[j])
         );
+    }
+    if let Some(dir) = args.iter().position(|a| a == "--write").map(|i| args.get(i + 1)) {
+        let Some(dir) = dir else {
+            eprintln!("--write needs a folder; {usage}");
+            std::process::exit(2);
+        };
+        let dir = std::path::Path::new(dir);
+        let named =
+            scenario.fit.iter().enumerate().map(|(i, r)| (format!("fit-{i}.csv"), r)).chain(scenario.holdout.iter().enumerate().map(|(i, r)| (format!("holdout-{i}.csv"), r)));
+        for (name, run) in named {
+            if let Err(e) = std::fs::create_dir_all(dir).map_err(|e| e.to_string()).and_then(|_| simgap::log::write_log(run, &dir.join(&name)).map_err(|e| e.to_string())) {
+                eprintln!("writing {}: {e}", dir.join(&name).display());
+                std::process::exit(1);
+            }
+        }
+        println!("logs written to {}", dir.display());
     }
     if args.iter().any(|a| a == "--truth") {
         return;
