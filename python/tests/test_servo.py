@@ -67,3 +67,17 @@ def test_a_servo_log_without_its_duty_gain_is_refused_by_the_diagnosis(tmp_path:
     # the same with the load friction rising at rest asked for (the CLI's --load-stribeck-friction)
     with pytest.raises(simgap.SimgapError, match="duty_gain"):
         simgap.diagnose(simgap.Model.from_urdf(PENDULUM), [str(csv)], progress=False, load_stribeck_friction=True)
+
+
+@pytest.mark.parametrize("name", ["servo.csv", "servo.mcap"])
+def test_a_servo_run_written_and_read_back_keeps_its_drive_signals(tmp_path: Path, name: str) -> None:
+    a = servo_arrays()
+    experiment = {"controller": "servo", "joints": "hinge", "duty_gain": "2", "supply_voltage": "7.4", "sample_period": "0.005"}
+    run = Run(["hinge"], a["t"], a["q"], a["qd"], q_ref=a["q_ref"], duty=a["duty"], torque_enable=a["torque_enable"], voltage=a["voltage"], temperature=a["temperature"], experiment=experiment)
+    simgap.write_log(run, tmp_path / name)
+    back = simgap.read_log(tmp_path / name)
+    np.testing.assert_array_equal(back.duty, a["duty"])
+    np.testing.assert_array_equal(back.torque_enable, a["torque_enable"])
+    np.testing.assert_array_equal(back.voltage, a["voltage"])
+    np.testing.assert_array_equal(back.temperature, a["temperature"])
+    np.testing.assert_array_equal(back.q_ref, a["q_ref"])

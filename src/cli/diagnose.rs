@@ -335,13 +335,18 @@ fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
 
         // every stream stamped from the measured log's start, as the log was
         let start = measured.start_ns;
-        let only_states = |topic: String| RunTopics { states: topic, reference: None, measured_effort: None };
+        let only_states = |topic: String| RunTopics { states: topic, reference: None, measured_effort: None, servo: Default::default() };
         w.write_run(measured, &only_states(format!("/holdout/{name}/measured/joint_states")), start)?;
         if let Some(Some(nominal)) = d.holdout_nominal.get(i) {
             w.write_run(nominal, &only_states(format!("/holdout/{name}/nominal/joint_states")), start)?;
         }
         if let Some(Some(corrected)) = d.holdout_corrected.get(i) {
-            let topics = RunTopics { states: format!("/holdout/{name}/joint_states"), reference: Some(format!("/holdout/{name}/joint_reference")), measured_effort: None };
+            let topics = RunTopics {
+                states: format!("/holdout/{name}/joint_states"),
+                reference: Some(format!("/holdout/{name}/joint_reference")),
+                measured_effort: None,
+                servo: Default::default(),
+            };
             w.write_run(corrected, &topics, start)?;
         }
     }

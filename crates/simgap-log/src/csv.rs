@@ -657,7 +657,8 @@ pub(crate) fn read_csv_auto_warned(path: &Path, warnings: &mut Vec<String>) -> R
 }
 
 /// Writes a run as CSV in the generic convention (gzip-compressed when the name ends in
-/// `.gz`). Numbers are written in shortest round-trip form, so reading gives back the same
+/// `.gz`), a servo's drive signals included (`duty_<joint>`, `torque_enable_<joint>`,
+/// `temperature_<joint>`, `voltage`). Numbers are written in shortest round-trip form, so reading gives back the same
 /// values. Absolute runs (`start_ns` set) get absolute times in the file. The experiment is
 /// not written (see [`write_experiment_file`](crate::experiment::write_experiment_file)).
 ///
@@ -682,13 +683,20 @@ pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
         ("qd_ref_", &run.qd_ref[..]),
         ("tau_ff_", &run.tau_ff[..]),
         ("tau_measured_", &run.tau_measured[..]),
+        ("duty_", &run.drive.duty[..]),
+        ("torque_enable_", &run.drive.torque_enable[..]),
+        ("temperature_", &run.drive.temperature[..]),
     ]
     .into_iter()
     .filter(|(_, m)| !m.is_empty())
     .collect();
+    let voltage = (!run.drive.voltage.is_empty()).then_some(&run.drive.voltage);
     let mut header = vec!["time".to_string()];
     for (p, _) in &blocks {
         header.extend(run.joints.iter().map(|j| format!("{p}{j}")));
+    }
+    if voltage.is_some() {
+        header.push("voltage".into());
     }
     w.write_record(&header).map_err(|e| werr(&e))?;
     // rows
@@ -698,6 +706,9 @@ pub fn write_csv(run: &Run, path: &Path) -> Result<()> {
         row.push(time_cell(run, k));
         for (_, m) in &blocks {
             row.extend(m[k * dof..(k + 1) * dof].iter().map(|x| format!("{x}")));
+        }
+        if let Some(v) = voltage {
+            row.push(format!("{}", v[k]));
         }
         w.write_record(&row).map_err(|e| werr(&e))?;
     }

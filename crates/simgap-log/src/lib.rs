@@ -95,7 +95,7 @@ impl LogFormat {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LogOptions {
     /// Which topic holds what (MCAP and bags; default `/joint_states`, `/joint_reference`,
-    /// `/joint_effort_measured`).
+    /// `/joint_effort_measured` and the `/servo/…` topics of [`TopicMap`]).
     pub topics: TopicMap,
     /// The experiment of logs that carry none (no metadata record, no sidecar file).
     pub experiment: Option<Experiment>,

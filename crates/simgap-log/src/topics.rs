@@ -8,10 +8,13 @@
 //! | `reference` | `/joint_reference` | `q_ref`, `qd_ref`, `tau_ff` (feed-forward) from its effort |
 //! | `effort` | none | `tau` (commanded effort), replacing the effort of `states` |
 //! | `measured_effort` | `/joint_effort_measured` | `tau_measured` |
-//! | `duty` | none | a servo's measured PWM duty in [−1, 1] (`drive.duty`), held per message |
-//! | `torque_enable` | none | a servo's torque enable, 0 or 1 (`drive.torque_enable`), held |
-//! | `temperature` | none | a servo's temperature [°C] (`drive.temperature`), reported only |
-//! | `voltage` | none | a servo's supply voltage [V] (`drive.voltage`, one value per sample), interpolated |
+//! | `duty` | `/servo/duty` | a servo's measured PWM duty in [−1, 1] (`drive.duty`), held per message |
+//! | `torque_enable` | `/servo/torque_enable` | a servo's torque enable, 0 or 1 (`drive.torque_enable`), held |
+//! | `temperature` | `/servo/temperature` | a servo's temperature [°C] (`drive.temperature`), reported only |
+//! | `voltage` | `/servo/voltage` | a servo's supply voltage [V] (`drive.voltage`, one value per sample), interpolated |
+//!
+//! A role whose topic the file does not have is not logged (the servo topics are where simgap
+//! writes a servo run's signals; a bag without them is not a servo log unless mapped).
 //!
 //! The per-joint servo roles read a `sensor_msgs/msg/JointState`'s `effort` (or a
 //! `Float64MultiArray`'s `data` with the joint names in brackets), one value per joint. The
@@ -33,6 +36,14 @@ pub const JOINT_STATES_TOPIC: &str = "/joint_states";
 pub const JOINT_REFERENCE_TOPIC: &str = "/joint_reference";
 /// Default topic of the torque the drives report.
 pub const JOINT_EFFORT_MEASURED_TOPIC: &str = "/joint_effort_measured";
+/// Default topic of a servo's measured PWM duty (a `sensor_msgs/msg/JointState`'s effort).
+pub const SERVO_DUTY_TOPIC: &str = "/servo/duty";
+/// Default topic of a servo's torque enable, 0 or 1 (a JointState's effort).
+pub const SERVO_TORQUE_ENABLE_TOPIC: &str = "/servo/torque_enable";
+/// Default topic of a servo's temperature [°C] (a JointState's effort).
+pub const SERVO_TEMPERATURE_TOPIC: &str = "/servo/temperature";
+/// Default topic of a servo's supply voltage [V] (a JointState with one effort).
+pub const SERVO_VOLTAGE_TOPIC: &str = "/servo/voltage";
 
 /// The role a topic plays in a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -140,13 +151,13 @@ pub struct TopicMap {
     pub effort: Option<TopicSpec>,
     /// Torque the drives report (default `/joint_effort_measured`).
     pub measured_effort: TopicSpec,
-    /// A servo's measured duty (default none).
+    /// A servo's measured duty (default [`SERVO_DUTY_TOPIC`]).
     pub duty: Option<TopicSpec>,
-    /// A servo's torque enable (default none).
+    /// A servo's torque enable (default [`SERVO_TORQUE_ENABLE_TOPIC`]).
     pub torque_enable: Option<TopicSpec>,
-    /// A servo's temperature (default none).
+    /// A servo's temperature (default [`SERVO_TEMPERATURE_TOPIC`]).
     pub temperature: Option<TopicSpec>,
-    /// A servo's supply voltage (default none).
+    /// A servo's supply voltage (default [`SERVO_VOLTAGE_TOPIC`]).
     pub voltage: Option<TopicSpec>,
 }
 
@@ -157,10 +168,10 @@ impl Default for TopicMap {
             reference: TopicSpec::new(JOINT_REFERENCE_TOPIC),
             effort: None,
             measured_effort: TopicSpec::new(JOINT_EFFORT_MEASURED_TOPIC),
-            duty: None,
-            torque_enable: None,
-            temperature: None,
-            voltage: None,
+            duty: Some(TopicSpec::new(SERVO_DUTY_TOPIC)),
+            torque_enable: Some(TopicSpec::new(SERVO_TORQUE_ENABLE_TOPIC)),
+            temperature: Some(TopicSpec::new(SERVO_TEMPERATURE_TOPIC)),
+            voltage: Some(TopicSpec::new(SERVO_VOLTAGE_TOPIC)),
         }
     }
 }

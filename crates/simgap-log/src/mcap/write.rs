@@ -28,7 +28,9 @@ use super::cdr::{encode_joint_state_into, JointStateTemplate};
 use super::chunked::{ChunkBuf, ChunkCompression, ChunkedWriter, MessageTemplate};
 use super::{CDR_ENCODING, EXPERIMENT_METADATA, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, OFFERED_QOS_PROFILES, ROS2MSG_ENCODING, RUN_END_METADATA};
 use crate::error::{write_error, Result};
-use crate::topics::{JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC};
+use crate::topics::{
+    JOINT_EFFORT_MEASURED_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC, SERVO_DUTY_TOPIC, SERVO_TEMPERATURE_TOPIC, SERVO_TORQUE_ENABLE_TOPIC, SERVO_VOLTAGE_TOPIC,
+};
 
 /// Batches of rows the writer thread may hold before [`Sink::record`] waits for it.
 pub const QUEUED_BATCHES: usize = 8;
@@ -73,6 +75,10 @@ impl Default for SinkOptions {
 const STATES: u8 = 0;
 const REFERENCE: u8 = 1;
 const MEASURED: u8 = 2;
+/// The first of the servo streams of [`McapWriter::write_run`] (duty, torque enable,
+/// temperature, voltage), which the sink does not write.
+const SERVO: u8 = 3;
+const SERVO_VOLTAGE: u8 = SERVO + 3;
 const TOPICS: [&str; 3] = [JOINT_STATES_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_EFFORT_MEASURED_TOPIC];
 
 /// Rows of one layout, as the sink hands them to the writer thread.
@@ -426,25 +432,30 @@ impl McapSink {
         let mut result = self.flush_rows();
         // end status: a metadata record
         if let (Some(end), true, true) = (end, self.began, result.is_ok()) {
-            let (status, t, joint) = match end {
-                RunEnd::Completed => ("completed", self.last_t, None),
-                RunEnd::Interrupted { t } => ("interrupted", Some(*t), None),
-                RunEnd::Diverged { t, joint } => ("diverged", Some(*t), Some(joint.clone())),
-            };
-            let mut map = BTreeMap::from([("status".to_string(), status.to_string())]);
-            if let Some(t) = t {
-                map.insert("t".into(), format!("{t}"));
-            }
-            if let Some(j) = joint {
-                map.insert("joint".into(), j);
-            }
-            result = self.send(Command::Metadata(RUN_END_METADATA.into(), map));
+            result = self.send(Command::Metadata(RUN_END_METADATA.into(), run_end_map(end, self.last_t)));
         }
         // hang up: the thread writes the last chunk, the summary and the footer
         self.tx = None;
         let joined = self.join().map_err(|e| write_error(&self.path, e));
         result.and(joined)
     }
+}
+
+/// The `simgap.run_end` metadata of a run that ended with `end`, its last sample at `last_t`.
+fn run_end_map(end: &RunEnd, last_t: Option<f64>) -> BTreeMap<String, String> {
+    let (status, t, joint) = match end {
+        RunEnd::Completed => ("completed", last_t, None),
+        RunEnd::Interrupted { t } => ("interrupted", Some(*t), None),
+        RunEnd::Diverged { t, joint } => ("diverged", Some(*t), Some(joint.clone())),
+    };
+    let mut map = BTreeMap::from([("status".to_string(), status.to_string())]);
+    if let Some(t) = t {
+        map.insert("t".into(), format!("{t}"));
+    }
+    if let Some(j) = joint {
+        map.insert("joint".into(), j);
+    }
+    map
 }
 
 impl Sink for McapSink {
@@ -472,7 +483,8 @@ impl Drop for McapSink {
 
 /// Writes a whole run as an MCAP file (zstd chunks; no run-end status). Stamps are
 /// `run.start_ns + t` when the run has a start, else `t`, to the nanosecond, so a log read and
-/// written again keeps its stamps exactly.
+/// written again keeps its stamps exactly. A servo run's drive signals (duty, torque enable,
+/// temperature, supply voltage) go on the servo topics of [`RunTopics::default`] (lz4 chunks).
 ///
 /// # Errors
 /// [`Error::Write`](crate::Error::Write) when the file cannot be written or the run's matrices
@@ -499,6 +511,18 @@ pub fn write_mcap_ended(run: &Run, path: &Path, end: &simgap_sim::RunEnd) -> Res
 }
 
 fn write_mcap_rows(run: &Run, path: &Path, options: SinkOptions, end: Option<&simgap_sim::RunEnd>) -> Result<()> {
+    if !run.drive.is_empty() {
+        // a servo run: every topic through the plain writer, which writes the drive's as well
+        let mut w = McapWriter::create(path)?;
+        if let Some(e) = &run.experiment {
+            w.metadata(EXPERIMENT_METADATA, experiment_to_map(e))?;
+        }
+        w.write_run(run, &RunTopics::default(), None)?;
+        if let Some(end) = end {
+            w.metadata(RUN_END_METADATA, run_end_map(end, run.t.last().copied()))?;
+        }
+        return w.finish();
+    }
     let mut sink = McapSink::create_with_options(path, options)?;
     sink.set_start_ns(run.start_ns.unwrap_or(0));
     sink.begin_with(&run.joints, run.experiment.as_ref())?;
@@ -537,11 +561,20 @@ pub struct RunTopics {
     pub reference: Option<String>,
     /// Torque the drives report, when the run has it (`None`: not written).
     pub measured_effort: Option<String>,
+    /// A servo's duty, torque enable and temperature (JointState efforts, one per joint) and
+    /// supply voltage (a JointState with the one effort `voltage`), each when the run has it
+    /// (`None`: not written).
+    pub servo: [Option<String>; 4],
 }
 
 impl Default for RunTopics {
     fn default() -> Self {
-        RunTopics { states: JOINT_STATES_TOPIC.into(), reference: Some(JOINT_REFERENCE_TOPIC.into()), measured_effort: Some(JOINT_EFFORT_MEASURED_TOPIC.into()) }
+        RunTopics {
+            states: JOINT_STATES_TOPIC.into(),
+            reference: Some(JOINT_REFERENCE_TOPIC.into()),
+            measured_effort: Some(JOINT_EFFORT_MEASURED_TOPIC.into()),
+            servo: [SERVO_DUTY_TOPIC, SERVO_TORQUE_ENABLE_TOPIC, SERVO_TEMPERATURE_TOPIC, SERVO_VOLTAGE_TOPIC].map(|t| Some(t.to_string())),
+        }
     }
 }
 
@@ -620,6 +653,13 @@ impl McapWriter {
         if let (Some(t), false) = (&topics.measured_effort, run.tau_measured.is_empty()) {
             streams.push((MEASURED, t.as_str()));
         }
+        let d = &run.drive;
+        for (i, (topic, signal)) in topics.servo.iter().zip([&d.duty, &d.torque_enable, &d.temperature, &d.voltage]).enumerate() {
+            if let (Some(t), false) = (topic, signal.is_empty()) {
+                streams.push((SERVO + i as u8, t.as_str()));
+            }
+        }
+        let voltage = ["voltage".to_string()];
         for (kind, topic) in streams {
             let mut buf = std::mem::take(&mut self.buf);
             let w = self.writer()?;
@@ -632,7 +672,12 @@ impl McapWriter {
                     REFERENCE => {
                         encode_joint_state_into(&mut buf, ns, &run.joints, &run.q_ref[row(&run.q_ref, k)], &run.qd_ref[row(&run.qd_ref, k)], &run.tau_ff[row(&run.tau_ff, k)])
                     }
-                    _ => encode_joint_state_into(&mut buf, ns, &run.joints, &[], &[], &run.tau_measured[row(&run.tau_measured, k)]),
+                    MEASURED => encode_joint_state_into(&mut buf, ns, &run.joints, &[], &[], &run.tau_measured[row(&run.tau_measured, k)]),
+                    SERVO_VOLTAGE => encode_joint_state_into(&mut buf, ns, &voltage, &[], &[], d.voltage.get(k..k + 1).unwrap_or(&[])),
+                    _ => {
+                        let signal = [&d.duty, &d.torque_enable, &d.temperature][(kind - SERVO) as usize];
+                        encode_joint_state_into(&mut buf, ns, &run.joints, &[], &[], &signal[row(signal, k)])
+                    }
                 }
                 let time = ns.max(0) as u64;
                 let header = MessageHeader { channel_id: channel, sequence: k as u32, log_time: time, publish_time: time };
