@@ -3,7 +3,7 @@
 //! constant-velocity floor) and its notes: how a figure quoted for one scenario is reproduced.
 //!
 //! `cargo run --release --example selfcheck_scenario -- SEED KIND INDEX [--link-side-torque]
-//! [--truth] [--steps] [--priors] [--write DIR]`
+//! [--truth] [--steps] [--priors] [--write DIR] [--score]`
 //!
 //! KIND is `cycle` for the scenarios of the cycle of 13 (INDEX as `simgap selfcheck` numbers
 //! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
@@ -12,7 +12,8 @@
 //! parameters and stops; `--steps` adds the selection's steps (each decision and why);
 //! `--priors` gives a servo scenario's logs the true motor constants as priors; `--write DIR`
 //! writes its fit and held-out logs there as CSV with their sidecars (`fit-<i>.csv`,
-//! `holdout-<i>.csv`), to be read or diagnosed with `simgap diagnose`.
+//! `holdout-<i>.csv`), to be read or diagnosed with `simgap diagnose`; `--score` scores the
+//! scenario by its family's rule, as `simgap selfcheck` does, and prints the rule and the verdict.
 
 use simgap::core::Formulation;
 use simgap::diag::{diagnose, drives, selfcheck, DiagnoseOptions};
@@ -20,7 +21,7 @@ use simgap::sim::controller::servo_keys;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps] [--priors] [--write DIR]";
+    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps] [--priors] [--write DIR] [--score]";
     let (Some(seed), Some(kind), Some(index)) = (args.first().and_then(|s| s.parse::<u64>().ok()), args.get(1), args.get(2).and_then(|s| s.parse::<usize>().ok())) else {
         eprintln!("{usage}");
         std::process::exit(2);
@@ -85,6 +86,15 @@ fn main() {
         println!("logs written to {}", dir.display());
     }
     if args.iter().any(|a| a == "--truth") {
+        return;
+    }
+    if args.iter().any(|a| a == "--score") {
+        let score = match kind.as_str() {
+            "cycle" => selfcheck::run_scenario(seed, index),
+            "drive" => selfcheck::run_drive_scenario(seed, index),
+            _ => selfcheck::run_servo_scenario(seed, index),
+        };
+        println!("found {:?}\n{}: {}", score.found, if score.right { "right" } else { "wrong" }, score.rule);
         return;
     }
     match diagnose(&scenario.diagnosis_model, Formulation::EulerLagrange, &scenario.fit, &scenario.holdout, &options, &mut |_| {}) {

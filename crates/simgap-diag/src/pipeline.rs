@@ -418,6 +418,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
                 .push_str(&format!("; not established{on}: its 95 % interval holds the value of no effect, and it is kept because the fit runs are predicted worse without it"));
         }
     }
+    // a servo's back-EMF correction the logs show only with the viscous friction says so
+    crate::vocabulary::back_emf::mark_damping_sums(model, &prep.fit_runs, &mut selected_effects);
     // report order: by how much each effect's removal would worsen prediction
     rank_selected(&scorer, &selection.terms, &mut selected_effects);
 

@@ -19,9 +19,10 @@
 //!
 //! with `a = kt/R`, `b = kt²/R` (so `kt = b/a`, `R = kt/a`), all five ≥ 0; the friction and
 //! rotor-inertia columns keep those effects out of the constants, and are left for the
-//! diagnosis to find. Runs with the drive disabled (a drop with torque off) tell the back-EMF
-//! `b` from viscous friction `c`; without any, `b` and `c` are one column and the report says
-//! the constants could not be separated. A drive held below the law by a limit is fitted with
+//! diagnosis to find. Runs that move the joint with its drive disabled (a drop with torque off)
+//! tell the back-EMF `b` from viscous friction `c`; without any (no drop, or a joint its
+//! friction holds through the drop), `b` and `c` are one column and the report says the
+//! constants could not be separated. A drive held below the law by a limit is fitted with
 //! the law clamped where that explains most of the residual ([`fit_constants`]).
 
 use simgap_core::{inverse_dynamics_into, Model, Workspace};
@@ -114,6 +115,22 @@ fn duty(run: &Run, p: &ServoParams, logged: bool, k: usize, j: usize) -> f64 {
     } else {
         (p.duty_gain[j] * (run.q_ref[k * n + j] - run.q[k * n + j])).clamp(-p.max_duty[j], p.max_duty[j])
     }
+}
+
+/// Whether `runs` (model-aligned) move joint `j` with its drive disabled for [`MIN_STALL`] or
+/// more, faster than [`REST_WIDTHS`] typical dry-friction widths (logged velocities): only then
+/// do they tell a servo's back-EMF from its viscous friction, which act alike while the drive
+/// is enabled.
+pub(crate) fn moves_with_drive_off<'a>(model: &Model, runs: impl IntoIterator<Item = &'a Run>, j: usize) -> bool {
+    let rest = REST_WIDTHS * super::width::typical(model.joints()[j].kind);
+    let moving: f64 = runs
+        .into_iter()
+        .map(|run| {
+            let n = run.dof();
+            (0..run.len().saturating_sub(1)).filter(|&k| !run.drive.enabled(k, j, n) && run.qd[k * n + j].abs() >= rest).map(|k| run.t[k + 1] - run.t[k]).sum::<f64>()
+        })
+        .sum();
+    moving >= MIN_STALL
 }
 
 /// Share of `max_duty` from which a duty counts as full.
@@ -271,9 +288,14 @@ pub(crate) fn fit_constants(model: &Model, runs: &[(&Run, Vec<f64>)], window: f6
             }
         }
         let (a, b) = (theta[0], theta[1]);
-        if !rows[j].iter().any(|row| row.enabled < 0.5) {
+        if !moves_with_drive_off(model, runs.iter().map(|(r, _)| *r), j) {
+            let why = if rows[j].iter().any(|row| row.enabled < 0.5) {
+                "the joint hardly moves while its drive is disabled in the fit logs"
+            } else {
+                "the drive is never disabled in the fit logs"
+            };
             notes.push(format!(
-                "{}: the drive is never disabled in the fit logs, so its back-EMF kt²/R and viscous friction act alike; the fitted kt and R split them as the least-squares fit does, not as the data decide",
+                "{}: {why}, so its back-EMF kt²/R and viscous friction act alike; the fitted kt and R split them as the least-squares fit does, not as the data decide",
                 names[j]
             ));
         }

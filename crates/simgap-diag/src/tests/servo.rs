@@ -284,3 +284,42 @@ fn on_a_two_servo_arm_the_constants_fit_clamps_only_the_limited_joint() {
         assert!((drive / drive0 - 1.0).abs() < 0.1 && (emf / emf0 - 1.0).abs() < 0.1, "joint {j}: kt/R = {drive} ({drive0}), kt²/R = {emf} ({emf0}); notes: {:?}", c.notes);
     }
 }
+
+/// Back-EMF is told from viscous friction only where a log moves the joint with its drive
+/// disabled for a tenth of a second or more: a joint its friction holds through a torque-off
+/// drop, or one that slips for less, shows the two only as their sum.
+#[test]
+fn only_a_joint_that_moves_with_its_drive_disabled_tells_back_emf_from_viscous_friction() {
+    use crate::prepare::servo::moves_with_drive_off;
+    let model = Model::from_urdf_str(PENDULUM_URDF).unwrap();
+    // 2 s at 200 Hz, the drive off from 1 s on; after the switch the joint swings at `speed`
+    // rad/s for `slip` seconds, then rests
+    let run = |speed: f64, slip: f64| -> Run {
+        let mut r = Run::new(vec!["hinge".into()]);
+        r.t = (0..401).map(|k| k as f64 * PERIOD).collect();
+        r.qd =
+            r.t.iter()
+                .map(|&t| {
+                    if t < 1.0 {
+                        0.5
+                    } else if t < 1.0 + slip {
+                        speed
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+        r.q = vec![0.0; r.t.len()];
+        r.drive.torque_enable = r.t.iter().map(|&t| if t < 1.0 { 1.0 } else { 0.0 }).collect();
+        r
+    };
+    assert!(moves_with_drive_off(&model, &[run(1.0, 0.5)], 0), "a drop that swings for 0.5 s");
+    assert!(!moves_with_drive_off(&model, &[run(0.0, 0.5)], 0), "a joint held through the drop");
+    assert!(!moves_with_drive_off(&model, &[run(0.01, 0.5)], 0), "a creep below five dry-friction widths");
+    assert!(!moves_with_drive_off(&model, &[run(1.0, 0.05)], 0), "a slip of 0.05 s");
+    assert!(moves_with_drive_off(&model, &[run(1.0, 0.06), run(-1.0, 0.06)], 0), "two slips of 0.06 s add up");
+    // a drive that is never disabled tells nothing, however the joint moves
+    let mut on = run(1.0, 0.5);
+    on.drive.torque_enable.clear();
+    assert!(!moves_with_drive_off(&model, &[on], 0));
+}

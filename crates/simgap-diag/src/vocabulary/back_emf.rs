@@ -8,7 +8,7 @@
 //! whose drive some fit run disables. Physical range: the total back-EMF stays ≥ 0, so `kb ≥
 //! −kt²/R` of the servo's nominal law (≥ 0 on another drive).
 
-use simgap_sim::Effect;
+use simgap_sim::{Effect, EffectKind};
 
 use super::effects::list_per_joint;
 use super::{per_joint, EffectReport, TermDesign};
@@ -37,4 +37,25 @@ pub(super) fn apply(j: usize, theta: &[f64], n: usize, out: &mut Vec<Effect>) {
 /// The back-EMF in words.
 pub(super) fn describe(e: &EffectReport) -> String {
     format!("back-EMF while the drive is enabled {}", list_per_joint(e, "kb"))
+}
+
+/// Marks, in its description, each selected back-EMF correction on a servo joint that no fit
+/// run moves with its drive disabled ([`moves_with_drive_off`](crate::prepare::servo::moves_with_drive_off)):
+/// there the back-EMF and the viscous friction act alike, so the logs show only their sum and
+/// the split between the two is not established.
+pub(crate) fn mark_damping_sums(model: &simgap_core::Model, fit_runs: &[simgap_sim::Run], selected: &mut [EffectReport]) {
+    if !fit_runs.iter().any(crate::prepare::servo::is_servo) {
+        return;
+    }
+    let names = model.joint_names();
+    for e in selected.iter_mut().filter(|e| matches!(e.effect.parse::<EffectKind>(), Ok(EffectKind::BackEmf))) {
+        let alike: Vec<String> =
+            e.joints.iter().filter(|j| names.iter().position(|n| n == *j).is_some_and(|i| !crate::prepare::servo::moves_with_drive_off(model, fit_runs, i))).cloned().collect();
+        if !alike.is_empty() {
+            e.description.push_str(&format!(
+                "; on {} no fit log moves the joint with its drive disabled, so the logs show this back-EMF only with the viscous friction, as their sum: the split between the two is not established",
+                alike.join(", ")
+            ));
+        }
+    }
 }
