@@ -998,16 +998,17 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
                 let selected = value.and_then(|e| crate::vocabulary::effects::per_joint(e, "b").into_iter().find(|(at, _)| *at == names[j]).map(|(_, v)| v)).unwrap_or(0.0);
                 (hidden, selected)
             };
+            let summed: Vec<usize> = (0..names.len()).filter(|&j| !crate::prepare::servo::moves_with_drive_off(&sc.model, &sc.fit, j)).collect();
             let constants = match (spec, &d.report.servo) {
                 (Some(spec), Some(rep)) => (0..spec.kt.len())
                     .map(|j| {
                         let (kt, r) = (rep.effective.kt[j], rep.effective.r[j]);
                         let (b, b_true) = (kt * kt / r, spec.kt[j] * spec.kt[j] / spec.r[j]);
-                        let damping = if crate::prepare::servo::moves_with_drive_off(&sc.model, &sc.fit, j) {
-                            (b / b_true - 1.0).abs()
-                        } else {
+                        let damping = if summed.contains(&j) {
                             let (c_true, c) = viscous(j);
                             ((b + c) / (b_true + c_true) - 1.0).abs()
+                        } else {
+                            (b / b_true - 1.0).abs()
                         };
                         ((kt / r) / (spec.kt[j] / spec.r[j]) - 1.0).abs().max(damping)
                     })
@@ -1015,10 +1016,16 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
                 _ => f64::INFINITY,
             };
             let ok = (mechanical == truth || in_alternatives) && constants <= 0.15 && most_torque.is_none_or(|e| e <= 0.15);
+            let sum = if summed.is_empty() {
+                String::new()
+            } else {
+                let on: Vec<&str> = summed.iter().map(|&j| names[j]).collect();
+                format!(" (on {}, which no fit log moves with its drive off, kt²/R plus the viscous friction)", on.join(", "))
+            };
             (
                 ok,
                 format!(
-                    "the mechanical effects {} the hidden ones; motor constants kt/R and kt²/R (with the viscous friction, on a joint no fit log moves with its drive off) within {:.1} % (15 % allowed){}",
+                    "the mechanical effects {} the hidden ones; motor constants kt/R and kt²/R{sum} within {:.1} % (15 % allowed){}",
                     if mechanical == truth { "are" } else { "are not" },
                     100.0 * constants,
                     most_torque.map_or(String::new(), |e| format!("; the most torque the drive delivers within {:.1} % of the hidden limit (15 % allowed)", 100.0 * e))
