@@ -658,8 +658,8 @@ pub(crate) fn read_csv_auto_warned(path: &Path, warnings: &mut Vec<String>) -> R
 
 /// Writes a run as CSV in the generic convention (gzip-compressed when the name ends in
 /// `.gz`), a servo's drive signals included (`duty_<joint>`, `torque_enable_<joint>`,
-/// `temperature_<joint>`, `voltage`). Numbers are written in shortest round-trip form, so reading gives back the same
-/// values. Absolute runs (`start_ns` set) get absolute times in the file. The experiment is
+/// `temperature_<joint>`, `voltage`). Numbers are written in shortest round-trip form, so
+/// reading gives back the same values. Absolute runs (`start_ns` set) get absolute times in the file. The experiment is
 /// not written (see [`write_experiment_file`](crate::experiment::write_experiment_file)).
 ///
 /// # Errors
