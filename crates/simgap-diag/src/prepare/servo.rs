@@ -118,20 +118,34 @@ fn duty(run: &Run, p: &ServoParams, logged: bool, k: usize, j: usize) -> f64 {
 }
 
 /// Whether `runs` (model-aligned) move joint `j` with its drive disabled for [`MIN_STALL`] or
-/// more, faster than [`REST_WIDTHS`] typical dry-friction widths (logged velocities): only then
-/// do they tell a servo's back-EMF from its viscous friction, which act alike while the drive
-/// is enabled.
+/// more, faster than [`REST_WIDTHS`] typical dry-friction widths: only then do they tell a
+/// servo's back-EMF from its viscous friction, which act alike while the drive is enabled. The
+/// speed is the logged position's change over [`MOTION_SPAN`] or more (a count's flicker on a
+/// 4096-count encoder moves it 0.03 rad/s there, below the 0.05 rad/s of a turning joint).
 pub(crate) fn moves_with_drive_off<'a>(model: &Model, runs: impl IntoIterator<Item = &'a Run>, j: usize) -> bool {
     let rest = REST_WIDTHS * super::width::typical(model.joints()[j].kind);
-    let moving: f64 = runs
-        .into_iter()
-        .map(|run| {
-            let n = run.dof();
-            (0..run.len().saturating_sub(1)).filter(|&k| !run.drive.enabled(k, j, n) && run.qd[k * n + j].abs() >= rest).map(|k| run.t[k + 1] - run.t[k]).sum::<f64>()
-        })
-        .sum();
+    let mut moving = 0.0;
+    for run in runs {
+        let (n, len) = (run.dof(), run.len());
+        // `end`: the first sample at least MOTION_SPAN after `k`
+        let mut end = 0;
+        for k in 0..len.saturating_sub(1) {
+            end = end.max(k + 1);
+            while end < len - 1 && run.t[end] - run.t[k] < MOTION_SPAN {
+                end += 1;
+            }
+            let off = (k..=end).all(|i| !run.drive.enabled(i, j, n));
+            let dt = run.t[end] - run.t[k];
+            if off && dt >= MOTION_SPAN && (run.q[end * n + j] - run.q[k * n + j]).abs() >= rest * dt {
+                moving += run.t[k + 1] - run.t[k];
+            }
+        }
+    }
     moving >= MIN_STALL
 }
+
+/// The span [s] over which [`moves_with_drive_off`] measures a joint's speed.
+const MOTION_SPAN: f64 = 0.05;
 
 /// Share of `max_duty` from which a duty counts as full.
 const FULL_DUTY: f64 = 0.99;

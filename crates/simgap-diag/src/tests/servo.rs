@@ -292,30 +292,43 @@ fn on_a_two_servo_arm_the_constants_fit_clamps_only_the_limited_joint() {
 fn only_a_joint_that_moves_with_its_drive_disabled_tells_back_emf_from_viscous_friction() {
     use crate::prepare::servo::moves_with_drive_off;
     let model = Model::from_urdf_str(PENDULUM_URDF).unwrap();
-    // 2 s at 200 Hz, the drive off from 1 s on; after the switch the joint swings at `speed`
-    // rad/s for `slip` seconds, then rests
+    // 2 s at 200 Hz, the drive off from 1 s on; after the switch the joint turns at `speed`
+    // rad/s for `slip` seconds, then rests; its positions through a 4096-count encoder
     let run = |speed: f64, slip: f64| -> Run {
         let mut r = Run::new(vec!["hinge".into()]);
         r.t = (0..401).map(|k| k as f64 * PERIOD).collect();
-        r.qd =
+        let qd = |t: f64| {
+            if t < 1.0 {
+                0.5
+            } else if t < 1.0 + slip {
+                speed
+            } else {
+                0.0
+            }
+        };
+        let count = std::f64::consts::TAU / 4096.0;
+        let mut q = 0.0;
+        r.q =
             r.t.iter()
                 .map(|&t| {
-                    if t < 1.0 {
-                        0.5
-                    } else if t < 1.0 + slip {
-                        speed
-                    } else {
-                        0.0
-                    }
+                    q += qd(t) * PERIOD;
+                    (q / count).round() * count
                 })
                 .collect();
-        r.q = vec![0.0; r.t.len()];
+        r.qd = r.t.iter().map(|&t| qd(t)).collect();
         r.drive.torque_enable = r.t.iter().map(|&t| if t < 1.0 { 1.0 } else { 0.0 }).collect();
         r
     };
     assert!(moves_with_drive_off(&model, &[run(1.0, 0.5)], 0), "a drop that swings for 0.5 s");
     assert!(!moves_with_drive_off(&model, &[run(0.0, 0.5)], 0), "a joint held through the drop");
     assert!(!moves_with_drive_off(&model, &[run(0.01, 0.5)], 0), "a creep below five dry-friction widths");
+    // a joint at rest whose encoder flickers by a count every other sample
+    let mut flicker = run(0.0, 0.5);
+    let count = std::f64::consts::TAU / 4096.0;
+    for (k, q) in flicker.q.iter_mut().enumerate() {
+        *q += if k % 2 == 1 { count } else { 0.0 };
+    }
+    assert!(!moves_with_drive_off(&model, &[flicker], 0), "an encoder's flicker at rest");
     assert!(!moves_with_drive_off(&model, &[run(1.0, 0.05)], 0), "a slip of 0.05 s");
     assert!(moves_with_drive_off(&model, &[run(1.0, 0.06), run(-1.0, 0.06)], 0), "two slips of 0.06 s add up");
     // a drive that is never disabled tells nothing, however the joint moves
