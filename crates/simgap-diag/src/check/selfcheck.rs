@@ -907,15 +907,18 @@ pub fn run_drive_scenario(seed: u64, index: usize) -> ScenarioScore {
 /// gain; no limit selected is an infinite error); `None` without a hidden limit.
 fn most_torque_error(joints: &[&str], hidden: &[Effect], selected: &[EffectReport]) -> Option<f64> {
     let limits = hidden.iter().find_map(|e| if let Effect::TorqueSaturation { limit } = e { Some(limit.clone()) } else { None })?;
-    let value = |name: &str, key: &str, j: usize| {
-        let e = selected.iter().find(|e| e.effect == name)?;
-        crate::vocabulary::effects::per_joint(e, key).into_iter().find(|(at, _)| *at == joints[j]).map(|(_, v)| v).filter(|v| v.is_finite())
-    };
+    let value = |name: &str, key: &str, j: usize| selected_value(selected, name, key, joints[j]).filter(|v| v.is_finite());
     let errors = limits.iter().enumerate().filter(|(_, l)| l.is_finite()).map(|(j, l)| match value("torque_saturation", "limit", j) {
         Some(fitted) => (fitted * value("torque_gain", "k", j).unwrap_or(1.0) / l - 1.0).abs(),
         None => f64::INFINITY,
     });
     Some(errors.fold(0.0, f64::max))
+}
+
+/// The value of parameter `key` of the selected `effect` on `joint`, if selected there.
+fn selected_value(selected: &[EffectReport], effect: &str, key: &str, joint: &str) -> Option<f64> {
+    let e = selected.iter().find(|e| e.effect == effect)?;
+    crate::vocabulary::effects::per_joint(e, key).into_iter().find(|(at, _)| *at == joint).map(|(_, v)| v)
 }
 
 /// The effects that, on a servo whose motor constants were fitted from its logs, correct those
@@ -994,8 +997,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
             // friction act alike and only their sum is in the logs: the sum is scored there
             let viscous = |j: usize| -> (f64, f64) {
                 let hidden = sc.effects.iter().find_map(|e| if let Effect::ViscousFriction { b } = e { Some(b[j]) } else { None }).unwrap_or(0.0);
-                let value = d.report.selected_effects.iter().find(|e| e.effect == "viscous_friction");
-                let selected = value.and_then(|e| crate::vocabulary::effects::per_joint(e, "b").into_iter().find(|(at, _)| *at == names[j]).map(|(_, v)| v)).unwrap_or(0.0);
+                let selected = selected_value(&d.report.selected_effects, "viscous_friction", "b", names[j]).unwrap_or(0.0);
                 (hidden, selected)
             };
             let summed: Vec<usize> = (0..names.len()).filter(|&j| !crate::prepare::servo::moves_with_drive_off(&sc.model, &sc.fit, j)).collect();
