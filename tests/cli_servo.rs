@@ -169,3 +169,101 @@ fn the_rhoban_servo_logs_are_diagnosed_and_the_held_out_trajectory_predicted_bet
         }
     }
 }
+
+/// `simgap simulate --controller servo` with the servo constants of these tests; `extra`
+/// appended.
+fn simulate_servo(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["simulate", "--urdf", PENDULUM, "--controller", "servo", "--duty-gain", "2", "--supply-voltage", "12", "--kt", "1.5", "--resistance", "1.5"];
+    args.extend(extra);
+    args.extend(["--out", out.to_str().unwrap()]);
+    simgap(&args)
+}
+
+#[test]
+fn a_simulated_servo_logs_what_a_servo_logs_and_its_friction_is_diagnosed_from_it() {
+    let d = scratch("simulated");
+    // three runs of the servo with viscous friction b = 0.5 N·m·s/rad, one of them in MCAP
+    let runs = [("a.csv", "0.6", "0.5"), ("b.mcap", "0.8", "0.3"), ("held.csv", "0.7", "0.4")];
+    for (name, amplitude, hz) in runs {
+        let fourier = format!("amplitude={amplitude};frequency={hz}");
+        let o = simulate_servo(
+            &d.join(name),
+            &["--fourier", &fourier, "--target", "0.6", "--duration", "6", "--sample-period", "0.005", "--counts-per-rev", "4096", "--effect", "viscous_friction:b=0.5"],
+        );
+        assert!(o.status.success(), "{name}: {}", text(&o));
+    }
+    // the CSV log holds the goal, the duty, the torque enable and the voltage, and no torque
+    let csv = std::fs::read_to_string(d.join("a.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header, ["time", "q_hinge", "qd_hinge", "q_ref_hinge", "qd_ref_hinge", "duty_hinge", "torque_enable_hinge", "voltage"]);
+    // every duty is the firmware's clip(duty_gain (goal − q), ±1) on the measured position
+    let mut saturated = 0;
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let duty = (2.0 * (v[3] - v[1])).clamp(-1.0, 1.0);
+        assert!((v[5] - duty).abs() < 1e-12, "t = {}: duty {} against {duty}", v[0], v[5]);
+        assert_eq!((v[6], v[7]), (1.0, 12.0), "t = {}", v[0]);
+        saturated += usize::from(v[5].abs() == 1.0);
+    }
+    assert!(saturated > 0, "the run never saturates the duty: the test would not see the clip");
+    // the sidecar says what was simulated: a servo with its constants
+    let exp: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("a.experiment.json")).unwrap()).unwrap();
+    assert_eq!((exp["controller"].as_str(), exp["duty_gain"].as_str(), exp["kt"].as_str(), exp["R"].as_str()), (Some("servo"), Some("2"), Some("1.5"), Some("1.5")));
+    // diagnosed from the logs alone (CSV and MCAP), the friction is found and the held-out
+    // run predicted
+    let json = d.join("report.json");
+    let [a, b, held] = ["a.csv", "b.mcap", "held.csv"].map(|n| d.join(n).display().to_string());
+    let o = simgap(&["diagnose", "--urdf", PENDULUM, "--log", &a, "--log", &b, "--holdout", &held, "--json", json.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let selected = r["selected_effects"].as_array().unwrap();
+    let viscous = selected.iter().find(|e| e["effect"] == "viscous_friction").unwrap_or_else(|| panic!("no viscous friction selected:\n{}", text(&o)));
+    let b = viscous["parameters"]["b"][0].as_f64().unwrap();
+    assert!((b - 0.5).abs() < 0.025, "b = {b} against 0.5\n{}", text(&o));
+    let k = &r["gap"]["kstep"];
+    let (after, before) = (k["after"][2].as_f64().unwrap(), k["before"][2].as_f64().unwrap());
+    assert!(after < 0.1 * before, "held-out 0.5 s error {after} against {before} before\n{}", text(&o));
+}
+
+#[test]
+fn a_servo_simulation_without_its_constants_or_with_a_pd_gain_is_refused_naming_the_flag() {
+    let d = scratch("simulate-refused");
+    let out = d.join("x.csv");
+    let cases: [(&[&str], &str); 4] = [
+        (&["simulate", "--urdf", PENDULUM, "--controller", "servo", "--supply-voltage", "12", "--kt", "1", "--resistance", "1", "--target", "0.3"], "--duty-gain"),
+        (&["simulate", "--urdf", PENDULUM, "--controller", "servo", "--duty-gain", "2", "--supply-voltage", "12", "--kt", "1", "--target", "0.3"], "--resistance"),
+        (
+            &[
+                "simulate",
+                "--urdf",
+                PENDULUM,
+                "--controller",
+                "servo",
+                "--duty-gain",
+                "2",
+                "--supply-voltage",
+                "12",
+                "--kt",
+                "1",
+                "--resistance",
+                "1",
+                "--kp",
+                "3",
+                "--target",
+                "0.3",
+            ],
+            "--kp",
+        ),
+        (&["simulate", "--urdf", PENDULUM, "--controller", "pd", "--kp", "3", "--kv", "1", "--kt", "1", "--target", "0.3"], "--kt"),
+    ];
+    for (args, flag) in cases {
+        let mut args = args.to_vec();
+        args.extend(["--out", out.to_str().unwrap()]);
+        let o = simgap(&args);
+        assert!(!o.status.success() && text(&o).contains(flag), "{args:?}: expected an error naming {flag}:\n{}", text(&o));
+        assert!(!out.exists(), "{args:?}: a refused run wrote {}", out.display());
+    }
+    let o = simulate_servo(&out, &["--max-duty", "1.5", "--target", "0.3"]);
+    assert!(!o.status.success() && text(&o).contains("--max-duty") && text(&o).contains("(0, 1]"), "{}", text(&o));
+}

@@ -378,7 +378,7 @@ def simulate(
     model: Model,
     reference: Run | _ArrayLike,
     *,
-    controller: Literal["pd", "pd_gravity", "replay"] | None = None,
+    controller: Literal["pd", "pd_gravity", "replay", "servo"] | None = None,
     kp: _ArrayLike | None = None,
     kv: _ArrayLike | None = None,
     replay: Run | None = None,
@@ -415,7 +415,11 @@ def simulate(
     0, sample period 2.5 ms.
 
     ``controller``: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
-    g(q)) or "replay" (the logged effort of ``replay``, default the reference run, open loop).
+    g(q)), "replay" (the logged effort of ``replay``, default the reference run, open loop) or
+    "servo" (a position-controlled servo with the constants of the reference run's experiment,
+    ``duty_gain``, ``max_duty``, ``supply_voltage``, ``kt``, ``R``, reading the run's logged
+    torque enable and voltage; the returned run holds its duty, torque enable and voltage
+    besides the command τ = (kt/R) V duty).
     ``kp``, ``kv``: gains, shape (dof,), in model order. ``effects``: unmodelled effects in the
     CLI spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".
     ``integrator``: "rk4" (``substeps`` steps per sample, raised automatically for stiff

@@ -451,8 +451,11 @@ fn joint_vector(name: &str, arr: &ArrayArg<'_>, dof: usize) -> PyResult<Vec<f64>
 /// run's (its first sample, its experiment).
 ///
 /// `controller`: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
-/// g(q)) or "replay" (the logged effort of `replay`, default the reference run, open loop).
-/// `kp`, `kv`: gains, shape (dof,), in model order. `effects`: unmodelled effects in the CLI
+/// g(q)), "replay" (the logged effort of `replay`, default the reference run, open loop) or
+/// "servo" (a position-controlled servo with the constants of the reference run's experiment,
+/// `duty_gain`, `max_duty`, `supply_voltage`, `kt`, `R`, reading the run's logged torque enable
+/// and voltage; the returned run holds its duty, torque enable and voltage besides the
+/// command τ = (kt/R) V duty). `kp`, `kv`: gains, shape (dof,), in model order. `effects`: unmodelled effects in the CLI
 /// spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".
 /// `coulomb_width` [rad/s or m/s]: the width `w` of sign(q̇) ≈ tanh(q̇/w) for every dry
 /// friction spelled without its own `w` (0: the exact sign); a `w` in the spelling wins.
@@ -553,9 +556,10 @@ pub(crate) fn simulate(
         (_, None, None, Some(e)) => Experiment { controller: kind, sample_period: period, ..e.clone() },
         _ => return Err(bad("gains", "expected both kp and kv (or a reference run whose experiment has them)".into())),
     };
+    // the run the controller reads: a replay's efforts, a servo's torque enable and voltage
     let replay = match (kind, replay) {
         (ControllerKind::Replay, Some(r)) => Some(r.run.clone()),
-        (ControllerKind::Replay, None) => reference_run.clone(),
+        (ControllerKind::Replay | ControllerKind::Servo, None) => reference_run.clone(),
         _ => None,
     };
 

@@ -81,3 +81,22 @@ def test_a_servo_run_written_and_read_back_keeps_its_drive_signals(tmp_path: Pat
     np.testing.assert_array_equal(back.voltage, a["voltage"])
     np.testing.assert_array_equal(back.temperature, a["temperature"])
     np.testing.assert_array_equal(back.q_ref, a["q_ref"])
+
+
+def test_a_servo_simulated_from_its_log_logs_its_duty_enable_and_voltage() -> None:
+    # a servo log with its motor constants: the simulator drives the servo with the logged goal
+    # and torque enable (off from 1.5 s), and the run it returns holds what a servo logs
+    a = servo_arrays()
+    experiment = {"controller": "servo", "joints": "hinge", "duty_gain": "2", "supply_voltage": "12", "kt": "1.5", "R": "1.5", "sample_period": "0.005"}
+    log = Run(["hinge"], a["t"], a["q"], a["qd"], q_ref=a["q_ref"], torque_enable=a["torque_enable"], experiment=experiment)
+    run = simgap.simulate(simgap.Model.from_urdf(PENDULUM), log, effects=["viscous_friction:b=0.5"])
+    assert run.experiment["controller"] == "servo"
+    on = a["torque_enable"][:, 0] > 0.5
+    np.testing.assert_array_equal(run.torque_enable, a["torque_enable"])
+    np.testing.assert_array_equal(run.voltage, np.full(len(a["t"]), 12.0))
+    # the duty is the firmware's P law on the measured position while enabled, 0 while not
+    expected = np.where(on, np.clip(2.0 * (run.q_ref[:, 0] - run.q[:, 0]), -1, 1), 0.0)
+    np.testing.assert_allclose(run.duty[:, 0], expected, rtol=0, atol=1e-12)
+    # and the command is its voltage part, (kt / R) V duty
+    np.testing.assert_allclose(run.tau[:, 0], 1.5 / 1.5 * 12.0 * expected, rtol=1e-12, atol=1e-12)
+    assert np.ptp(run.duty[on]) > 0.1 and not np.any(run.duty[~on])

@@ -14,9 +14,29 @@ use simgap::sim::{
 pub(crate) struct Args {
     #[command(flatten)]
     model: super::ModelArgs,
-    /// Controller: pd or pd_gravity (gravity from the nominal model, without effects).
+    /// Controller: pd, pd_gravity (gravity from the nominal model, without effects) or servo
+    /// (a position-controlled servo: duty = clip(duty_gain (q_ref − q), ±max_duty), torque
+    /// (kt/R) (V duty − kt q̇); its log holds the duty, torque enable and voltage, no torque).
     #[arg(long, default_value = "pd")]
     controller: String,
+    /// Servo: duty per unit of position error [1/rad or 1/m], comma-separated in model order.
+    #[arg(long)]
+    duty_gain: Option<String>,
+    /// Servo: largest duty magnitude in (0, 1], comma-separated (default 1).
+    #[arg(long)]
+    max_duty: Option<String>,
+    /// Servo: supply voltage [V].
+    #[arg(long)]
+    supply_voltage: Option<f64>,
+    /// Servo: motor torque constant through the gearbox [N·m/A or N/A], comma-separated.
+    #[arg(long)]
+    kt: Option<String>,
+    /// Servo: winding resistance R [Ω], comma-separated.
+    #[arg(long)]
+    resistance: Option<String>,
+    /// Servo: largest rate of the goal [rad/s or m/s] (default: none).
+    #[arg(long)]
+    goal_rate_limit: Option<f64>,
     /// Proportional gains [N·m/rad], comma-separated in model order (default: the paper's for
     /// the paper arm).
     #[arg(long)]
@@ -200,6 +220,52 @@ impl Sink for Counting<'_> {
     }
 }
 
+/// The servo constants' flags given on the command line.
+fn servo_flags(args: &Args) -> Vec<&'static str> {
+    let given = [
+        ("duty-gain", args.duty_gain.is_some()),
+        ("max-duty", args.max_duty.is_some()),
+        ("supply-voltage", args.supply_voltage.is_some()),
+        ("kt", args.kt.is_some()),
+        ("resistance", args.resistance.is_some()),
+        ("goal-rate-limit", args.goal_rate_limit.is_some()),
+    ];
+    given.into_iter().filter(|(_, g)| *g).map(|(f, _)| f).collect()
+}
+
+/// The servo of `--controller servo`, its constants checked flag by flag.
+fn servo(args: &Args, n: usize) -> anyhow::Result<simgap::sim::Servo> {
+    if args.kp.is_some() || args.kv.is_some() {
+        bail!("--kp and --kv are a PD controller's gains; a servo's loop is --duty-gain (duty per unit of position error)");
+    }
+    let required = |flag: &str, v: &Option<String>, what: &str| -> anyhow::Result<Vec<f64>> {
+        let s = v.as_deref().with_context(|| format!("--controller servo needs --{flag} ({what})"))?;
+        let values = parse_list(flag, s, n)?;
+        if let Some(x) = values.iter().find(|x| **x <= 0.0) {
+            bail!("--{flag}: {x}; expected positive numbers ({what})");
+        }
+        Ok(values)
+    };
+    let duty_gain = required("duty-gain", &args.duty_gain, "duty per unit of position error, one per joint")?;
+    let max_duty = match &args.max_duty {
+        Some(s) => parse_list("max-duty", s, n)?,
+        None => vec![1.0; n],
+    };
+    if let Some(x) = max_duty.iter().find(|x| !(**x > 0.0 && **x <= 1.0)) {
+        bail!("--max-duty: {x}; expected a duty in (0, 1]");
+    }
+    let volts = args.supply_voltage.context("--controller servo needs --supply-voltage (volts)")?;
+    if !(volts.is_finite() && volts > 0.0) {
+        bail!("--supply-voltage: {volts}; expected a positive number of volts");
+    }
+    let kt = required("kt", &args.kt, "torque constant [N·m/A], one per joint")?;
+    let r = required("resistance", &args.resistance, "winding resistance [Ω], one per joint")?;
+    if let Some(g) = args.goal_rate_limit.filter(|g| !(g.is_finite() && *g > 0.0)) {
+        bail!("--goal-rate-limit: {g}; expected a positive rate");
+    }
+    Ok(simgap::sim::Servo::new(duty_gain, max_duty, volts, kt, r, args.goal_rate_limit)?)
+}
+
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     use simgap::sim::paper;
     check_args(&args)?;
@@ -214,13 +280,17 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
             None => bail!("--{what} is required for a model other than the paper arm"),
         }
     };
-    let kp = gains("kp", &args.kp, &paper::KP)?;
-    let kv = gains("kv", &args.kv, &paper::KV)?;
     let mut controller: Box<dyn Controller> = match args.controller.as_str() {
-        "pd" => Box::new(Pd { kp, kv }),
-        "pd_gravity" => Box::new(PdGravity::new(kp, kv, model.clone())),
-        other => bail!("--controller: unknown '{other}'; expected pd or pd_gravity"),
+        "pd" => Box::new(Pd { kp: gains("kp", &args.kp, &paper::KP)?, kv: gains("kv", &args.kv, &paper::KV)? }),
+        "pd_gravity" => Box::new(PdGravity::new(gains("kp", &args.kp, &paper::KP)?, gains("kv", &args.kv, &paper::KV)?, model.clone())),
+        "servo" => Box::new(servo(&args, n)?),
+        other => bail!("--controller: unknown '{other}'; expected pd, pd_gravity or servo"),
     };
+    if args.controller != "servo" {
+        if let Some(flag) = servo_flags(&args).first() {
+            bail!("--{flag} is a servo's constant; it needs --controller servo (got {})", args.controller);
+        }
+    }
     let reference: Box<dyn Reference> = if args.fourier.is_empty() {
         let target = match &args.target {
             Some(s) => parse_list("target", s, n)?,

@@ -129,6 +129,29 @@ def test_simgap_simulate_log_opens_in_rosbags_and_mcap_ros2(tmp_path: Path) -> N
     assert "simgap.experiment" in meta
 
 
+def test_a_simulated_servo_log_opens_in_rosbags_and_mcap_ros2_with_its_drive_signals(tmp_path: Path) -> None:
+    out = tmp_path / "servo.mcap"
+    urdf = Path(__file__).resolve().parents[2] / "crates" / "simgap-core" / "models" / "pendulum.urdf"
+    servo = ["--controller", "servo", "--duty-gain", "2", "--supply-voltage", "12", "--kt", "1.5", "--resistance", "1.5"]
+    run_simgap("simulate", "--urdf", str(urdf), *servo, "--target", "0.6", "--duration", "0.5", "--out", str(out))
+    counts = open_with_ros2_tools(out, tmp_path)
+    assert {t: counts.get(t) for t in ["/joint_states", "/servo/duty", "/servo/torque_enable", "/servo/voltage"]} == dict.fromkeys(
+        ["/joint_states", "/servo/duty", "/servo/torque_enable", "/servo/voltage"], 201
+    ), counts
+    # decoded by rosbags: the duty is the firmware's clip(2 (goal − q), ±1), the servo logs no torque
+    with rosbags_highlevel.AnyReader([out]) as reader:
+        by_topic: dict[str, list] = {}
+        for connection, _timestamp, raw in reader.messages():
+            by_topic.setdefault(connection.topic, []).append(reader.deserialize(raw, connection.msgtype))
+    states, goals, duty = by_topic["/joint_states"], by_topic["/joint_reference"], by_topic["/servo/duty"]
+    for s, g, d in zip(states, goals, duty):
+        assert len(s.effort) == 0 and list(d.name) == ["hinge"]
+        assert d.effort[0] == pytest.approx(np.clip(2.0 * (g.position[0] - s.position[0]), -1, 1), abs=1e-12)
+    assert duty[0].effort[0] == 1.0, "the first sample's duty saturates (goal 0.6 rad away)"
+    assert all(list(v.name) == ["voltage"] and v.effort[0] == 12.0 for v in by_topic["/servo/voltage"])
+    assert all(e.effort[0] == 1.0 for e in by_topic["/servo/torque_enable"])
+
+
 def test_simgap_paper_logs_open_in_rosbags_and_mcap_ros2(tmp_path: Path) -> None:
     run_simgap("paper", "--out-dir", str(tmp_path))
     for name in ["paper_euler_lagrange.mcap", "paper_simplified.mcap"]:

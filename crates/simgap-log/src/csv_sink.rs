@@ -49,8 +49,8 @@ pub fn is_partial(path: &Path) -> bool {
     name.ends_with(".partial.csv") || name.ends_with(".partial.csv.gz")
 }
 
-/// Rows as the sink hands them over: per row the time, then q, q̇, τ, q_ref, q̇_ref (those
-/// present).
+/// Rows as the sink hands them over: per row the time, then q, q̇, τ, q_ref, q̇_ref, and a
+/// servo's duty, torque enable and voltage (those present).
 #[derive(Default)]
 struct Rows {
     values: Vec<f64>,
@@ -73,8 +73,9 @@ pub struct CsvSink {
     thread: Option<JoinHandle<std::result::Result<(), String>>>,
     recycled: Option<Receiver<Rows>>,
     joints: Vec<String>,
-    /// Values per row of τ, q_ref, q̇_ref: the joint count or 0, fixed by the first sample.
-    lens: Option<[usize; 3]>,
+    /// Values per row of τ, q_ref, q̇_ref, duty, torque enable (the joint count or 0) and
+    /// voltage (1 or 0), fixed by the first sample.
+    lens: Option<[usize; 6]>,
     rows: Rows,
     began: bool,
     finished: bool,
@@ -177,15 +178,20 @@ impl CsvSink {
     }
 
     /// Starts the writer thread with the header of these columns.
-    fn start(&mut self, lens: [usize; 3]) -> Result<()> {
+    fn start(&mut self, lens: [usize; 6]) -> Result<()> {
         let file = File::options().write(true).truncate(true).open(&self.partial).map_err(|e| write_error(&self.partial, e))?;
         let gz = self.path.to_string_lossy().to_lowercase().ends_with(".gz");
-        let blocks = [("q_", self.joints.len()), ("qd_", self.joints.len()), ("tau_", lens[0]), ("q_ref_", lens[1]), ("qd_ref_", lens[2])];
+        // the columns of `write_csv`, in its order
+        let dof = self.joints.len();
+        let blocks = [("q_", dof), ("qd_", dof), ("tau_", lens[0]), ("q_ref_", lens[1]), ("qd_ref_", lens[2]), ("duty_", lens[3]), ("torque_enable_", lens[4])];
         let mut header = vec!["time".to_string()];
         for (prefix, n) in blocks {
             if n > 0 {
                 header.extend(self.joints.iter().map(|j| format!("{prefix}{j}")));
             }
+        }
+        if lens[5] > 0 {
+            header.push("voltage".into());
         }
         let width = header.len();
         let (tx, rx) = sync_channel(QUEUED_BATCHES);
@@ -240,7 +246,7 @@ impl CsvSink {
             return Ok(());
         }
         // a run without samples still gets its header
-        let mut result = if self.lens.is_none() { self.start([0, 0, 0]) } else { Ok(()) };
+        let mut result = if self.lens.is_none() { self.start([0; 6]) } else { Ok(()) };
         if result.is_ok() {
             result = self.flush_rows();
         }
@@ -271,7 +277,12 @@ impl Sink for CsvSink {
             return Err(write_error(&self.path, "record before begin or after finishing").into());
         }
         let dof = self.joints.len();
-        let lens = [s.tau.len(), s.q_ref.len(), if s.q_ref.is_empty() { 0 } else { s.qd_ref.len() }];
+        // a servo logs its drive's duty, enable and voltage, and no torque
+        let (tau, duty, enable, voltage): (&[f64], &[f64], &[f64], &[f64]) = match &s.drive {
+            Some(d) => (&[], d.duty, d.torque_enable, std::slice::from_ref(&d.voltage)),
+            None => (s.tau, &[], &[], &[]),
+        };
+        let lens = [tau.len(), s.q_ref.len(), if s.q_ref.is_empty() { 0 } else { s.qd_ref.len() }, duty.len(), enable.len(), voltage.len()];
         let lens = match self.lens {
             Some(l) => l,
             None => {
@@ -279,18 +290,26 @@ impl Sink for CsvSink {
                 lens
             }
         };
-        for (what, v, n) in [("q", s.q, dof), ("qd", s.qd, dof), ("tau", s.tau, lens[0]), ("q_ref", s.q_ref, lens[1]), ("qd_ref", s.qd_ref, lens[2])] {
+        let arrays = [
+            ("q", s.q, dof),
+            ("qd", s.qd, dof),
+            ("tau", tau, lens[0]),
+            ("q_ref", s.q_ref, lens[1]),
+            ("qd_ref", s.qd_ref, lens[2]),
+            ("duty", duty, lens[3]),
+            ("torque_enable", enable, lens[4]),
+            ("voltage", voltage, lens[5]),
+        ];
+        for (what, v, n) in arrays {
             if v.len() != n && !(what == "qd_ref" && n == 0) {
                 return Err(write_error(&self.path, format!("sample at t = {} s: {what} has {} values; the log's columns hold {n}", s.t, v.len())).into());
             }
         }
         let r = &mut self.rows;
         r.values.push(s.t);
-        r.values.extend_from_slice(s.q);
-        r.values.extend_from_slice(s.qd);
-        r.values.extend_from_slice(s.tau);
-        r.values.extend_from_slice(s.q_ref);
-        r.values.extend_from_slice(&s.qd_ref[..lens[2]]);
+        for (what, v, n) in arrays {
+            r.values.extend_from_slice(if what == "qd_ref" { &v[..n] } else { v });
+        }
         r.rows += 1;
         if r.rows >= BATCH_ROWS {
             self.flush_rows()?;

@@ -243,7 +243,7 @@ fn drive(sink: &mut dyn Sink, run: &Run) {
     for k in 0..run.len() {
         let r = |m: &[f64]| m[k * n..(k + 1) * n].to_vec();
         let (q, qd, tau, q_ref, qd_ref) = (r(&run.q), r(&run.qd), r(&run.tau), r(&run.q_ref), r(&run.qd_ref));
-        sink.record(&Sample { t: run.t[k], q: &q, qd: &qd, tau: &tau, q_ref: &q_ref, qd_ref: &qd_ref }).unwrap();
+        sink.record(&Sample { t: run.t[k], q: &q, qd: &qd, tau: &tau, q_ref: &q_ref, qd_ref: &qd_ref, drive: None }).unwrap();
     }
 }
 

@@ -1,11 +1,12 @@
 //! A servo run's drive signals (duty, torque enable, temperature, supply voltage) survive a
-//! write and a read, in CSV and in MCAP: a log written by simgap loses nothing.
+//! write and a read, in CSV and in MCAP: a log written by simgap loses nothing; the sinks a
+//! simulation streams to write a servo's as it logs them.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use simgap_log::{read_log, write_log, LogOptions};
-use simgap_sim::{ControllerKind, Experiment, Run};
+use simgap_log::{read_log, write_log, CsvSink, LogOptions, McapSink};
+use simgap_sim::{ControllerKind, DriveSample, Experiment, Run, RunEnd, Sample, Sink};
 
 /// A folder of this test's own for `name`.
 fn tmp(name: &str) -> PathBuf {
@@ -63,4 +64,49 @@ fn a_servo_runs_drive_signals_survive_a_csv_round_trip() {
 #[test]
 fn a_servo_runs_drive_signals_survive_an_mcap_round_trip() {
     round_trip("servo.mcap");
+}
+
+/// The run streamed sample by sample through `sink`, as the simulator hands a servo's samples
+/// (its drive signals, and the command it does not log).
+fn stream(run: &Run, sink: &mut dyn Sink) {
+    let n = run.dof();
+    sink.begin(&run.joints, run.experiment.as_ref().unwrap()).unwrap();
+    for k in 0..run.len() {
+        let rows = |m: &[f64]| m[k * n..(k + 1) * n].to_vec();
+        let (q, qd, q_ref, duty, enable) = (rows(&run.q), rows(&run.qd), rows(&run.q_ref), rows(&run.drive.duty), rows(&run.drive.torque_enable));
+        let command: Vec<f64> = duty.iter().map(|d| 5.0 * d).collect();
+        let drive = Some(DriveSample { duty: &duty, torque_enable: &enable, voltage: run.drive.voltage[k] });
+        sink.record(&Sample { t: run.t[k], q: &q, qd: &qd, tau: &command, q_ref: &q_ref, qd_ref: &[0.0, 0.0], drive }).unwrap();
+    }
+    sink.finish(&RunEnd::Completed).unwrap();
+}
+
+fn streamed(name: &str) {
+    let run = servo_run();
+    let dir = tmp(&format!("stream-{name}"));
+    let path = dir.join(name);
+    if name.ends_with(".mcap") {
+        stream(&run, &mut McapSink::create(&path).unwrap());
+    } else {
+        stream(&run, &mut CsvSink::create(&path).unwrap());
+    }
+    let back = read_log(&path, &LogOptions::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!(back.drive.duty, run.drive.duty, "{name}: duty");
+    assert_eq!(back.drive.torque_enable, run.drive.torque_enable, "{name}: torque enable");
+    assert_eq!(back.drive.voltage, run.drive.voltage, "{name}: voltage");
+    assert!(back.drive.temperature.is_empty(), "{name}: a simulated servo has no temperature");
+    assert!(back.tau.is_empty(), "{name}: a servo logs no torque, got {} values", back.tau.len());
+    assert_eq!((back.q.clone(), back.q_ref.clone()), (run.q.clone(), run.q_ref.clone()), "{name}: positions and goal");
+    assert_eq!(back.experiment.as_ref().map(|e| e.controller), Some(ControllerKind::Servo), "{name}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_streamed_servo_run_is_written_as_a_servo_logs_it_in_csv() {
+    streamed("servo.csv");
+}
+
+#[test]
+fn a_streamed_servo_run_is_written_as_a_servo_logs_it_in_mcap() {
+    streamed("servo.mcap");
 }

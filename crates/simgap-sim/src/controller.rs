@@ -33,6 +33,13 @@ pub trait Controller {
         emf.fill(0.0);
     }
 
+    /// What the controller's drive logs of the sample the last [`Controller::torque`]
+    /// commanded: a position-controlled servo's duty, torque enable and supply voltage. The
+    /// default (a torque-controlled drive) logs none.
+    fn drive_sample(&self) -> Option<crate::run::DriveSample<'_>> {
+        None
+    }
+
     /// The `simgap.experiment` metadata describing this controller, for the sink.
     ///
     /// The default describes a replay (no gains).
@@ -312,6 +319,9 @@ pub struct Servo {
     goal: Vec<f64>,
     last_t: Option<f64>,
     enabled: Vec<f64>,
+    /// The duty applied over the last sample (0 where disabled) and the voltage it saw.
+    duty: Vec<f64>,
+    volts: f64,
 }
 
 impl Servo {
@@ -346,6 +356,8 @@ impl Servo {
             goal: vec![0.0; n],
             last_t: None,
             enabled: vec![1.0; n],
+            duty: vec![0.0; n],
+            volts: supply_voltage,
         })
     }
 
@@ -396,9 +408,15 @@ impl Controller for Servo {
             };
             self.enabled[i] = self.log_enable.get(k * n + i).map_or(1.0, |e| if *e > 0.5 { 1.0 } else { 0.0 });
             let duty = (self.duty_gain[i] * (self.goal[i] - q[i])).clamp(-self.max_duty[i], self.max_duty[i]);
+            self.duty[i] = self.enabled[i] * duty;
             out[i] = self.enabled[i] * self.kt[i] / self.r[i] * v * duty;
         }
+        self.volts = v;
         self.last_t = Some(t);
+    }
+
+    fn drive_sample(&self) -> Option<crate::run::DriveSample<'_>> {
+        Some(crate::run::DriveSample { duty: &self.duty, torque_enable: &self.enabled, voltage: self.volts })
     }
 
     fn drive(&self, enabled: &mut [f64], emf: &mut [f64]) {

@@ -20,8 +20,8 @@ pub mod step;
 
 pub use error::{Error, Result};
 pub use run::{
-    central_difference, experiment_from_map, experiment_to_map, fill_sample_period, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind, DriveSignals,
-    Experiment, Run, Sample,
+    central_difference, experiment_from_map, experiment_to_map, fill_sample_period, hold_rows, interpolate_rows, reorder_joints, validate_run, ControllerKind, DriveSample,
+    DriveSignals, Experiment, Run, Sample,
 };
 pub use sink::{MemorySink, RunEnd, Sink};
 

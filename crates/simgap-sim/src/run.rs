@@ -239,6 +239,22 @@ pub struct Sample<'a> {
     pub q_ref: &'a [f64],
     /// Reference velocities.
     pub qd_ref: &'a [f64],
+    /// What a position-controlled servo logs of its drive at this sample (`None` for a
+    /// torque-controlled drive).
+    pub drive: Option<DriveSample<'a>>,
+}
+
+/// The drive signals of a position-controlled servo at one sample, as it logs them (model
+/// order): the duty its bridge applies (0 while disabled), its torque enable (1 or 0) and the
+/// supply voltage [V].
+#[derive(Clone, Copy, Debug)]
+pub struct DriveSample<'a> {
+    /// Duty in [−1, 1] applied over the sample (0 while the drive is disabled).
+    pub duty: &'a [f64],
+    /// Torque enable, 1 or 0.
+    pub torque_enable: &'a [f64],
+    /// Supply voltage [V].
+    pub voltage: f64,
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -294,7 +294,8 @@ fn step_loop(
             return Ok(RunEnd::Diverged { t, joint: names[j].clone() });
         }
         let (q_meas, qd_meas) = stepper.measured();
-        sink.record(&Sample { t, q: q_meas, qd: qd_meas, tau: stepper.command_torque(), q_ref: &q_ref, qd_ref: &qd_ref })?;
+        let drive = controller.drive_sample();
+        sink.record(&Sample { t, q: q_meas, qd: qd_meas, tau: stepper.command_torque(), q_ref: &q_ref, qd_ref: &qd_ref, drive })?;
         *last_t = t;
         if k == intervals {
             break;

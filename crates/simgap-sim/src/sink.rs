@@ -98,6 +98,11 @@ impl Sink for MemorySink {
         run.tau.extend_from_slice(s.tau);
         run.q_ref.extend_from_slice(s.q_ref);
         run.qd_ref.extend_from_slice(s.qd_ref);
+        if let Some(d) = &s.drive {
+            run.drive.duty.extend_from_slice(d.duty);
+            run.drive.torque_enable.extend_from_slice(d.torque_enable);
+            run.drive.voltage.push(d.voltage);
+        }
         Ok(())
     }
 

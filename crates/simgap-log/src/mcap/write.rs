@@ -22,7 +22,7 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
 use mcap::records::{MessageHeader, Metadata};
-use simgap_sim::{experiment_to_map, Experiment, Run, RunEnd, Sample, Sink};
+use simgap_sim::{experiment_to_map, DriveSample, Experiment, Run, RunEnd, Sample, Sink};
 
 use super::cdr::{encode_joint_state_into, JointStateTemplate};
 use super::chunked::{ChunkBuf, ChunkCompression, ChunkedWriter, MessageTemplate};
@@ -71,21 +71,28 @@ impl Default for SinkOptions {
     }
 }
 
-/// The channels the sink writes, in the order of [`TOPICS`].
+/// The channels the sink writes, in the order of [`TOPICS`]: the joint states, reference and
+/// measured effort, and a servo's duty, torque enable and supply voltage.
 const STATES: u8 = 0;
 const REFERENCE: u8 = 1;
 const MEASURED: u8 = 2;
+const DUTY: u8 = 3;
+const ENABLE: u8 = 4;
+const VOLTAGE: u8 = 5;
+const TOPICS: [&str; 6] = [JOINT_STATES_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_EFFORT_MEASURED_TOPIC, SERVO_DUTY_TOPIC, SERVO_TORQUE_ENABLE_TOPIC, SERVO_VOLTAGE_TOPIC];
 /// The first of the servo streams of [`McapWriter::write_run`] (duty, torque enable,
-/// temperature, voltage), which the sink does not write.
+/// temperature, voltage), after the three joint topics.
 const SERVO: u8 = 3;
 const SERVO_VOLTAGE: u8 = SERVO + 3;
-const TOPICS: [&str; 3] = [JOINT_STATES_TOPIC, JOINT_REFERENCE_TOPIC, JOINT_EFFORT_MEASURED_TOPIC];
+/// The name of the one value of a servo's voltage message.
+const VOLTAGE_NAME: &str = "voltage";
 
 /// Rows of one layout, as the sink hands them to the writer thread.
 #[derive(Default)]
 struct Rows {
-    /// Values per row of q, q̇, τ, q_ref, q̇_ref, τ_ff, τ_measured: the joint count or 0.
-    lens: [usize; 7],
+    /// Values per row of q, q̇, τ, q_ref, q̇_ref, τ_ff, τ_measured, duty, torque enable (the
+    /// joint count or 0) and voltage (1 or 0).
+    lens: [usize; 10],
     /// Sequence number of the first row (one per row, shared by its messages).
     sequence: u32,
     /// Stamp of each row [ns since the epoch].
@@ -137,9 +144,9 @@ struct Encoder {
     chunk: ChunkBuf,
     chunk_size: usize,
     /// Channel id of each slot, once its channel record is written.
-    channels: [Option<u16>; 3],
+    channels: [Option<u16>; 6],
     /// The message layout of each slot (joint names and array lengths fixed).
-    templates: [Option<MessageTemplate>; 3],
+    templates: [Option<MessageTemplate>; 6],
 }
 
 impl Encoder {
@@ -158,20 +165,29 @@ impl Encoder {
     fn template(&mut self, slot: u8, lens: [usize; 3]) -> std::io::Result<()> {
         if !self.templates[slot as usize].as_ref().is_some_and(|t| t.fits(lens)) {
             let channel = self.channel(slot)?;
-            self.templates[slot as usize] = Some(MessageTemplate::new(channel, JointStateTemplate::new(&self.joints, lens)));
+            let names = if slot == VOLTAGE { vec![VOLTAGE_NAME.to_string()] } else { self.joints.clone() };
+            self.templates[slot as usize] = Some(MessageTemplate::new(channel, JointStateTemplate::new(&names, lens)));
         }
         Ok(())
     }
 
     /// Encodes every row: `/joint_states` always, `/joint_reference` when the row has `q_ref`,
-    /// `/joint_effort_measured` when it has the drives' torque; a chunk ends after a whole row.
+    /// `/joint_effort_measured` when it has the drives' torque, a servo's topics when it has
+    /// its drive signals; a chunk ends after a whole row.
     fn rows(&mut self, rows: &Rows) -> std::io::Result<()> {
         let l = rows.lens;
         let width: usize = l.iter().sum();
         // where each array starts in a row
-        let mut o = [0usize; 8];
-        for i in 0..7 {
+        let mut o = [0usize; 11];
+        for i in 0..10 {
             o[i + 1] = o[i] + l[i];
+        }
+        // a servo's signals, each the effort of its own message: (slot, the row's array index)
+        let drive = [(DUTY, 7), (ENABLE, 8), (VOLTAGE, 9)];
+        for (slot, i) in drive {
+            if l[i] > 0 {
+                self.template(slot, [0, 0, l[i]])?;
+            }
         }
         // the batch has one layout: its templates are ready before its rows
         self.template(STATES, [l[0], l[1], l[2]])?;
@@ -181,7 +197,7 @@ impl Encoder {
         if l[6] > 0 {
             self.template(MEASURED, [0, 0, l[6]])?;
         }
-        let [states, reference, measured] = &self.templates;
+        let [states, reference, measured, ..] = &self.templates;
         let states = states.as_ref().expect("set above");
         let reference = reference.as_ref().filter(|_| l[3] > 0);
         let measured = measured.as_ref().filter(|_| l[6] > 0);
@@ -199,6 +215,12 @@ impl Encoder {
             if let Some(t) = measured {
                 let at = t.push(&mut chunk.records, sequence, time, ns, [&[], &[], &row[o[6]..o[7]]]);
                 chunk.note(t.channel(), time, at);
+            }
+            for (slot, i) in drive {
+                if let (Some(t), true) = (&self.templates[slot as usize], l[i] > 0) {
+                    let at = t.push(&mut chunk.records, sequence, time, ns, [&[], &[], &row[o[i]..o[i + 1]]]);
+                    chunk.note(t.channel(), time, at);
+                }
             }
             if chunk.records.len() >= self.chunk_size {
                 let written = self.w.write_chunk(chunk);
@@ -233,7 +255,7 @@ fn writer_thread(file: File, options: SinkOptions, rx: Receiver<Command>, recycl
     let schema = w.add_schema(JOINT_STATE_SCHEMA, ROS2MSG_ENCODING, JOINT_STATE_DEFINITION.as_bytes()).map_err(s)?;
     let qos: BTreeMap<String, String> = [("offered_qos_profiles".to_string(), OFFERED_QOS_PROFILES.to_string())].into();
     let chunk_size = options.chunk_size.max(1024) as usize;
-    let mut e = Encoder { w, schema, qos, joints: Vec::new(), chunk: ChunkBuf::with_capacity(chunk_size + 4096), chunk_size, channels: [None; 3], templates: [None, None, None] };
+    let mut e = Encoder { w, schema, qos, joints: Vec::new(), chunk: ChunkBuf::with_capacity(chunk_size + 4096), chunk_size, channels: [None; 6], templates: Default::default() };
     // the states and reference channels come first, as every reader expects them
     e.channel(STATES).map_err(s)?;
     e.channel(REFERENCE).map_err(s)?;
@@ -246,7 +268,7 @@ fn writer_thread(file: File, options: SinkOptions, rx: Receiver<Command>, recycl
         let result = match command {
             Command::Joints(joints) => {
                 e.joints = joints;
-                e.templates = [None, None, None];
+                e.templates = Default::default();
                 Ok(())
             }
             Command::Metadata(name, map) => e.flush().and_then(|()| e.w.write_metadata(&name, &map)),
@@ -374,6 +396,13 @@ impl McapSink {
     /// wrong length, or when the writer thread failed.
     #[allow(clippy::too_many_arguments)]
     pub fn record_row(&mut self, t: f64, q: &[f64], qd: &[f64], tau: &[f64], q_ref: &[f64], qd_ref: &[f64], tau_ff: &[f64], tau_measured: &[f64]) -> Result<()> {
+        self.record_arrays(t, [q, qd, tau, q_ref, qd_ref, tau_ff, tau_measured], None)
+    }
+
+    /// [`McapSink::record_row`]'s arrays (q, q̇, τ, q_ref, q̇_ref, τ_ff, τ_measured), with a
+    /// servo's drive signals on its topics when given.
+    fn record_arrays(&mut self, t: f64, arrays: [&[f64]; 7], drive: Option<&DriveSample<'_>>) -> Result<()> {
+        let [q, qd, tau, q_ref, qd_ref, tau_ff, tau_measured] = arrays;
         if !self.began {
             return Err(write_error(&self.path, "record before begin"));
         }
@@ -384,9 +413,27 @@ impl McapSink {
             let (what, v) = arrays.into_iter().find(|(what, v)| !fits(v, !matches!(*what, "q" | "qd"))).expect("one does not fit");
             return Err(write_error(&self.path, format!("sample at t = {t} s: {what} has {} values for {dof} joints", v.len())));
         }
+        let (duty, enable, voltage): (&[f64], &[f64], &[f64]) = match drive {
+            Some(d) => (d.duty, d.torque_enable, std::slice::from_ref(&d.voltage)),
+            None => (&[], &[], &[]),
+        };
+        if let Some((what, v)) = [("duty", duty), ("torque_enable", enable)].into_iter().find(|(_, v)| drive.is_some() && v.len() != dof) {
+            return Err(write_error(&self.path, format!("sample at t = {t} s: {what} has {} values for {dof} joints", v.len())));
+        }
         // a reference without q_ref is not written (as before): its other arrays count as empty
         let with_ref = !q_ref.is_empty();
-        let lens = [dof, dof, tau.len(), q_ref.len(), if with_ref { qd_ref.len() } else { 0 }, if with_ref { tau_ff.len() } else { 0 }, tau_measured.len()];
+        let lens = [
+            dof,
+            dof,
+            tau.len(),
+            q_ref.len(),
+            if with_ref { qd_ref.len() } else { 0 },
+            if with_ref { tau_ff.len() } else { 0 },
+            tau_measured.len(),
+            duty.len(),
+            enable.len(),
+            voltage.len(),
+        ];
         if lens != self.rows.lens {
             self.flush_rows()?;
             self.rows.lens = lens;
@@ -403,7 +450,7 @@ impl McapSink {
         let row = &mut self.rows.values[r * width..(r + 1) * width];
         let reference: [&[f64]; 3] = if with_ref { [q_ref, qd_ref, tau_ff] } else { [&[], &[], &[]] };
         let mut k = 0;
-        for part in [q, qd, tau, reference[0], reference[1], reference[2], tau_measured] {
+        for part in [q, qd, tau, reference[0], reference[1], reference[2], tau_measured, duty, enable, voltage] {
             for &x in part {
                 row[k] = x;
                 k += 1;
@@ -463,8 +510,11 @@ impl Sink for McapSink {
         Ok(self.begin_with(joints, Some(experiment))?)
     }
 
+    /// Records a sample; a servo's (one with drive signals) as a servo logs it: its duty, torque
+    /// enable and voltage on their topics, and no effort in `/joint_states`.
     fn record(&mut self, s: &Sample<'_>) -> simgap_sim::Result<()> {
-        Ok(self.record_row(s.t, s.q, s.qd, s.tau, s.q_ref, s.qd_ref, &[], &[])?)
+        let tau = if s.drive.is_some() { &[][..] } else { s.tau };
+        Ok(self.record_arrays(s.t, [s.q, s.qd, tau, s.q_ref, s.qd_ref, &[], &[]], s.drive.as_ref())?)
     }
 
     fn finish(&mut self, end: &RunEnd) -> simgap_sim::Result<()> {
@@ -659,7 +709,7 @@ impl McapWriter {
                 streams.push((SERVO + i as u8, t.as_str()));
             }
         }
-        let voltage = ["voltage".to_string()];
+        let voltage = [VOLTAGE_NAME.to_string()];
         for (kind, topic) in streams {
             let mut buf = std::mem::take(&mut self.buf);
             let w = self.writer()?;
