@@ -165,6 +165,8 @@ pub fn generate_servo(
     // what a servo logs: its duty (the command over kt/R V) and enable, no torque
     run.drive.duty = run.tau.iter().enumerate().map(|(i, tau)| (tau * servo.r[i % n] / (servo.kt[i % n] * servo.volts)).clamp(-1.0, 1.0)).collect();
     run.drive.torque_enable = log.drive.torque_enable;
+    // the supply is the experiment's, not a logged column
+    run.drive.voltage.clear();
     run.tau.clear();
     let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
     let mut extra = BTreeMap::new();

@@ -38,9 +38,11 @@ fn servo_log_sensed(model: &Model, effects: &[Effect], reference: &Fourier, dura
     assert_eq!(simulate(&plant, &mut controller, reference, &params, &mut sink, None).unwrap(), RunEnd::Completed);
     let mut run = sink.into_run();
     assert_eq!(run.len(), n);
-    // what the servo logs: its duty (the command over kt/R V), its enable, no torque
+    // what the servo logs: its duty (the command over kt/R V), its enable, no torque (the
+    // supply is the experiment's)
     run.drive.duty = run.tau.iter().map(|tau| tau * R / (KT * VOLTS)).collect();
     run.drive.torque_enable = log.drive.torque_enable;
+    run.drive.voltage.clear();
     run.tau.clear();
     let mut extra = BTreeMap::new();
     extra.insert(servo_keys::DUTY_GAIN.to_string(), format!("{DUTY_GAIN}"));
