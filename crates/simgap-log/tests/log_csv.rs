@@ -9,18 +9,15 @@ use simgap_log::experiment::{read_experiment_file, sidecar_path};
 use simgap_log::{write_log, Error, LogOptions};
 use simgap_sim::{validate_run, ControllerKind, Experiment, Run};
 
+mod common;
+use common::tmp;
+
 fn read_log(path: &Path) -> simgap_log::Result<Run> {
     simgap_log::read_log(path, &LogOptions::default())
 }
 
 fn read_log_for(path: &Path, joints: &[String]) -> simgap_log::Result<Run> {
     simgap_log::read_log_for(path, joints, false, &LogOptions::default())
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("simgap-log-csv-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
 }
 
 /// `../shared/data` next to the workspace, or `None` (with a message) when it is absent.

@@ -44,9 +44,9 @@ fn partial_names_keep_the_extension() {
 
 #[test]
 fn csv_sink_writes_the_run_and_renames_it_when_finished() {
-    let dir = std::env::temp_dir().join(format!("simgap-csv-sink-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    // removed when the test ends, also when it fails
+    let scratch = tempfile::Builder::new().prefix("simgap-csv-sink-").tempdir().unwrap();
+    let dir = scratch.path();
     let whole = reference(20.0);
     for name in ["run.csv", "run.csv.gz"] {
         let path = dir.join(name);
@@ -60,14 +60,13 @@ fn csv_sink_writes_the_run_and_renames_it_when_finished() {
         assert_prefix(&read.run, &whole, name);
         assert!(read.run.experiment.is_some(), "{name}: the sidecar");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_partial_csv_cut_anywhere_reads_its_complete_rows() {
-    let dir = std::env::temp_dir().join(format!("simgap-csv-cut-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    // removed when the test ends, also when it fails
+    let scratch = tempfile::Builder::new().prefix("simgap-csv-cut-").tempdir().unwrap();
+    let dir = scratch.path();
     let whole = reference(20.0);
     for name in ["run.csv", "run.csv.gz"] {
         let path = dir.join(name);
@@ -94,5 +93,4 @@ fn a_partial_csv_cut_anywhere_reads_its_complete_rows() {
             assert_prefix(&read.run, &whole, &what);
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

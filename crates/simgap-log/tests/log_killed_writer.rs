@@ -32,9 +32,9 @@ fn killed_writer_leaves_a_log_recovered_by_a_linear_scan() {
         child(&path);
         return;
     }
-    let dir = std::env::temp_dir().join(format!("simgap-log-killed-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("killed.mcap");
+    // removed when the test ends, also when it fails
+    let scratch = tempfile::Builder::new().prefix("simgap-log-killed-").tempdir().unwrap();
+    let path = scratch.path().join("killed.mcap");
     let mut child = Command::new(std::env::current_exe().unwrap()).args(["--exact", TEST_NAME, "--nocapture", "--test-threads=1"]).env(CHILD_ENV, &path).spawn().unwrap();
     // kill it once it has written a few hundred kilobytes
     let deadline = Instant::now() + Duration::from_secs(60);

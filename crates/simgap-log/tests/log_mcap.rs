@@ -2,12 +2,15 @@
 //! and errors that name the file and the problem.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use mcap::records::{MessageHeader, Metadata};
 use simgap_log::mcap::{JointState, McapSink, EXPERIMENT_METADATA, JOINT_REFERENCE_TOPIC, JOINT_STATES_TOPIC, JOINT_STATE_DEFINITION, JOINT_STATE_SCHEMA, RUN_END_METADATA};
 use simgap_log::{read_log_for, write_log, Compression, Error, LogOptions, SinkOptions};
 use simgap_sim::{reorder_joints, validate_run, ControllerKind, Experiment, MemorySink, Run, RunEnd, Sample, Sink};
+
+mod common;
+use common::tmp;
 
 fn read_mcap(path: &Path) -> simgap_log::Result<Run> {
     simgap_log::read_log(path, &LogOptions::default())
@@ -19,12 +22,6 @@ fn read_log(path: &Path) -> simgap_log::Result<Run> {
 
 fn read_mcap_for(path: &Path, joints: &[String]) -> simgap_log::Result<Run> {
     read_log_for(path, joints, false, &LogOptions::default())
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("simgap-log-mcap-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
 }
 
 fn names(v: &[&str]) -> Vec<String> {
@@ -319,7 +316,7 @@ fn sink_dropped_without_finish_still_leaves_a_readable_mcap() {
     // and across a panic
     let path = tmp("panicked.mcap");
     let run2 = run.clone();
-    let p = path.clone();
+    let p = path.to_path_buf();
     let result = std::panic::catch_unwind(move || {
         let mut sink = McapSink::create(&p).unwrap();
         drive(&mut sink, &run2);
@@ -505,7 +502,7 @@ fn zero_stamps_fall_back_to_log_time() {
 
 #[test]
 fn missing_metadata_gives_no_experiment_and_malformed_metadata_is_an_error() {
-    let write = |name: &str, meta: Option<BTreeMap<String, String>>| -> PathBuf {
+    let write = |name: &str, meta: Option<BTreeMap<String, String>>| -> common::Scratch {
         let path = tmp(name);
         let mut bag = Bag::new(&path, mcap::WriteOptions::new());
         if let Some(m) = meta {

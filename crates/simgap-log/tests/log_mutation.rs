@@ -90,9 +90,8 @@ fn rosbags_style_log() -> Vec<u8> {
 }
 
 fn simgap_log(compression: Compression, crcs: bool) -> Vec<u8> {
-    let dir = std::env::temp_dir().join(format!("simgap-log-mutation-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!("{compression:?}.mcap"));
+    let scratch = tempfile::Builder::new().prefix("simgap-log-mutation-").tempdir().unwrap();
+    let path = scratch.path().join(format!("{compression:?}.mcap"));
     write_mcap_with_options(&sample_run(60), &path, SinkOptions { compression, chunk_size: 4096 }).unwrap();
     let mut bytes = std::fs::read(&path).unwrap();
     if !crcs {

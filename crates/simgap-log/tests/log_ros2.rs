@@ -3,7 +3,7 @@
 //! per-log experiments, and absolute stamps kept to the nanosecond.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use mcap::records::MessageHeader;
 use simgap_log::experiment::write_experiment_file;
@@ -11,11 +11,8 @@ use simgap_log::mcap::{JointState, FLOAT64_MULTI_ARRAY_DEFINITION, JOINT_STATE_D
 use simgap_log::{read_log, read_log_with_warnings, write_log, LogOptions, TopicMap};
 use simgap_sim::{ControllerKind, Experiment, Run};
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("simgap-log-ros2-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+mod common;
+use common::tmp;
 
 fn names(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
@@ -246,6 +243,9 @@ fn unmapped_or_unnamed_topics_are_errors_that_say_what_to_do() {
 fn every_log_carries_its_own_experiment_and_the_fallback_fills_the_rest() {
     let fallback = experiment(ControllerKind::Replay);
     let options = LogOptions { topics: teleop_topics(), experiment: Some(fallback.clone()), ..LogOptions::default() };
+    // every log beside its sidecar, in one folder
+    let folder = common::folder();
+    let tmp = |name: &str| folder.path().join(name);
     // a bag folder with a sidecar beside it
     let dir = tmp("with_sidecar");
     teleop_bag(&dir, 6);
@@ -278,6 +278,9 @@ fn every_log_carries_its_own_experiment_and_the_fallback_fills_the_rest() {
 
 #[test]
 fn absolute_stamps_survive_read_and_write_to_the_nanosecond() {
+    // the logs written are read again below: one folder
+    let folder = common::folder();
+    let tmp = |name: &str| folder.path().join(name);
     let dir = tmp("stamps");
     teleop_bag(&dir, 30);
     let options = LogOptions { topics: teleop_topics(), ..LogOptions::default() };

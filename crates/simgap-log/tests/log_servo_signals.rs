@@ -3,16 +3,13 @@
 //! simulation streams to write a servo's as it logs them.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
 
 use simgap_log::{read_log, write_log, CsvSink, LogOptions, McapSink};
 use simgap_sim::{ControllerKind, DriveSample, Experiment, Run, RunEnd, Sample, Sink};
 
-/// A folder of this test's own for `name`.
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("simgap-log-servo-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A folder of this test's own, removed when the test ends (also when it fails).
+fn tmp(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("simgap-log-servo-{name}-")).tempdir().unwrap()
 }
 
 /// Two servos for 1 s at 100 Hz: a goal, a duty that saturates, the torque switched off after
@@ -41,7 +38,7 @@ fn servo_run() -> Run {
 fn round_trip(name: &str) {
     let run = servo_run();
     let dir = tmp(name);
-    let path = dir.join(name);
+    let path = dir.path().join(name);
     write_log(&run, &path).unwrap();
     let back = read_log(&path, &LogOptions::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
     assert_eq!(back.drive.duty, run.drive.duty, "{name}: duty");
@@ -53,7 +50,6 @@ fn round_trip(name: &str) {
     let e = back.experiment.as_ref().unwrap_or_else(|| panic!("{name}: no experiment"));
     assert_eq!(e.controller, ControllerKind::Servo, "{name}");
     assert_eq!(e.extra.get("duty_gain").map(String::as_str), Some("2.5,1.5"), "{name}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -84,7 +80,7 @@ fn stream(run: &Run, sink: &mut dyn Sink) {
 fn streamed(name: &str) {
     let run = servo_run();
     let dir = tmp(&format!("stream-{name}"));
-    let path = dir.join(name);
+    let path = dir.path().join(name);
     if name.ends_with(".mcap") {
         stream(&run, &mut McapSink::create(&path).unwrap());
     } else {
@@ -98,7 +94,6 @@ fn streamed(name: &str) {
     assert!(back.tau.is_empty(), "{name}: a servo logs no torque, got {} values", back.tau.len());
     assert_eq!((back.q.clone(), back.q_ref.clone()), (run.q.clone(), run.q_ref.clone()), "{name}: positions and goal");
     assert_eq!(back.experiment.as_ref().map(|e| e.controller), Some(ControllerKind::Servo), "{name}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

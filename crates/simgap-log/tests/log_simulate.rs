@@ -6,11 +6,8 @@ use simgap_log::{read_log, LogOptions, McapSink};
 use simgap_sim::paper;
 use simgap_sim::{simulate, MemorySink, Pd, Plant, Run, RunEnd, SensorParams, SimParams};
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("simgap-log-sim-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+mod common;
+use common::tmp;
 
 fn assert_same_run(a: &Run, b: &Run) {
     assert_eq!(a.joints, b.joints);
