@@ -94,6 +94,16 @@ fn a_servo_sidecar_without_its_duty_gain_is_refused_naming_the_key() {
     assert!(e.contains("no-gain.experiment.json") && e.contains("duty_gain"), "{e}");
 }
 
+#[test]
+fn servo_logs_whose_motor_constants_disagree_are_refused_naming_both() {
+    let d = scratch("priors");
+    let with = |kt: &str| format!(r#"{{"controller": "servo", "joints": "hinge", "duty_gain": "2", "supply_voltage": "12", "kt": "{kt}", "R": "2"}}"#);
+    let fit = write_log(&d, "fit", &with("1"), true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    let hold = write_log(&d, "hold", &with("1.2"), true, |_, x| x.clamp(-1.0, 1.0), |_| 1, true);
+    let e = refused(&fit, &hold);
+    assert!(e.contains("hold.csv") && e.contains("fit.csv") && e.contains("kt = 1.2") && e.contains("same priors"), "{e}");
+}
+
 /// The shared BAM data folder beside the repository.
 fn bam_data() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/rhoban-bam-xl330")

@@ -193,9 +193,30 @@ fn servo_commands(model: &Model, fit_runs: &mut [Run], hold_runs: &mut [Run], op
             params.push(None);
         }
     }
-    // the priors of the first servo run that gives them, else the fit runs' constants
-    let prior = params.iter().flatten().find_map(|p| p.kt.clone().zip(p.r.clone()));
-    let constants = match prior {
+    // the priors the servo runs give (every run that gives them the same), else the fit runs'
+    // constants
+    let runs: Vec<&Run> = fit_runs.iter().chain(hold_runs.iter()).collect();
+    let given: Vec<(&Run, (Vec<f64>, Vec<f64>))> = runs.iter().zip(&params).filter_map(|(r, p)| Some((*r, p.as_ref()?.kt.clone().zip(p.as_ref()?.r.clone())?))).collect();
+    if let Some((other, (kt, r))) = given.iter().find(|(_, c)| *c != given[0].1) {
+        let (first, (kt0, r0)) = &given[0];
+        let list = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
+        return Err(Error::Log {
+            log: other.source.clone(),
+            message: format!(
+                "its servo motor constants kt = {} N·m/A, R = {} Ω differ from kt = {}, R = {} of {}; expected the same priors in every log of one diagnosis (or none, to fit them)",
+                list(kt),
+                list(r),
+                list(kt0),
+                list(r0),
+                first.source
+            ),
+        });
+    }
+    let without: Vec<&str> = runs.iter().zip(&params).filter(|(_, p)| p.as_ref().is_some_and(|p| p.kt.is_none())).map(|(r, _)| r.source.as_str()).collect();
+    if let (Some((first, _)), false) = (given.first(), without.is_empty()) {
+        notes.push(format!("servo motor constants: the priors of {} apply to every log, also to those that give none ({})", first.source, without.join(", ")));
+    }
+    let constants = match given.into_iter().next().map(|(_, c)| c) {
         Some((kt, r)) => servo::Constants { kt, r, source: "prior", notes: Vec::new(), clamp: Vec::new() },
         None => {
             let fit: Vec<(&Run, Vec<f64>)> = fit_runs.iter().zip(&volts).filter(|(r, _)| servo::is_servo(r)).map(|(r, v)| (r, v.clone())).collect();
