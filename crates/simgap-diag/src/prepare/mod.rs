@@ -196,7 +196,9 @@ fn servo_commands(model: &Model, fit_runs: &mut [Run], hold_runs: &mut [Run], op
     // the priors the servo runs give (every run that gives them the same), else the fit runs'
     // constants
     let runs: Vec<&Run> = fit_runs.iter().chain(hold_runs.iter()).collect();
-    let given: Vec<(&Run, (Vec<f64>, Vec<f64>))> = runs.iter().zip(&params).filter_map(|(r, p)| Some((*r, p.as_ref()?.kt.clone().zip(p.as_ref()?.r.clone())?))).collect();
+    // (run, (kt, R)) of every servo run that gives priors
+    type Priors = (Vec<f64>, Vec<f64>);
+    let given: Vec<(&Run, Priors)> = runs.iter().zip(&params).filter_map(|(r, p)| Some((*r, p.as_ref()?.kt.clone().zip(p.as_ref()?.r.clone())?))).collect();
     if let Some((other, (kt, r))) = given.iter().find(|(_, c)| *c != given[0].1) {
         let (first, (kt0, r0)) = &given[0];
         let list = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
