@@ -237,6 +237,62 @@ fn a_simulated_servo_logs_what_a_servo_logs_and_its_friction_is_diagnosed_from_i
 }
 
 #[test]
+fn simulated_drops_with_the_torque_off_let_the_diagnosis_tell_back_emf_from_viscous_friction() {
+    let d = scratch("simulated-drops");
+    // three runs of the servo (kt = R = 1.5: kt/R = 1 N·m/V, kt²/R = 1.5 N·m·s/rad) with viscous
+    // friction b = 0.5 N·m·s/rad, each dropped once with the torque off
+    let runs = [("a.csv", "0.6", "0.5", "2:2.6"), ("b.csv", "0.8", "0.3", "3:3.5"), ("held.csv", "0.7", "0.4", "1.5:2.2")];
+    for (name, amplitude, hz, off) in runs {
+        let fourier = format!("amplitude={amplitude};frequency={hz}");
+        let o = simulate_servo(
+            &d.join(name),
+            &[
+                "--fourier",
+                &fourier,
+                "--target",
+                "0.6",
+                "--duration",
+                "6",
+                "--sample-period",
+                "0.005",
+                "--counts-per-rev",
+                "4096",
+                "--effect",
+                "viscous_friction:b=0.5",
+                "--torque-off",
+                off,
+            ],
+        );
+        assert!(o.status.success(), "{name}: {}", text(&o));
+        // the log says when the torque was off, and the duty is 0 there
+        let csv = std::fs::read_to_string(d.join(name)).unwrap();
+        let (from, to) = off.split_once(':').map(|(a, b)| (a.parse::<f64>().unwrap(), b.parse::<f64>().unwrap())).unwrap();
+        for line in csv.lines().skip(1) {
+            let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+            let on = !(v[0] >= from - 1e-9 && v[0] < to - 1e-9);
+            assert_eq!(v[6], if on { 1.0 } else { 0.0 }, "{name} t = {}: torque enable", v[0]);
+            assert!(on || v[5] == 0.0, "{name} t = {}: duty {} with the torque off", v[0], v[5]);
+        }
+        // the motor constants left out: the diagnosis fits them
+        let sidecar = d.join(name.replace(".csv", ".experiment.json"));
+        let mut exp: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&sidecar).unwrap()).unwrap();
+        exp.as_object_mut().unwrap().retain(|k, _| k != "kt" && k != "R");
+        std::fs::write(&sidecar, exp.to_string()).unwrap();
+    }
+    let json = d.join("report.json");
+    let [a, b, held] = ["a.csv", "b.csv", "held.csv"].map(|n| d.join(n).display().to_string());
+    let o = simgap(&["diagnose", "--urdf", PENDULUM, "--log", &a, "--log", &b, "--holdout", &held, "--json", json.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(r["servo"]["source"], "fitted", "{}", r["servo"]);
+    let (kt, res) = (r["servo"]["kt"][0].as_f64().unwrap(), r["servo"]["R"][0].as_f64().unwrap());
+    assert!((kt / res - 1.0).abs() < 0.03 && (kt * kt / res - 1.5).abs() < 0.03 * 1.5, "kt = {kt}, R = {res}: kt/R {} (1), kt²/R {} (1.5)\n{}", kt / res, kt * kt / res, text(&o));
+    let viscous = r["selected_effects"].as_array().unwrap().iter().find(|e| e["effect"] == "viscous_friction").unwrap_or_else(|| panic!("no viscous friction:\n{}", text(&o)));
+    let bv = viscous["parameters"]["b"][0].as_f64().unwrap();
+    assert!((bv - 0.5).abs() < 0.025, "b = {bv} against 0.5\n{}", text(&o));
+}
+
+#[test]
 fn a_servo_simulation_without_its_constants_or_with_a_pd_gain_is_refused_naming_the_flag() {
     let d = scratch("simulate-refused");
     let out = d.join("x.csv");
@@ -276,4 +332,7 @@ fn a_servo_simulation_without_its_constants_or_with_a_pd_gain_is_refused_naming_
     }
     let o = simulate_servo(&out, &["--max-duty", "1.5", "--target", "0.3"]);
     assert!(!o.status.success() && text(&o).contains("--max-duty") && text(&o).contains("(0, 1]"), "{}", text(&o));
+    let o = simulate_servo(&out, &["--torque-off", "2:1", "--target", "0.3"]);
+    assert!(!o.status.success() && text(&o).contains("--torque-off '2:1'") && text(&o).contains("FROM < TO"), "{}", text(&o));
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
 }

@@ -37,6 +37,10 @@ pub(crate) struct Args {
     /// Servo: largest rate of the goal [rad/s or m/s] (default: none).
     #[arg(long)]
     goal_rate_limit: Option<f64>,
+    /// Servo: a time span 'FROM:TO' [s] with every drive's torque off (the bridge open: no
+    /// torque, no back-EMF), repeatable; e.g. '--torque-off 2:3' drops the arm for a second.
+    #[arg(long)]
+    torque_off: Vec<String>,
     /// Proportional gains [N·m/rad], comma-separated in model order (default: the paper's for
     /// the paper arm).
     #[arg(long)]
@@ -229,6 +233,7 @@ fn servo_flags(args: &Args) -> Vec<&'static str> {
         ("kt", args.kt.is_some()),
         ("resistance", args.resistance.is_some()),
         ("goal-rate-limit", args.goal_rate_limit.is_some()),
+        ("torque-off", !args.torque_off.is_empty()),
     ];
     given.into_iter().filter(|(_, g)| *g).map(|(f, _)| f).collect()
 }
@@ -263,7 +268,15 @@ fn servo(args: &Args, n: usize) -> anyhow::Result<simgap::sim::Servo> {
     if let Some(g) = args.goal_rate_limit.filter(|g| !(g.is_finite() && *g > 0.0)) {
         bail!("--goal-rate-limit: {g}; expected a positive rate");
     }
-    Ok(simgap::sim::Servo::new(duty_gain, max_duty, volts, kt, r, args.goal_rate_limit)?)
+    let mut off = Vec::new();
+    for span in &args.torque_off {
+        let parsed = span.split_once(':').and_then(|(a, b)| Some((a.trim().parse::<f64>().ok()?, b.trim().parse::<f64>().ok()?)));
+        match parsed {
+            Some((from, to)) if from.is_finite() && to.is_finite() && from < to => off.push((from, to)),
+            _ => bail!("--torque-off '{span}': expected FROM:TO, two times in seconds with FROM < TO"),
+        }
+    }
+    Ok(simgap::sim::Servo::new(duty_gain, max_duty, volts, kt, r, args.goal_rate_limit)?.with_torque_off(off))
 }
 
 pub(crate) fn run(args: Args) -> anyhow::Result<()> {

@@ -314,6 +314,8 @@ pub struct Servo {
     log_t: Vec<f64>,
     log_voltage: Vec<f64>,
     log_enable: Vec<f64>,
+    /// Time spans `[from, to)` [s] with every drive disabled (a drop with torque off).
+    off: Vec<(f64, f64)>,
     cursor: usize,
     tol: f64,
     goal: Vec<f64>,
@@ -351,6 +353,7 @@ impl Servo {
             log_t: Vec::new(),
             log_voltage: Vec::new(),
             log_enable: Vec::new(),
+            off: Vec::new(),
             cursor: 0,
             tol: 0.0,
             goal: vec![0.0; n],
@@ -374,6 +377,13 @@ impl Servo {
         };
         debug_assert!(self.log_enable.is_empty() || self.log_enable.len() == run.len() * m);
         self.tol = if run.len() > 1 { (0.5 * run.duration() / (run.len() - 1) as f64).max(1e-9) } else { 1e-9 };
+        self
+    }
+
+    /// The same servo with every drive disabled over the time spans `[from, to)` [s] (a drop
+    /// with torque off), besides any logged torque enable.
+    pub fn with_torque_off(mut self, spans: Vec<(f64, f64)>) -> Servo {
+        self.off = spans;
         self
     }
 
@@ -406,7 +416,8 @@ impl Controller for Servo {
                 (Some(rate), Some(dt)) => self.goal[i] + (q_ref[i] - self.goal[i]).clamp(-rate * dt, rate * dt),
                 _ => q_ref[i],
             };
-            self.enabled[i] = self.log_enable.get(k * n + i).map_or(1.0, |e| if *e > 0.5 { 1.0 } else { 0.0 });
+            let off = self.off.iter().any(|&(from, to)| t >= from && t < to);
+            self.enabled[i] = if off { 0.0 } else { self.log_enable.get(k * n + i).map_or(1.0, |e| if *e > 0.5 { 1.0 } else { 0.0 }) };
             let duty = (self.duty_gain[i] * (self.goal[i] - q[i])).clamp(-self.max_duty[i], self.max_duty[i]);
             self.duty[i] = self.enabled[i] * duty;
             out[i] = self.enabled[i] * self.kt[i] / self.r[i] * v * duty;
