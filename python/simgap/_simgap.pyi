@@ -400,6 +400,7 @@ def simulate(
     coulomb_width: float = 0.01,
     torque_limits_from_model: bool = False,
     divergence_bound: float = 10000.0,
+    experiment: Mapping[str, object] | str | PathLike[str] | None = None,
 ) -> Run:
     """Simulates the sampled closed loop and returns the run as a log would record it.
 
@@ -414,11 +415,15 @@ def simulate(
     the run's (its first sample, its experiment); otherwise t0 = 0, duration = 3 s, q0 = qd0 =
     0, sample period 2.5 ms.
 
+    ``experiment``: a dict of the ``simgap.experiment`` keys (a sidecar's) or the path of an
+    experiment file, in place of the reference run's: the controller, its gains or a servo's
+    constants, the sample period.
+
     ``controller``: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
     g(q)), "replay" (the logged effort of ``replay``, default the reference run, open loop) or
-    "servo" (a position-controlled servo with the constants of the reference run's experiment,
-    ``duty_gain``, ``max_duty``, ``supply_voltage``, ``kt``, ``R``, reading the run's logged
-    torque enable and voltage; the returned run holds its duty, torque enable and voltage
+    "servo" (a position-controlled servo with the constants of the experiment,
+    ``duty_gain``, ``max_duty``, ``supply_voltage``, ``kt``, ``R``, reading the reference run's
+    logged torque enable and voltage, if any; the returned run holds its duty, torque enable and voltage
     besides the command τ = (kt/R) V duty).
     ``kp``, ``kv``: gains, shape (dof,), in model order. ``effects``: unmodelled effects in the
     CLI spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".

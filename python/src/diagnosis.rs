@@ -262,7 +262,7 @@ fn write_export(path: &Path, file: &simgap_diag::export::ExportedFile) -> PyResu
 
 /// The `experiment` argument: a `simgap.experiment` metadata dict (values converted with
 /// `str`), or the path of an experiment JSON file (as the CLI's `--experiment`).
-fn experiment_arg(arg: &Bound<'_, PyAny>) -> PyResult<Experiment> {
+pub(crate) fn experiment_arg(arg: &Bound<'_, PyAny>) -> PyResult<Experiment> {
     if let Ok(dict) = arg.cast::<PyDict>() {
         let mut map = BTreeMap::new();
         for (k, v) in dict.iter() {

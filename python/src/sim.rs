@@ -450,11 +450,15 @@ fn joint_vector(name: &str, arr: &ArrayArg<'_>, dof: usize) -> PyResult<Vec<f64>
 /// `duration`, `q0`, `qd0`, the controller, its gains and the sample period default to the
 /// run's (its first sample, its experiment).
 ///
+/// `experiment`: a dict of the `simgap.experiment` keys (a sidecar's) or the path of an
+/// experiment file, in place of the reference run's: the controller, its gains or a servo's
+/// constants, the sample period.
+///
 /// `controller`: "pd" (τ = Kp(q_ref − q) + Kv(q̇_ref − q̇)), "pd_gravity" (plus the model's
 /// g(q)), "replay" (the logged effort of `replay`, default the reference run, open loop) or
-/// "servo" (a position-controlled servo with the constants of the reference run's experiment,
-/// `duty_gain`, `max_duty`, `supply_voltage`, `kt`, `R`, reading the run's logged torque enable
-/// and voltage; the returned run holds its duty, torque enable and voltage besides the
+/// "servo" (a position-controlled servo with the constants of the experiment,
+/// `duty_gain`, `max_duty`, `supply_voltage`, `kt`, `R`, reading the reference run's logged
+/// torque enable and voltage, if any; the returned run holds its duty, torque enable and voltage besides the
 /// command τ = (kt/R) V duty). `kp`, `kv`: gains, shape (dof,), in model order. `effects`: unmodelled effects in the CLI
 /// spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".
 /// `coulomb_width` [rad/s or m/s]: the width `w` of sign(q̇) ≈ tanh(q̇/w) for every dry
@@ -476,7 +480,7 @@ fn joint_vector(name: &str, arr: &ArrayArg<'_>, dof: usize) -> PyResult<Vec<f64>
     formulation = "euler_lagrange", effects = Vec::new(), duration = None, sample_period = None, t0 = None,
     q0 = None, qd0 = None, substeps = 1, integrator = "rk4", rtol = 1e-10, atol = 1e-10,
     counts_per_rev = Some(1_024_000.0), velocity = "backward_difference", noise_std = 0.0, seed = 0,
-    coulomb_width = 0.01, torque_limits_from_model = false, divergence_bound = 1e4
+    coulomb_width = 0.01, torque_limits_from_model = false, divergence_bound = 1e4, experiment = None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate(
@@ -505,6 +509,7 @@ pub(crate) fn simulate(
     coulomb_width: f64,
     torque_limits_from_model: bool,
     divergence_bound: f64,
+    experiment: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyRun> {
     let model_arc = model.model();
     let dof = model_arc.dof();
@@ -534,15 +539,17 @@ pub(crate) fn simulate(
         Some(run) => return Err(bad("reference", format!("{}: the run has no sample", run.source))),
         None => None,
     };
-    let logged = reference_run.as_ref().and_then(|r| r.experiment.clone());
+    // the experiment given, else the reference run's
+    let given = experiment.filter(|e| !e.is_none()).map(crate::diagnosis::experiment_arg).transpose()?;
+    let logged = given.or_else(|| reference_run.as_ref().and_then(|r| r.experiment.clone()));
 
     // the controller and its experiment
     let kind = match (controller, &logged) {
         (Some(c), _) => c.parse::<ControllerKind>().map_err(|m| bad("controller", m))?,
         (None, Some(e)) => e.controller,
-        (None, None) => return Err(bad("controller", "none given and the reference has no experiment; expected 'pd', 'pd_gravity' or 'replay'".into())),
+        (None, None) => return Err(bad("controller", "none given, no experiment given and the reference has none; expected 'pd', 'pd_gravity', 'replay' or 'servo'".into())),
     };
-    let period = sample_period.or(logged.as_ref().map(|e| e.sample_period)).unwrap_or(0.0025);
+    let period = sample_period.or(logged.as_ref().map(|e| e.sample_period).filter(|p| p.is_finite() && *p > 0.0)).unwrap_or(0.0025);
     let experiment = match (kind, kp, kv, &logged) {
         (ControllerKind::Replay, _, _, _) => Experiment { controller: kind, joints: joints.clone(), kp: Vec::new(), kv: Vec::new(), sample_period: period, extra: BTreeMap::new() },
         (_, Some(kp), Some(kv), _) => Experiment {
@@ -554,7 +561,7 @@ pub(crate) fn simulate(
             extra: BTreeMap::new(),
         },
         (_, None, None, Some(e)) => Experiment { controller: kind, sample_period: period, ..e.clone() },
-        _ => return Err(bad("gains", "expected both kp and kv (or a reference run whose experiment has them)".into())),
+        _ => return Err(bad("gains", "expected both kp and kv (or an experiment, given or the reference run's, that has them)".into())),
     };
     // the run the controller reads: a replay's efforts, a servo's torque enable and voltage
     let replay = match (kind, replay) {

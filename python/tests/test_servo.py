@@ -100,3 +100,21 @@ def test_a_servo_simulated_from_its_log_logs_its_duty_enable_and_voltage() -> No
     # and the command is its voltage part, (kt / R) V duty
     np.testing.assert_allclose(run.tau[:, 0], 1.5 / 1.5 * 12.0 * expected, rtol=1e-12, atol=1e-12)
     assert np.ptp(run.duty[on]) > 0.1 and not np.any(run.duty[~on])
+
+
+def test_a_servo_is_simulated_from_an_experiment_without_a_log() -> None:
+    # the sidecar's keys as a dict: the servo's constants, the sample period; a step goal
+    experiment = {"controller": "servo", "joints": "hinge", "duty_gain": 2, "supply_voltage": 12, "kt": 1.5, "R": 1.5, "sample_period": 0.005}
+    run = simgap.simulate(simgap.Model.from_urdf(PENDULUM), [0.6], experiment=experiment, duration=6.0, counts_per_rev=None)
+    assert run.experiment["controller"] == "servo" and run.experiment["kt"] == "1.5"
+    np.testing.assert_allclose(np.diff(run.t), 0.005)
+    np.testing.assert_allclose(run.duty[:, 0], np.clip(2.0 * (0.6 - run.q[:, 0]), -1, 1), rtol=0, atol=1e-12)
+    assert run.duty[0, 0] == 1.0 and np.all(run.torque_enable == 1.0) and np.all(run.voltage == 12.0)
+    # at rest the drive holds the arm below the goal against gravity (m = 2 kg at l = 0.5 m):
+    # duty (kt/R) V = 2 (0.6 − q) · 12 = m g l sin q
+    q_end = run.q[-1, 0]
+    assert abs(run.qd[-1, 0]) < 1e-2 and 0.3 < q_end < 0.6, (q_end, run.qd[-1, 0])
+    assert abs(2.0 * (0.6 - q_end) * 12.0 - 2.0 * 9.81 * 0.5 * np.sin(q_end)) < 0.02
+    # an experiment without the servo's constants is refused naming the key
+    with pytest.raises(simgap.SimulationError, match="kt"):
+        simgap.simulate(simgap.Model.from_urdf(PENDULUM), [0.6], experiment={k: v for k, v in experiment.items() if k not in ("kt", "R")})
