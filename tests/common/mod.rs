@@ -54,44 +54,34 @@ fn newest(path: &Path) -> Option<std::time::SystemTime> {
         .max()
 }
 
-/// A test's scratch folder, `<temp>/simgap-<test>-<pid>-<name>`, empty when made and removed
-/// (with what the test wrote) when dropped, also when the test fails.
+/// A test's scratch folder, `<temp>/simgap-<test>-<name>-<random>` (`tempfile`), empty when
+/// made and removed (with what the test wrote) when dropped, also when the test fails.
 #[allow(dead_code)] // not every test crate that includes this module makes one
-pub(crate) struct Scratch(PathBuf);
+pub(crate) struct Scratch(tempfile::TempDir);
 
 #[allow(dead_code)]
 impl Scratch {
     /// An empty folder for `test`'s `name`.
     pub(crate) fn new(test: &str, name: &str) -> Scratch {
-        let d = std::env::temp_dir().join(format!("simgap-{test}-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        Scratch(d)
+        Scratch(tempfile::Builder::new().prefix(&format!("simgap-{test}-{name}-")).tempdir().expect("a temporary folder"))
     }
 
     /// The folder, kept after the test (for one shared by tests through a `static`, which is
     /// never dropped).
     pub(crate) fn keep(self) -> PathBuf {
-        let me = std::mem::ManuallyDrop::new(self);
-        me.0.clone()
+        self.0.keep()
     }
 }
 
 impl std::ops::Deref for Scratch {
     type Target = Path;
     fn deref(&self) -> &Path {
-        &self.0
+        self.0.path()
     }
 }
 
 impl AsRef<Path> for Scratch {
     fn as_ref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
+        self.0.path()
     }
 }
