@@ -423,8 +423,8 @@ def simulate(
     g(q)), "replay" (the logged effort of ``replay``, default the reference run, open loop) or
     "servo" (a position-controlled servo with the constants of the experiment,
     ``duty_gain``, ``max_duty``, ``supply_voltage``, ``kt``, ``R``, reading the reference run's
-    logged torque enable and voltage, if any; the returned run holds its duty, torque enable and voltage
-    besides the command τ = (kt/R) V duty).
+    logged torque enable and voltage, if any; the returned run holds its duty, torque enable
+    and voltage besides the command τ = (kt/R) V duty).
     ``kp``, ``kv``: gains, shape (dof,), in model order. ``effects``: unmodelled effects in the
     CLI spelling, e.g. "viscous_friction:b=2.288,0.175", "coulomb_friction:fc=7.17,1.734;w=0.01".
     ``integrator``: "rk4" (``substeps`` steps per sample, raised automatically for stiff
