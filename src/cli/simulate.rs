@@ -224,8 +224,8 @@ impl Sink for Counting<'_> {
     }
 }
 
-/// The servo constants' flags given on the command line.
-fn servo_flags(args: &Args) -> Vec<&'static str> {
+/// A servo constant's flag given on the command line, if any.
+fn servo_flag(args: &Args) -> Option<&'static str> {
     let given = [
         ("duty-gain", args.duty_gain.is_some()),
         ("max-duty", args.max_duty.is_some()),
@@ -235,7 +235,7 @@ fn servo_flags(args: &Args) -> Vec<&'static str> {
         ("goal-rate-limit", args.goal_rate_limit.is_some()),
         ("torque-off", !args.torque_off.is_empty()),
     ];
-    given.into_iter().filter(|(_, g)| *g).map(|(f, _)| f).collect()
+    given.into_iter().find(|(_, g)| *g).map(|(f, _)| f)
 }
 
 /// The servo of `--controller servo`, its constants checked flag by flag.
@@ -300,7 +300,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         other => bail!("--controller: unknown '{other}'; expected pd, pd_gravity or servo"),
     };
     if args.controller != "servo" {
-        if let Some(flag) = servo_flags(&args).first() {
+        if let Some(flag) = servo_flag(&args) {
             bail!("--{flag} is a servo's constant; it needs --controller servo (got {})", args.controller);
         }
     }
