@@ -5,7 +5,6 @@ use std::sync::Arc;
 
 use crate::error::{Error, Result};
 use crate::prepare::PrepareOptions;
-use crate::select::SelectOptions;
 
 /// Options of [`crate::diagnose`].
 #[derive(Clone, Debug, Default)]
@@ -50,5 +49,25 @@ pub(crate) fn check_stop(options: &DiagnoseOptions) -> Result<()> {
     match &options.stop {
         Some(s) if s.load(Ordering::Relaxed) => Err(Error::Interrupted),
         _ => Ok(()),
+    }
+}
+
+/// Thresholds of the selection.
+#[derive(Clone, Debug)]
+pub struct SelectOptions {
+    /// Minimum relative decrease of the cross-validated MSE for a term to enter (default 0.05).
+    pub min_relative_gain: f64,
+    /// Minimum decrease as a fraction of the nominal MSE (default 0.001).
+    pub min_nominal_gain: f64,
+    /// Minimum RMS torque of a term relative to the RMS commanded torque of its joint(s)
+    /// (default 0.01).
+    pub min_torque_share: f64,
+    /// At most this many terms (default 10).
+    pub max_terms: usize,
+}
+
+impl Default for SelectOptions {
+    fn default() -> Self {
+        SelectOptions { min_relative_gain: 0.05, min_nominal_gain: 0.001, min_torque_share: 0.01, max_terms: 10 }
     }
 }

@@ -22,6 +22,7 @@ use simgap_core::PARAMS_PER_LINK;
 
 use crate::prepare::dataset::FitData;
 use crate::prepare::width::DryWidth;
+pub use crate::options::SelectOptions;
 use std::sync::Arc;
 
 use crate::lsq::inertial::InertialPrior;
@@ -35,26 +36,6 @@ const DRY_WIDTH_GRID: usize = 8;
 /// Widths a Stribeck friction's grid tries with each Stribeck velocity (one: the top of the
 /// joint's range; its hump below vs shapes the sign near rest).
 const STRIBECK_WIDTH_GRID: usize = 1;
-
-/// Thresholds of the selection.
-#[derive(Clone, Debug)]
-pub struct SelectOptions {
-    /// Minimum relative decrease of the cross-validated MSE for a term to enter (default 0.05).
-    pub min_relative_gain: f64,
-    /// Minimum decrease as a fraction of the nominal MSE (default 0.001).
-    pub min_nominal_gain: f64,
-    /// Minimum RMS torque of a term relative to the RMS commanded torque of its joint(s)
-    /// (default 0.01).
-    pub min_torque_share: f64,
-    /// At most this many terms (default 10).
-    pub max_terms: usize,
-}
-
-impl Default for SelectOptions {
-    fn default() -> Self {
-        SelectOptions { min_relative_gain: 0.05, min_nominal_gain: 0.001, min_torque_share: 0.01, max_terms: 10 }
-    }
-}
 
 /// A family of terms sharing an effect and a joint; nonlinear parameters are searched on a grid.
 #[derive(Clone, Debug, PartialEq)]
