@@ -4,7 +4,7 @@
 
     python3 benches/cli_logging_cost.py RUNS BIN [BIN...]      # env: DURATION (300), OUT (a .mcap path)
 
-e.g. `python3 benches/cli_logging_cost.py 21 target/release/simgap` (docs/logs.md).
+e.g. `python3 benches/cli_logging_cost.py 21 target/release/simgap` (docs/guide/logs.md).
 """
 
 import os

@@ -7,7 +7,7 @@
 //! selected effects with their 95 % half-widths (`*`: not established), the most torque the
 //! corrected drive delivers against the hidden limit, and whether the mechanical effects
 //! selected are the hidden ones; then the counts. Not part of the self-check: a measurement
-//! quoted in `docs/case-study-servo.md`.
+//! quoted in `docs/results/case-study-servo.md`.
 //!
 //! `cargo run --release --example servo_limit -- [SEED] [COUNT]` (default 3 and 12)
 

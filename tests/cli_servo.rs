@@ -119,7 +119,7 @@ fn the_rhoban_servo_logs_are_diagnosed_and_the_held_out_trajectory_predicted_bet
     }
     // the documented converter (Python standard library only)
     let out = scratch("bam");
-    let converter = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/case-study-servo/bam_to_simgap.py");
+    let converter = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case-study-servo/bam_to_simgap.py");
     let o = Command::new("python3").args([converter.to_str().unwrap(), "--data", data.to_str().unwrap(), "--out", out.to_str().unwrap()]).output().expect("python3 runs");
     assert!(o.status.success(), "converter failed:\n{}", text(&o));
     // hold out one trajectory kind (sin_time_square, all three gains), fit on the others

@@ -1,4 +1,4 @@
-//! The README case study (docs/case-study.md) on real hardware data: `simgap diagnose` on the
+//! The README case study (docs/results/case-study-dfki.md) on real hardware data: `simgap diagnose` on the
 //! DFKI double pendulum, design C.0, open-loop sys-id runs (`controller = replay`).
 //!
 //! Needs the data in `../shared/data/dfki-double-pendulum` (next to the repository); without it
@@ -46,7 +46,7 @@ fn dfki_c0_open_loop_diagnosis() {
     let data = data_dir();
     if !data.is_dir() {
         assert!(std::env::var_os("CI").is_none(), "dfki_c0_open_loop_diagnosis: the DFKI data is not at {} (CI is set: a test without its data fails)", data.display());
-        println!("SKIPPED dfki_c0_open_loop_diagnosis: the DFKI data is not at {} (see docs/case-study.md)", data.display());
+        println!("SKIPPED dfki_c0_open_loop_diagnosis: the DFKI data is not at {} (see docs/results/case-study-dfki.md)", data.display());
         return;
     }
     let dir = std::env::temp_dir().join(format!("simgap-dfki-case-study-{}", std::process::id()));
@@ -63,7 +63,7 @@ fn dfki_c0_open_loop_diagnosis() {
         head(&records.join(format!("trajectory_{i}.csv.gz")), 4.0, &p);
         logs.push(p);
     }
-    let experiment = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/case-study/dfki-c0.experiment.json");
+    let experiment = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case-study-dfki/dfki-c0.experiment.json");
     let json = dir.join("report.json");
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let started = std::time::Instant::now();

@@ -1,4 +1,4 @@
-"""Every Python example in docs/python.md runs: the code blocks, in order, in one namespace."""
+"""Every Python example in docs/guide/python.md runs: the code blocks, in order, in one namespace."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "python.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "guide" / "python.md"
 
 
 def python_blocks(text: str) -> list[str]:
@@ -26,4 +26,4 @@ def test_every_python_example_in_the_docs_runs(tmp_path: Path, monkeypatch: pyte
         try:
             exec(compile(block, f"{DOC.name} block {i + 1}", "exec"), namespace)  # noqa: S102 - the docs' own code
         except Exception as e:  # noqa: BLE001 - name the block that failed
-            raise AssertionError(f"docs/python.md block {i + 1} failed: {e!r}\n{block}") from e
+            raise AssertionError(f"docs/guide/python.md block {i + 1} failed: {e!r}\n{block}") from e

@@ -75,5 +75,5 @@ def test_interval_coverage_of_the_true_parameters_is_measured(changes: tuple[Cha
     assert len(cov) >= 4 * len(planted.robots) * len(planted.days)  # frictions on every robot-day at least
     summary = cov.groupby("effect").agg(n=("inside", "size"), inside=("inside", "mean"))
     assert (summary["n"] > 0).all()
-    # the coverage is a measurement, reported in docs/fleet.md; the test pins only that it is one
+    # the coverage is a measurement, reported in docs/results/fleet.md; the test pins only that it is one
     assert 0.0 <= cov["inside"].mean() <= 1.0 and cov["z"].notna().all()

@@ -1,5 +1,5 @@
-"""Rhoban BAM XL330 servo logs: the converter (docs/case-study-servo/bam_to_simgap.py) and our
-implementation of BAM's servo model (docs/case-study-servo/bam_models.py).
+"""Rhoban BAM XL330 servo logs: the converter (examples/case-study-servo/bam_to_simgap.py) and our
+implementation of BAM's servo model (examples/case-study-servo/bam_models.py).
 
 Needs the data in ``../shared/data/rhoban-bam-xl330`` (next to the repository). Without it the
 data tests skip with a message, and fail when ``CI`` is set (a test without its data must not
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-SCRIPTS = REPO / "docs" / "case-study-servo"
+SCRIPTS = REPO / "examples" / "case-study-servo"
 DATA = REPO.parent / "shared" / "data" / "rhoban-bam-xl330"
 sys.path.insert(0, str(SCRIPTS))
 
@@ -202,7 +202,7 @@ def test_matches_bams_own_package(data, params):
 def test_held_out_drops_are_predicted_better_than_by_every_published_bam_model(data, tmp_path):
     """The servo case study's `lift_and_drop` fold (fit on the other trajectory kinds, the three
     drops held out): simgap's corrected model against BAM's published M1–M6 on the same windows,
-    at 0.1 s and 0.5 s k-step (docs/case-study-servo.md). In whole-run mean absolute error it
+    at 0.1 s and 0.5 s k-step (docs/results/case-study-servo.md). In whole-run mean absolute error it
     beats M1 but no longer M3: 43.2 against 42.6 mrad since the friction columns are filtered
     like the torque (40.0 before), as the case study reports."""
     binary = os.environ.get("SIMGAP_BIN") or str(REPO / "target" / "release" / "simgap")

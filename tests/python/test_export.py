@@ -1,4 +1,4 @@
-"""The exported corrected model where users simulate (docs/export.md), checked by round trips:
+"""The exported corrected model where users simulate (docs/guide/export.md), checked by round trips:
 
 - the exported URDF loads in Pinocchio and in simgap with H and g equal to the corrected model
   (Pinocchio's model of the input URDF with the reported corrections added through
@@ -276,7 +276,7 @@ def check_kstep(model: simgap.Model, run: simgap.Run, report_effects: list[dict[
     print(f"{label}: k-step RMS [rad] at {HORIZONS} s: simgap nominal {nominal}, simgap corrected {corrected}, MuJoCo corrected MJCF {ours}")
     for h, n, c, mj in zip(HORIZONS, nominal, corrected, ours):
         # MuJoCo predicts what simgap predicts, within the difference of its constraint dry
-        # friction and simgap's tanh (4-37 % measured, docs/export.md: 37 % on the demo at 0.1 s
+        # friction and simgap's tanh (4-37 % measured, docs/guide/export.md: 37 % on the demo at 0.1 s
         # since simgap's friction columns are filtered like the torque, which improved simgap's
         # prediction more than MuJoCo's; 5-23 % before)
         assert abs(mj - c) <= 0.45 * c, f"h = {h} s: MuJoCo {mj:.3e} rad, simgap {c:.3e} rad, nominal {n:.3e} rad"
@@ -487,7 +487,7 @@ def test_arm7_urdf_loads_in_pinocchio_with_the_chain_simgap_models(arm7: tuple[s
 def test_arm7_mujoco_and_simgap_predict_alike_in_motion(arm7: tuple[simgap.Report, simgap.Model, simgap.Run, Path]) -> None:
     # in motion the Coriolis and centrifugal torques of the rotated frames enter too
     # (simgap does not simulate joint limits, and this motion leaves panda_joint4's range
-    # [-3.07, -0.07] rad: with MuJoCo's limits on the two differ, as docs/export.md says)
+    # [-3.07, -0.07] rad: with MuJoCo's limits on the two differ, as docs/guide/export.md says)
     report, model, held, out = arm7
     free = prediction_gap_without_dry_friction(model, held, report.selected_effects, out / "corrected.xml", limits=False)
     limited = prediction_gap_without_dry_friction(model, held, report.selected_effects, out / "corrected.xml")

@@ -9,7 +9,7 @@
 //! text and the sidecar ([`ExportedFile`]) and write nothing. Units follow the joint type:
 //! revolute rad, N·m, kg·m²; prismatic m, N, kg.
 //!
-//! What goes where (also in `docs/export.md`):
+//! What goes where (also in `docs/guide/export.md`):
 //!
 //! | effect | URDF | MJCF |
 //! |---|---|---|

@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
 """The C.0 case study's corrected models, exported by `simgap diagnose --export-mjcf`, predicted
-in MuJoCo on the held-out runs, beside simgap's own k-step figures (docs/case-study.md).
+in MuJoCo on the held-out runs, beside simgap's own k-step figures (docs/results/case-study-dfki.md).
 
 Run after `run.py --only c0` (which writes `c0_hold{i}.json`, `.xml`, `.urdf` and their
 `.effects.json` sidecars into its --out), in a throwaway virtual environment:
 
     python3 -m venv /tmp/mjvenv2 && /tmp/mjvenv2/bin/pip install mujoco numpy
-    python3 docs/case-study/run.py --data ../shared/data --bin BIN --out /tmp/cs --only c0
-    /tmp/mjvenv2/bin/python docs/case-study/mujoco_kstep.py --data ../shared/data --cs /tmp/cs --bin BIN
+    python3 examples/case-study-dfki/run.py --data ../shared/data --bin BIN --out /tmp/cs --only c0
+    /tmp/mjvenv2/bin/python examples/case-study-dfki/mujoco_kstep.py --data ../shared/data --cs /tmp/cs --bin BIN
 
 For each fold the exported MJCF is loaded as written (`MjModel.from_xml_path`) and restarted at
 every k-step window of the held-out run from the state simgap starts from, driven by the logged

@@ -3,7 +3,7 @@
 
 Usage (from the repository root)::
 
-    python3 docs/case-study-servo/bam_to_simgap.py \
+    python3 examples/case-study-servo/bam_to_simgap.py \
         --data ../shared/data/rhoban-bam-xl330 --out /tmp/bam-simgap \
         [--priors ../shared/data/rhoban-bam-xl330/params/published/m1.json]
 
@@ -23,7 +23,7 @@ values onto a 5 ms grid, so wherever the PWM changes sign they hold values betwe
 that mean nothing. Only the raw register can be decoded.
 
 Output, per log, ``OUT/NAME.csv`` (one joint, named ``servo``), simgap's generic servo CSV
-convention (BRIEF §3.1):
+convention (the servo CSV columns of ``docs/guide/servos.md``):
 
 =====================  ====================================================================
 column                 meaning
@@ -46,7 +46,7 @@ column                 meaning
 =====================  ====================================================================
 
 ``OUT/NAME.experiment.json``, the sidecar simgap reads beside ``NAME.csv`` (values as strings,
-like the other sidecars in ``docs/case-study``): ``controller`` = ``servo``, ``joints`` =
+like the other sidecars in ``examples/case-study-dfki``): ``controller`` = ``servo``, ``joints`` =
 ``servo``, ``duty_gain`` = kp·(4096/2π)/(256·885) [1/rad] (BAM's XL330 law: the firmware's
 duty is that gain times the position error, clipped to ±1; the logs follow it with ratio
 0.96–1.00), ``max_duty`` = 1, ``supply_voltage`` = the nominal ``vin``; with ``--priors`` a BAM
@@ -177,7 +177,7 @@ def pendulum_urdf(mass: float, length: float) -> str:
     r = 0.005
     i = 0.4 * mass * r * r
     return f"""<?xml version="1.0"?>
-<!-- The Rhoban BAM XL330 pendulum bench (written by docs/case-study-servo/bam_to_simgap.py).
+<!-- The Rhoban BAM XL330 pendulum bench (written by examples/case-study-servo/bam_to_simgap.py).
      The joint rotates about y, gravity is -z, q = 0 hangs straight down: the tip mass
      m = {mass} kg sits l = {length} m below the axis, so g(q) = m g l sin q (BAM's Pendulum).
      The mass is a point mass given the inertia of a 5 mm sphere (2/5 m r^2) so that the

@@ -3,7 +3,7 @@
 
 Usage (from the repository root)::
 
-    python3 docs/case-study-servo/bam_baseline.py --data ../shared/data/rhoban-bam-xl330 \
+    python3 examples/case-study-servo/bam_baseline.py --data ../shared/data/rhoban-bam-xl330 \
         --out-json /tmp/bam-baseline.json --out-md /tmp/bam-baseline.md \
         [--logs NAME,NAME] [--params FILE ...] [--holdout NAME,NAME]
         [--windows windows.json] [--every 0.1] [--velocity fit|central|speed]

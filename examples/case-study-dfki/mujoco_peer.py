@@ -4,7 +4,7 @@
 Run by hand (not part of the test suite), in a throwaway virtual environment:
 
     python3 -m venv /tmp/mjvenv && /tmp/mjvenv/bin/pip install "mujoco[sysid]"
-    /tmp/mjvenv/bin/python docs/case-study/mujoco_peer.py --data ../shared/data \
+    /tmp/mjvenv/bin/python examples/case-study-dfki/mujoco_peer.py --data ../shared/data \
         --bin target/release/simgap --out /tmp/cs/mj
 
 For each of the five leave-one-run-out folds of `run.py` (fit on four of trajectory_00..04, hold

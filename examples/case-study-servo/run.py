@@ -2,7 +2,7 @@
 """The servo case study: simgap's diagnosis of the Rhoban BAM XL330 pendulum logs, held out by
 trajectory, against BAM's published models on the same held-out logs and windows.
 
-    python3 docs/case-study-servo/run.py --data ../shared/data/rhoban-bam-xl330 \\
+    python3 examples/case-study-servo/run.py --data ../shared/data/rhoban-bam-xl330 \\
         --bin target/release/simgap --out /tmp/servo-cs
 
 Folds (chosen before any fit): leave one trajectory kind out. Each of the four trajectory kinds

@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
-"""Reproduce the DFKI case study (docs/case-study.md): diagnoses, held-out k-step figures and the
+"""Reproduce the DFKI case study (docs/results/case-study-dfki.md): diagnoses, held-out k-step figures and the
 comparison with DFKI's own identified models, printed as markdown tables.
 
 Run from the repository root:
 
-    python3 docs/case-study/run.py --data ../shared/data --bin target/release/simgap --out /tmp/cs
+    python3 examples/case-study-dfki/run.py --data ../shared/data --bin target/release/simgap --out /tmp/cs
 
 Python 3 standard library only. Everything the script writes (split logs, sidecars, corrected
 URDFs, JSON reports) goes to --out; nothing is written into the repository. Each C.0 diagnosis
@@ -16,7 +16,7 @@ Data sets:
   * DFKI double pendulum, design C.0, open-loop sys_id trajectory_00..04: leave one run out (fit on
     four runs, hold out the fifth), five diagnoses.
   * DFKI double pendulum, design A.0, PD tracking record: first half fitted, second half held out
-    (split by docs/case-study/split_a0.py, which adds the interpolated reference).
+    (split by examples/case-study-dfki/split_a0.py, which adds the interpolated reference).
   * DFKI simple pendulum: the PD system-identification record and the gravity-compensation
     record, both replayed with the torque the motor reports; each is held out once while the
     other is fitted (two diagnoses).
@@ -169,7 +169,7 @@ def run(cmd, out_txt):
 
 def diagnose(args, urdf, fit, held, experiment, tag, export=False):
     """`simgap diagnose`; with `export`, also the corrected model as `TAG.urdf` and `TAG.xml`
-    (MJCF) in --out, each with its `.effects.json` sidecar (docs/export.md)."""
+    (MJCF) in --out, each with its `.effects.json` sidecar (docs/guide/export.md)."""
     js = os.path.join(args.out, f"{tag}.json")
     cmd = [args.bin, "diagnose", "--urdf", urdf]
     for l in fit:
