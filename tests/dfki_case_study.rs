@@ -1,4 +1,4 @@
-//! The README case study (docs/results/case-study-dfki.md) on real hardware data: `simgap diagnose` on the
+//! The DFKI case study (docs/results/case-study-dfki.md) on real hardware data: `simgap diagnose` on the
 //! DFKI double pendulum, design C.0, open-loop sys-id runs (`controller = replay`).
 //!
 //! Needs the data in `../shared/data/dfki-double-pendulum` (next to the repository); without it
