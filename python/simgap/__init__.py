@@ -14,6 +14,7 @@ shape ``(N, dof)``, of anything array-like, and returns C-ordered float64 numpy 
 """
 
 from simgap._simgap import (
+    DIAGNOSE_SWITCHES,
     DimensionError,
     DynamicsError,
     FitError,
@@ -37,6 +38,7 @@ from simgap._simgap import (
 from simgap._diagnose import diagnose
 
 __all__ = [
+    "DIAGNOSE_SWITCHES",
     "DimensionError",
     "DynamicsError",
     "FitError",

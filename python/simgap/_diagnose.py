@@ -54,9 +54,7 @@ def diagnose(
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: bool | ProgressCallback | None = None,
     urdf: str | PathLike[str] | None = None,
-    directional_friction: bool = False,
-    load_stribeck_friction: bool = False,
-    link_side_torque: bool = False,
+    **switches: bool,
 ) -> _simgap.Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
     **where** the gap lies, **which** unmodelled effect causes it, and **how far** it shrinks on
@@ -77,18 +75,10 @@ def diagnose(
 
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
 
-    ``directional_friction``: also try friction that differs with the direction of motion
-    (levels and slopes per direction) in place of each joint's Coulomb and viscous friction,
-    for ball screws and worn gearboxes (the CLI's ``--directional-friction``; off by default).
-
-    ``load_stribeck_friction``: on servo logs, also try the servo's load friction rising at rest
-    (a breakaway level ``fs + mus·|τ_drive|`` above the moving ``fc + mu·|τ_drive|``), for a
-    servo that stops short of its goal and stays there while its duty rises (the CLI's
-    ``--load-stribeck-friction``; off by default).
-
-    ``link_side_torque``: the logged effort is measured on the link side of the gearbox
-    (joint-torque sensors, as on torque-sensing arms), so no rotor inertia or back-EMF is tried:
-    both act before such a sensor (the CLI's ``--link-side-torque``; off by default).
+    ``**switches``: the diagnosis' yes/no options by keyword, the same as ``simgap diagnose``'s
+    flags (``directional_friction=True`` is ``--directional-friction``), listed with their
+    defaults in :data:`simgap.DIAGNOSE_SWITCHES` and below. A keyword that is no switch, or a
+    value that is not a bool, raises TypeError.
 
     Returns a :class:`Report`, which a notebook displays as the HTML report. Ctrl-C raises
     KeyboardInterrupt; errors as :func:`simgap._simgap.diagnose`.
@@ -104,7 +94,13 @@ def diagnose(
     else:
         raise TypeError(f"progress: expected True, False, None or a callable (stage, done, total), got {type(progress).__name__}")
     try:
-        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, directional_friction=directional_friction, load_stribeck_friction=load_stribeck_friction, link_side_torque=link_side_torque)  # type: ignore[arg-type]
+        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, **switches)  # type: ignore[arg-type]
     finally:
         if close is not None:
             close()
+
+
+# the switches, listed from the one table the CLI's flags are built from
+diagnose.__doc__ = (diagnose.__doc__ or "") + "".join(
+    f"\n    ``{name}`` (default {default}): {help}\n" for name, default, help in _simgap.DIAGNOSE_SWITCHES
+)

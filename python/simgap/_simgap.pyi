@@ -571,6 +571,10 @@ class Report:
     def __contains__(self, key: str, /) -> bool:
         """Whether the report has ``key``."""
 
+DIAGNOSE_SWITCHES: list[tuple[str, bool, str]]
+"""Every yes/no option of :func:`diagnose` as ``(name, default, help)``: its keywords, the CLI's
+flags (``name`` with ``-`` for ``_``) and the fleet's options are this table."""
+
 def diagnose(
     model: Model,
     fit: Sequence[_LogArg] | _LogArg,
@@ -595,6 +599,8 @@ def diagnose(
     in closed loop. ``formulation``: the C of the model under test.
 
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
+    The keywords after it are the diagnosis' switches, one per entry of
+    :data:`DIAGNOSE_SWITCHES` (the CLI's flags); another keyword raises TypeError.
     ``directional_friction``: also try friction that differs with the direction of motion in
     place of each joint's Coulomb and viscous friction (the CLI's ``--directional-friction``).
     ``load_stribeck_friction``: on servo logs, also try the servo's load friction rising at

@@ -79,14 +79,9 @@ struct Job {
     holdout: Vec<Source>,
     /// Given to runs that carry none.
     experiment: Option<Experiment>,
-    /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
-    directional_friction: bool,
-    /// Also try `load_stribeck_friction` on servo logs
-    /// ([`DiagnoseOptions::load_stribeck_friction`]).
-    load_stribeck_friction: bool,
-    /// The logged effort is measured on the link side of the gearbox
-    /// ([`simgap_diag::PrepareOptions::link_side_torque`]).
-    link_side_torque: bool,
+    /// The diagnosis' options, its switches set from the keywords given
+    /// ([`simgap_diag::SWITCHES`]); the stop flag is added by the worker.
+    options: DiagnoseOptions,
     /// Where the worker leaves its latest progress for the Python thread.
     latest: Latest,
 }
@@ -117,13 +112,7 @@ impl Job {
                 *latest = Some((p.stage.to_string(), p.done, p.total));
             }
         };
-        let mut options = DiagnoseOptions {
-            stop: Some(stop.clone()),
-            directional_friction: self.directional_friction,
-            load_stribeck_friction: self.load_stribeck_friction,
-            ..DiagnoseOptions::default()
-        };
-        options.prepare.link_side_torque = self.link_side_torque;
+        let options = DiagnoseOptions { stop: Some(stop.clone()), ..self.options.clone() };
         simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &options, &mut progress)
     }
 
@@ -186,22 +175,17 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// `simulate`) or paths to logs (read like `read_log`), or a single one. Every run must carry
 /// its experiment (controller, gains, sample period) to be re-simulated in closed loop.
 /// `formulation`: the C of the model under test, "euler_lagrange" or "simplified". `urdf`: the
-/// URDF file `model` was loaded from, kept for `Report.export_urdf`. `directional_friction`:
-/// also try friction that differs with the direction of motion (levels and slopes per
-/// direction) in place of each joint's Coulomb and viscous friction, for ball screws and worn
-/// gearboxes (the CLI's `--directional-friction`; off by default). `load_stribeck_friction`:
-/// on servo logs, also try the servo's load friction rising at rest (a breakaway level above
-/// the moving one), for a servo that stops short of its goal and stays there while its duty
-/// rises (the CLI's `--load-stribeck-friction`; off by default). `link_side_torque`: the
-/// logged effort is measured on the link side of the gearbox (joint-torque sensors), so no rotor
-/// inertia or back-EMF is tried (the CLI's `--link-side-torque`; off by default).
+/// URDF file `model` was loaded from, kept for `Report.export_urdf`. `**switches`: the
+/// diagnosis' yes/no options by keyword (`directional_friction=True`, …), one per entry of
+/// `DIAGNOSE_SWITCHES` (name, default, help), the same as the CLI's flags.
 ///
 /// Runs on its own thread with the GIL released; Ctrl-C raises KeyboardInterrupt. Raises
 /// FitError when there is no fit or held-out run, a log is given as both, or the fit fails;
 /// LogError when a log cannot be read, lacks a model joint or its experiment, or is too short;
-/// TypeError for arguments that are neither runs nor paths.
+/// TypeError for arguments that are neither runs nor paths, and for a keyword that is no switch
+/// or a switch that is not a bool.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, directional_friction = false, load_stribeck_friction = false, link_side_torque = false))]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, **switches))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -212,10 +196,9 @@ pub(crate) fn diagnose(
     experiment: Option<&Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
     urdf: Option<PathBuf>,
-    directional_friction: bool,
-    load_stribeck_friction: bool,
-    link_side_torque: bool,
+    switches: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyReport> {
+    let options = switch_options(switches)?;
     let progress = progress.filter(|p| !p.is_none());
     if let Some(p) = &progress {
         if !p.is_callable() {
@@ -230,14 +213,37 @@ pub(crate) fn diagnose(
         fit: Source::from_arg("fit", fit)?,
         holdout: Source::from_arg("holdout", holdout)?,
         experiment,
-        directional_friction,
-        load_stribeck_friction,
-        link_side_torque,
+        options,
         latest: Latest::default(),
     };
     let diagnosis = run_interruptible(py, job, progress)?;
     let json = diagnosis.report.to_json();
     Ok(PyReport { diagnosis: Arc::new(diagnosis), model, json, urdf })
+}
+
+/// The options of a diagnosis with the switches given as keywords (`**switches` of
+/// [`diagnose`]): TypeError, as Python raises for an unexpected keyword, for a name that is no
+/// switch or a value that is not a bool.
+fn switch_options(switches: Option<&Bound<'_, PyDict>>) -> PyResult<DiagnoseOptions> {
+    let mut given = Vec::new();
+    for (key, value) in switches.into_iter().flat_map(|d| d.iter()) {
+        let name: String = key.extract()?;
+        let Some(switch) = simgap_diag::switch(&name) else {
+            let names: Vec<&str> = simgap_diag::SWITCHES.iter().map(|s| s.name).collect();
+            return Err(PyTypeError::new_err(format!("diagnose() got an unexpected keyword argument '{name}'; expected one of {names:?}")));
+        };
+        let Ok(on) = value.cast::<pyo3::types::PyBool>().map(|b| b.is_true()) else {
+            return Err(PyTypeError::new_err(format!("diagnose(): {name} must be True or False, got {}", type_name(&value))));
+        };
+        given.push((switch.name, on));
+    }
+    simgap_diag::options_with(&given).map_err(PyTypeError::new_err)
+}
+
+/// `DIAGNOSE_SWITCHES`: every switch of a diagnosis as `(name, default, help)`, the table the
+/// CLI's flags and `diagnose`'s keywords are built from.
+pub(crate) fn switch_table() -> Vec<(&'static str, bool, &'static str)> {
+    simgap_diag::SWITCHES.iter().map(|s| (s.name, s.default, s.help)).collect()
 }
 
 /// Maps an export error: the URDF (or the model) to UrdfError, an effect that cannot be

@@ -29,6 +29,7 @@ fn _simgap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::compare, m)?)?;
     m.add_class::<diagnosis::PyReport>()?;
     m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
+    m.add("DIAGNOSE_SWITCHES", diagnosis::switch_table())?;
     m.add_function(wrap_pyfunction!(vocabulary::effect_vocabulary, m)?)?;
     Ok(())
 }

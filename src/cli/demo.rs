@@ -82,9 +82,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         urdf: Some(&urdf),
         export_urdf: Some(&corrected_urdf),
         export_mjcf: Some(&corrected_mjcf),
-        directional_friction: false,
-        load_stribeck_friction: false,
-        link_side_torque: false,
+        switches: Vec::new(),
         timings: false,
     })?;
 

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use simgap::core::{Formulation, Model};
-use simgap::diag::{diagnose, DiagnoseOptions, Diagnosis, Progress};
+use simgap::diag::{diagnose, options_with, Diagnosis, Progress, SWITCHES};
 use simgap::log::{read_log_with_warnings, LogOptions, McapWriter, RunTopics, TopicMap};
 use simgap::sim::{experiment_to_map, Run};
 
@@ -72,21 +72,10 @@ pub(crate) struct Args {
     /// (defaults /joint_states, /joint_reference, /joint_effort_measured).
     #[arg(long = "topic", value_parser = parse_topic_map)]
     topics: Option<TopicMap>,
-    /// Also try friction that differs with the direction of motion (levels and slopes per
-    /// direction) in place of each joint's Coulomb and viscous friction: for ball screws and worn
-    /// gearboxes.
-    #[arg(long = "directional-friction")]
-    directional_friction: bool,
-    /// On servo logs, also try the load friction rising at rest (a breakaway level above the
-    /// moving one, both growing with the drive's torque): for a servo that stops short of its
-    /// goal and stays there while its duty rises.
-    #[arg(long = "load-stribeck-friction")]
-    load_stribeck_friction: bool,
-    /// The logged effort is measured on the link side of the gearbox (joint-torque sensors, as
-    /// on torque-sensing arms): no rotor inertia or back-EMF is tried, since both act before
-    /// such a sensor.
-    #[arg(long = "link-side-torque")]
-    link_side_torque: bool,
+    /// The diagnosis' switches (`--directional-friction`, …), one flag per entry of
+    /// [`simgap::diag::SWITCHES`].
+    #[command(flatten)]
+    switches: SwitchArgs,
     /// Print the wall time spent in each stage of the diagnosis to stderr when it ends.
     #[arg(long)]
     timings: bool,
@@ -95,6 +84,32 @@ pub(crate) struct Args {
 /// Parses `--topic`.
 pub(crate) fn parse_topic_map(s: &str) -> Result<TopicMap, String> {
     TopicMap::parse(s)
+}
+
+/// The flags of [`SWITCHES`], as the value of each (by name): one flag per entry of the table,
+/// so that a new switch of the diagnosis is a flag without an edit here.
+#[derive(Clone, Debug)]
+pub(crate) struct SwitchArgs(pub(crate) Vec<(&'static str, bool)>);
+
+impl clap::FromArgMatches for SwitchArgs {
+    fn from_arg_matches(m: &clap::ArgMatches) -> Result<Self, clap::Error> {
+        Ok(SwitchArgs(SWITCHES.iter().map(|s| (s.name, m.get_flag(s.name))).collect()))
+    }
+
+    fn update_from_arg_matches(&mut self, m: &clap::ArgMatches) -> Result<(), clap::Error> {
+        *self = Self::from_arg_matches(m)?;
+        Ok(())
+    }
+}
+
+impl clap::Args for SwitchArgs {
+    fn augment_args(cmd: clap::Command) -> clap::Command {
+        SWITCHES.iter().fold(cmd, |cmd, s| cmd.arg(clap::Arg::new(s.name).long(s.flag).action(clap::ArgAction::SetTrue).help(s.help)))
+    }
+
+    fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
+        Self::augment_args(cmd)
+    }
 }
 
 /// What to diagnose and where to write, shared by `simgap diagnose` and `simgap demo`.
@@ -112,14 +127,9 @@ pub(crate) struct Job<'a> {
     pub(crate) urdf: Option<&'a Path>,
     pub(crate) export_urdf: Option<&'a Path>,
     pub(crate) export_mjcf: Option<&'a Path>,
-    /// Also try `directional_friction` ([`DiagnoseOptions::directional_friction`]).
-    pub(crate) directional_friction: bool,
-    /// Also try `load_stribeck_friction` on servo logs
-    /// ([`DiagnoseOptions::load_stribeck_friction`]).
-    pub(crate) load_stribeck_friction: bool,
-    /// The logged effort is measured on the link side of the gearbox
-    /// ([`simgap::diag::PrepareOptions::link_side_torque`]).
-    pub(crate) link_side_torque: bool,
+    /// The switches given, by name; every other switch is at its default
+    /// ([`simgap::diag::SWITCHES`]).
+    pub(crate) switches: Vec<(&'static str, bool)>,
     /// Print the wall time of each stage to stderr.
     pub(crate) timings: bool,
 }
@@ -139,9 +149,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         urdf: Some(&args.urdf),
         export_urdf: args.export_urdf.as_deref(),
         export_mjcf: args.export_mjcf.as_deref(),
-        directional_friction: args.directional_friction,
-        load_stribeck_friction: args.load_stribeck_friction,
-        link_side_torque: args.link_side_torque,
+        switches: args.switches.0,
         timings: args.timings,
     })?;
     Ok(())
@@ -189,13 +197,8 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     };
     // Ctrl-C stops the diagnosis at its next step (exit 130, nothing written)
     super::interrupt::cooperate();
-    let mut options = DiagnoseOptions {
-        stop: Some(super::interrupt::STOP.clone()),
-        directional_friction: job.directional_friction,
-        load_stribeck_friction: job.load_stribeck_friction,
-        ..DiagnoseOptions::default()
-    };
-    options.prepare.link_side_torque = job.link_side_torque;
+    let mut options = options_with(&job.switches).map_err(anyhow::Error::msg)?;
+    options.stop = Some(super::interrupt::STOP.clone());
     let result = diagnose(job.model, job.formulation, &fit, &holdout, &options, &mut on_progress);
     bar.finish_and_clear();
     if job.timings {

@@ -39,6 +39,7 @@ mod prediction;
 mod prepare;
 mod report;
 mod select;
+mod switches;
 mod vocabulary;
 
 #[cfg(feature = "check")]
@@ -55,6 +56,7 @@ pub use report::residual::ResidualTest;
 pub use report::units::Units;
 pub use report::{Alternative, Candidate, Decision, Diagnosis, EffectiveConstants, Gap, KStep, Report, RunKStep, ServoReport, WindowStart};
 pub use select::SelectOptions;
+pub use switches::{options_with, switch, Switch, SWITCHES};
 pub use vocabulary::{EffectReport, Param};
 
 #[cfg(test)]

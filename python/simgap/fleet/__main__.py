@@ -34,6 +34,8 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from simgap._simgap import DIAGNOSE_SWITCHES
+
 if TYPE_CHECKING:
     from .findings import Findings
     from .result import FleetResult
@@ -48,8 +50,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the number of cores)")
     p.add_argument("--out", type=Path, default=Path("fleet-out"), help="output folder (default: fleet-out)")
     p.add_argument("--formulation", default="euler_lagrange", choices=["euler_lagrange", "euler-lagrange", "simplified"])
-    p.add_argument("--directional-friction", action="store_true", help="also try friction that differs with the direction of motion (ball screws, worn gearboxes), as simgap diagnose")
-    p.add_argument("--link-side-torque", action="store_true", help="the logged effort is measured on the link side of the gearbox (joint-torque sensors): no rotor inertia or back-EMF is tried, as simgap diagnose")
+    # the diagnosis' switches, as simgap diagnose has them (one table: DIAGNOSE_SWITCHES)
+    for name, _default, help in DIAGNOSE_SWITCHES:
+        p.add_argument("--" + name.replace("_", "-"), action="store_true", help=help)
     p.add_argument("--retries", type=int, default=2, help="re-runs of a task that fails for a reason other than its data (default 2)")
     p.add_argument("--z-drift", type=float, default=4.0, help="drift and step: z threshold of the change tests (default 4)")
     p.add_argument("--min-rate", type=float, default=0.02, help="drift: minimum relative rate per day (default 0.02)")
@@ -166,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
             except (OSError, TimeoutError, ValueError) as err:
                 print(f"simgap.fleet: cannot reach the scheduler {args.scheduler}: {err}", file=sys.stderr)
                 return 2
-        options = {"directional_friction": args.directional_friction, "link_side_torque": args.link_side_torque}
+        options = {name: getattr(args, name) for name, _default, _help in DIAGNOSE_SWITCHES}
         result = diagnose_fleet(
             index, args.urdf, client, tip=args.tip, formulation=args.formulation, retries=args.retries, progress=not args.no_progress, n_workers=args.workers, diagnose_options=options
         )

@@ -20,9 +20,9 @@ pub(crate) mod uncertainty;
 use nalgebra::{DMatrix, DVector};
 use simgap_core::PARAMS_PER_LINK;
 
+pub use crate::options::SelectOptions;
 use crate::prepare::dataset::FitData;
 use crate::prepare::width::DryWidth;
-pub use crate::options::SelectOptions;
 use std::sync::Arc;
 
 use crate::lsq::inertial::InertialPrior;
