@@ -80,7 +80,7 @@ pub mod limits {
     pub const MAX_SUBSTEPS: usize = 10_000;
     /// Most integration steps a run may take: samples × `substeps`.
     pub const MAX_STEPS: f64 = 1e9;
-    /// Most samples a run held in memory may have ([`SimParams::check_in_memory`]).
+    /// Most samples a run held in memory may have ([`SimParams::check_in_memory`](super::SimParams::check_in_memory)).
     pub const MAX_MEMORY_SAMPLES: f64 = 1e7;
     /// Largest position noise [rad or m].
     pub const MAX_NOISE_STD: f64 = 1.0;

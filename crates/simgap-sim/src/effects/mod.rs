@@ -25,10 +25,12 @@
 //! leaves `w` out takes [`DEFAULT_COULOMB_WIDTH`] ([`Effect::parse`]) or the caller's default
 //! ([`Effect::parse_with_width`]).
 //!
-//! Each effect's simulation is one file of this folder (`viscous_friction.rs`, ...), which
-//! implements the one trait of how the simulator applies an effect over a view of its
-//! variant's parameters, and reads its command-line spelling; [`Effect::simulated`] is the one
-//! table from a variant to its file. The functions here fold every effect's part.
+//! Each effect's simulation is one file of this folder (`viscous_friction.rs`, ...,
+//! `back_emf.rs`): a view of its variant's parameters implementing the private trait
+//! `Simulated` (its torque, slopes, stiff band, dry levels, drive and actuator parts, armature,
+//! inertia, validation), and the reading of its spelling. `Effect::simulated` is the one table
+//! from a variant to its file; the functions here fold every effect's part. A new effect is one
+//! file, one variant, and one line in that table and in the parser's.
 
 use simgap_core::Model;
 
