@@ -25,11 +25,13 @@ rust-test: browser
 	SIMGAP_BIN=$(CURDIR)/target/release/simgap cargo test --release --workspace --exclude simgap-python
 
 # Headless Chromium (Debian package `chromium`) for the test that renders the HTML report, when
-# the system can install it; without it that test skips with a message.
+# the system can install it (refreshing the package lists if the install fails without);
+# without it that test skips with a message, and fails when `CI` is set.
 browser:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
-	  (apt-cache show chromium >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1) || \
-	  echo "headless Chromium is not available: the HTML rendering test will skip"
+	  (export DEBIAN_FRONTEND=noninteractive; apt-get install -y -q chromium >/dev/null 2>&1 || \
+	    (apt-get update -q >/dev/null 2>&1 && apt-get install -y -q chromium >/dev/null 2>&1)) || \
+	  echo "headless Chromium is not available: the HTML rendering test will skip (and fail under CI)"
 
 venv: $(VENV)/.requirements-stamp
 

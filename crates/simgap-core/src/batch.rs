@@ -29,10 +29,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use nalgebra::DMatrix;
 
 use crate::algorithms::soa::{self, InertiaLevel, SoaWs, Wanted};
+use crate::algorithms::workspace::Workspace;
 use crate::formulation::Formulation;
 use crate::lanes::Lanes;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// Lane width forced by [`set_batch_lanes`] (0: chosen by CPU feature).
 static FORCED_LANES: AtomicUsize = AtomicUsize::new(0);

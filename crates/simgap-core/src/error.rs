@@ -180,6 +180,21 @@ pub enum Error {
         /// The value read.
         value: f64,
     },
+    /// A number finite but so large that the dynamics overflow with it: a length whose square
+    /// times a mass leaves `f64` (see [`MAX_URDF_MAGNITUDE`](crate::urdf::MAX_URDF_MAGNITUDE)).
+    #[error("{source_name}: {element} has {value:e} in {field}; expected a number of magnitude at most {limit:e} (larger ones overflow the dynamics)")]
+    TooLarge {
+        /// File name.
+        source_name: String,
+        /// e.g. `link 'forearm'` or `joint 'elbow'`.
+        element: String,
+        /// The attribute.
+        field: String,
+        /// The value read.
+        value: f64,
+        /// The largest magnitude accepted.
+        limit: f64,
+    },
     /// A link with negative mass.
     #[error("{source_name}: link '{link}' has mass {mass}; expected mass >= 0")]
     NegativeMass {

@@ -67,7 +67,6 @@ pub mod robots;
 pub mod sincos;
 pub mod spatial;
 pub mod urdf;
-pub mod workspace;
 
 pub use algorithms::aba::forward_dynamics_aba_into;
 pub use algorithms::coriolis::{coriolis_matrix, coriolis_matrix_into, mass_matrix_derivative, mass_matrix_derivative_into};
@@ -83,6 +82,7 @@ pub use algorithms::rnea::{
     bias_torques, bias_torques_into, coriolis_torques, coriolis_torques_into, gravity_torques, gravity_torques_into, inverse_dynamics, inverse_dynamics_into,
 };
 pub use algorithms::terms::{dynamics_terms, dynamics_terms_into, DynamicsTerms};
+pub use algorithms::workspace::{self, Workspace};
 pub use batch::{
     batch_lanes, bias_torques_batch, coriolis_matrix_batch, coriolis_torques_batch, dynamics_terms_batch, gravity_torques_batch, inverse_dynamics_batch, mass_matrix_batch,
     mass_matrix_derivative_batch,
@@ -93,4 +93,3 @@ pub use model::{Joint, JointKind, JointLimits, Model, STANDARD_GRAVITY};
 pub use robots::{ARM7_URDF, PAPER_ARM_URDF, PENDULUM_URDF};
 pub use spatial::{Force, Motion, SpatialInertia, Transform};
 pub use urdf::UrdfOptions;
-pub use workspace::Workspace;

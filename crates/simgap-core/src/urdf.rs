@@ -73,6 +73,13 @@ struct RawJoint {
     limits: JointLimits,
 }
 
+/// The largest magnitude of a URDF's lengths, masses, inertias and axis components the loader
+/// accepts: the joint-space terms are sums of products `mass · length²` (H, C) and `mass ·
+/// length · g` (gravity), which stay below `1e300 < f64::MAX ≈ 1.8e308` when every factor is at
+/// most `1e100`. A larger number is refused where it is written, not where it overflows.
+pub const MAX_URDF_MAGNITUDE: f64 = 1e100;
+
+/// Refuses a NaN or infinite value of `field` of `element`.
 fn finite(src: &str, element: &str, field: &str, values: &[f64]) -> Result<()> {
     for &v in values {
         if !v.is_finite() {
@@ -80,6 +87,15 @@ fn finite(src: &str, element: &str, field: &str, values: &[f64]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// [`finite`], and refuses a value of magnitude above [`MAX_URDF_MAGNITUDE`].
+fn bounded(src: &str, element: &str, field: &str, values: &[f64]) -> Result<()> {
+    finite(src, element, field, values)?;
+    match values.iter().find(|v| v.abs() > MAX_URDF_MAGNITUDE) {
+        Some(&value) => Err(Error::TooLarge { source_name: src.into(), element: element.into(), field: field.into(), value, limit: MAX_URDF_MAGNITUDE }),
+        None => Ok(()),
+    }
 }
 
 fn malformed(src: &str, message: impl Into<String>) -> Error {
@@ -379,9 +395,10 @@ fn read_links(src: &str, robot: &urdf_rs::Robot) -> Result<HashMap<String, Spati
         let el = format!("link '{}'", l.name);
         let i = &l.inertial;
         finite(src, &el, "inertial/origin", &[i.origin.xyz.0, i.origin.rpy.0].concat())?;
-        finite(src, &el, "inertial/mass", &[i.mass.value])?;
+        bounded(src, &el, "inertial/origin", &i.origin.xyz.0)?;
+        bounded(src, &el, "inertial/mass", &[i.mass.value])?;
         let it = &i.inertia;
-        finite(src, &el, "inertial/inertia", &[it.ixx, it.ixy, it.ixz, it.iyy, it.iyz, it.izz])?;
+        bounded(src, &el, "inertial/inertia", &[it.ixx, it.ixy, it.ixz, it.iyy, it.iyz, it.izz])?;
         if i.mass.value < 0.0 {
             return Err(Error::NegativeMass { source_name: src.into(), link: l.name.clone(), mass: i.mass.value });
         }
@@ -422,9 +439,10 @@ fn read_joints(src: &str, robot: &urdf_rs::Robot, link_inertia: &HashMap<String,
             }
         }
         finite(src, &el, "origin", &[j.origin.xyz.0, j.origin.rpy.0].concat())?;
+        bounded(src, &el, "origin", &j.origin.xyz.0)?;
         let axis = Vector3::from(j.axis.xyz.0);
         if kind.is_some() {
-            finite(src, &el, "axis", &j.axis.xyz.0)?;
+            bounded(src, &el, "axis", &j.axis.xyz.0)?;
             if axis.norm() == 0.0 {
                 return Err(Error::ZeroAxis { source_name: src.into(), joint: j.name.clone(), axis: j.axis.xyz.0 });
             }

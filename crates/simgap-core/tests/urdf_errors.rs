@@ -149,6 +149,29 @@ fn infinite_origin_is_non_finite() {
     assert_mentions(&msg, &["joint 'elbow'", "origin", "inf", "finite number"]);
 }
 
+/// The paper arm fixture with `from` replaced by `to` (exactly once).
+fn paper_arm_with(from: &str, to: &str) -> String {
+    let text = std::fs::read_to_string(common::model_path("paper_arm.urdf")).unwrap();
+    assert_eq!(text.matches(from).count(), 1, "{from:?} is not in the paper arm fixture exactly once");
+    text.replacen(from, to, 1)
+}
+
+#[test]
+fn overflowing_number_is_refused_naming_the_element_that_holds_it() {
+    // the elbow's origin 1e300 m is finite, but its square times a mass overflows H in the
+    // shoulder's row: the error names the elbow, where the number is written
+    let elbow = r#"<origin xyz="0 0 -0.45" rpy="0 0 0"/>"#;
+    for (from, to, element, field) in [
+        (elbow, r#"<origin xyz="1e300 0 0" rpy="0 0 0"/>"#, "joint 'elbow'", "origin"),
+        (r#"<origin xyz="0 0 -0.048" rpy="0 0 0"/>"#, r#"<origin xyz="0 0 -1e300" rpy="0 0 0"/>"#, "link 'forearm'", "inertial/origin"),
+    ] {
+        let (err, msg) = load_text(&paper_arm_with(from, to));
+        assert!(matches!(&err, Error::TooLarge { element: e, field: f, value, .. } if e == element && f == field && value.abs() == 1e300), "{err:?}");
+        assert_mentions(&msg, &[element, field, "1e300", "at most 1e100", "overflow"]);
+        assert!(!msg.contains("shoulder"), "{msg}");
+    }
+}
+
 #[test]
 fn whole_massless_chain_is_massless() {
     let (err, msg) = load_bad("massless_chain.urdf");

@@ -1,6 +1,7 @@
 //! The HTML report as an engineer reads it: a conclusion that follows the report's numbers
 //! (diverged and worse cases say so), every figure where it belongs, and the page as headless
-//! Chromium renders it (skipped, with a message, when Chromium is not installed).
+//! Chromium renders it (skipped, with a message, when Chromium is not installed; failed then
+//! when the environment variable `CI` is set, as the tests of the shared data do).
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -130,7 +131,11 @@ fn chromium() -> Option<PathBuf> {
 #[test]
 fn chromium_renders_the_page_with_every_figure() {
     let Some(chrome) = chromium() else {
-        eprintln!("skipped: headless Chromium is not installed (Debian: apt-get install chromium)");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "chromium_renders_the_page_with_every_figure: headless Chromium is not installed (CI is set: a test without its browser fails; `make browser` installs the Debian package chromium)"
+        );
+        println!("SKIPPED chromium_renders_the_page_with_every_figure: headless Chromium is not installed (`make browser`, or Debian: apt-get install chromium)");
         return;
     };
     let (model, d) = demo();

@@ -25,29 +25,12 @@ use std::thread::JoinHandle;
 use simgap_sim::{Experiment, RunEnd, Sample, Sink};
 
 use crate::error::{write_error, Result};
+pub use crate::partial::{is_partial, partial_path, PARTIAL};
 
 /// Batches of rows the writer thread may hold before [`Sink::record`] waits for it.
 pub const QUEUED_BATCHES: usize = 8;
 /// Rows per batch (and per gzip member).
 pub const BATCH_ROWS: usize = 1024;
-/// What a CSV log's name holds before its extension while it is being written.
-pub const PARTIAL: &str = ".partial";
-
-/// The name a CSV log has while it is being written: `run.csv` → `run.partial.csv`,
-/// `run.csv.gz` → `run.partial.csv.gz` (other names get `.partial` before their extension).
-pub fn partial_path(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
-    let lower = name.to_lowercase();
-    let ext = [".csv.gz", ".csv"].iter().find(|e| lower.ends_with(*e)).map_or(name.rfind('.').map_or(0, |i| name.len() - i), |e| e.len());
-    let (stem, ext) = name.split_at(name.len() - ext);
-    path.with_file_name(format!("{stem}{PARTIAL}{ext}"))
-}
-
-/// Whether `path` names a CSV log whose writer had not finished (`*.partial.csv[.gz]`).
-pub fn is_partial(path: &Path) -> bool {
-    let name = path.file_name().map(|s| s.to_string_lossy().to_lowercase()).unwrap_or_default();
-    name.ends_with(".partial.csv") || name.ends_with(".partial.csv.gz")
-}
 
 /// Rows as the sink hands them over: per row the time, then q, q̇, τ, q_ref, q̇_ref, and a
 /// servo's duty, torque enable and voltage (those present).

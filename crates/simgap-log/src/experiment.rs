@@ -25,8 +25,8 @@ pub(crate) fn sidecar_candidates(log_path: &Path) -> Vec<PathBuf> {
     let stem_len = [".csv.gz", ".csv", ".mcap"].iter().find(|ext| lower.ends_with(*ext)).map_or(name.len(), |ext| name.len() - ext.len());
     let stem = &name[..stem_len];
     let mut out = vec![trimmed.with_file_name(format!("{stem}.experiment.json")), trimmed.with_file_name(format!("{stem}.experiment"))];
-    if stem.to_lowercase().ends_with(crate::csv_sink::PARTIAL) {
-        let whole = &stem[..stem.len() - crate::csv_sink::PARTIAL.len()];
+    if stem.to_lowercase().ends_with(crate::partial::PARTIAL) {
+        let whole = &stem[..stem.len() - crate::partial::PARTIAL.len()];
         out.extend([trimmed.with_file_name(format!("{whole}.experiment.json")), trimmed.with_file_name(format!("{whole}.experiment"))]);
     }
     if log_path.is_dir() {

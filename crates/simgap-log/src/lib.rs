@@ -42,6 +42,7 @@ pub mod csv_sink;
 pub mod error;
 pub mod experiment;
 pub mod mcap;
+pub mod partial;
 pub mod topics;
 
 use std::fs::File;

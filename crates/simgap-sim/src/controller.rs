@@ -5,7 +5,9 @@ use std::collections::BTreeMap;
 use simgap_core::{gravity_torques_into, Model, Workspace};
 
 use crate::error::{Error, Result};
-use crate::run::{ControllerKind, Experiment, Run};
+pub use crate::experiment::{servo_keys, ServoParams};
+use crate::experiment::{ControllerKind, Experiment};
+use crate::run::Run;
 
 /// A sampled controller: the commanded torque from the measurements and the reference.
 ///
@@ -166,118 +168,6 @@ impl Controller for Replay {
             self.cursor += 1;
         }
         out.copy_from_slice(&self.tau[self.cursor * n..(self.cursor + 1) * n]);
-    }
-}
-
-/// Metadata keys of a servo experiment (see [`Servo`]).
-pub mod servo_keys {
-    /// Duty per radian of position error [1/rad], per joint.
-    pub const DUTY_GAIN: &str = "duty_gain";
-    /// Largest duty magnitude, per joint (default 1).
-    pub const MAX_DUTY: &str = "max_duty";
-    /// Supply voltage [V] where the log has none.
-    pub const SUPPLY_VOLTAGE: &str = "supply_voltage";
-    /// Motor torque constant through the gearbox [N·m/A], per joint.
-    pub const KT: &str = "kt";
-    /// Motor winding resistance [Ω], per joint.
-    pub const R: &str = "R";
-    /// Largest rate of the goal [rad/s or m/s] (absent: none).
-    pub const GOAL_RATE_LIMIT: &str = "goal_rate_limit";
-}
-
-/// The constants of a position-controlled servo, per joint in the order of the experiment's
-/// `joints` (see [`Servo`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ServoParams {
-    /// Duty per unit of position error [1/rad or 1/m].
-    pub duty_gain: Vec<f64>,
-    /// Largest duty magnitude in (0, 1].
-    pub max_duty: Vec<f64>,
-    /// Supply voltage [V] used where the log has none.
-    pub supply_voltage: f64,
-    /// Torque constant [N·m/A or N/A] (`None`: not given).
-    pub kt: Option<Vec<f64>>,
-    /// Winding resistance [Ω] (`None`: not given).
-    pub r: Option<Vec<f64>>,
-    /// Largest goal rate [rad/s or m/s] (`None`: none).
-    pub goal_rate_limit: Option<f64>,
-}
-
-impl ServoParams {
-    /// The servo constants of a `servo` experiment's metadata.
-    ///
-    /// # Errors
-    /// A message naming the missing or malformed key (the caller adds the file).
-    pub fn from_experiment(exp: &Experiment) -> std::result::Result<ServoParams, String> {
-        use servo_keys::*;
-        let n = exp.joints.len();
-        let numbers = |k: &str| -> std::result::Result<Option<Vec<f64>>, String> {
-            let Some(s) = exp.extra.get(k) else { return Ok(None) };
-            let v: Vec<f64> = s
-                .split(',')
-                .map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim())))
-                .collect::<std::result::Result<_, _>>()?;
-            match v.len() {
-                1 => Ok(Some(vec![v[0]; n])),
-                m if m == n => Ok(Some(v)),
-                m => Err(format!("key '{k}' has {m} values for {n} joints ({}); expected one per joint or one for all", exp.joints.join(","))),
-            }
-        };
-        let positive = |k: &str, v: &[f64], upper: f64| -> std::result::Result<(), String> {
-            match v.iter().find(|x| !(x.is_finite() && **x > 0.0 && **x <= upper)) {
-                Some(x) if upper.is_finite() => Err(format!("key '{k}' has {x}; expected a number in (0, {upper}]")),
-                Some(x) => Err(format!("key '{k}' has {x}; expected a positive number")),
-                None => Ok(()),
-            }
-        };
-        let duty_gain = numbers(DUTY_GAIN)?.ok_or_else(|| format!("a servo experiment needs '{DUTY_GAIN}' (duty per radian of position error, one per joint)"))?;
-        positive(DUTY_GAIN, &duty_gain, f64::INFINITY)?;
-        let max_duty = numbers(MAX_DUTY)?.unwrap_or_else(|| vec![1.0; n]);
-        positive(MAX_DUTY, &max_duty, 1.0)?;
-        let supply_voltage = match exp.extra.get(SUPPLY_VOLTAGE) {
-            Some(s) => s.trim().parse::<f64>().map_err(|_| format!("key '{SUPPLY_VOLTAGE}': '{s}' is not a number of volts"))?,
-            None => f64::NAN,
-        };
-        if exp.extra.contains_key(SUPPLY_VOLTAGE) {
-            positive(SUPPLY_VOLTAGE, &[supply_voltage], f64::INFINITY)?;
-        }
-        let kt = numbers(KT)?;
-        let r = numbers(R)?;
-        if kt.is_some() != r.is_some() {
-            return Err(format!("key '{}' is given without '{}'; expected both motor constants or neither", if kt.is_some() { KT } else { R }, if kt.is_some() { R } else { KT }));
-        }
-        for (k, v) in [(KT, &kt), (R, &r)] {
-            if let Some(v) = v {
-                positive(k, v, f64::INFINITY)?;
-            }
-        }
-        let goal_rate_limit = match exp.extra.get(GOAL_RATE_LIMIT) {
-            Some(s) => {
-                let x = s.trim().parse::<f64>().map_err(|_| format!("key '{GOAL_RATE_LIMIT}': '{s}' is not a number"))?;
-                positive(GOAL_RATE_LIMIT, &[x], f64::INFINITY)?;
-                Some(x)
-            }
-            None => None,
-        };
-        Ok(ServoParams { duty_gain, max_duty, supply_voltage, kt, r, goal_rate_limit })
-    }
-
-    /// Writes the constants into an experiment's metadata (`kt`, `R` only when known).
-    pub fn write_to(&self, exp: &mut Experiment) {
-        use servo_keys::*;
-        let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
-        exp.extra.insert(DUTY_GAIN.into(), join(&self.duty_gain));
-        exp.extra.insert(MAX_DUTY.into(), join(&self.max_duty));
-        if self.supply_voltage.is_finite() {
-            exp.extra.insert(SUPPLY_VOLTAGE.into(), format!("{}", self.supply_voltage));
-        }
-        if let (Some(kt), Some(r)) = (&self.kt, &self.r) {
-            exp.extra.insert(KT.into(), join(kt));
-            exp.extra.insert(R.into(), join(r));
-        }
-        if let Some(g) = self.goal_rate_limit {
-            exp.extra.insert(GOAL_RATE_LIMIT.into(), format!("{g}"));
-        }
     }
 }
 

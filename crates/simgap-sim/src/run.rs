@@ -1,76 +1,11 @@
 //! A run: what a robot or a simulation did, as columnar arrays, and the experiment behind it.
 
-use std::collections::{BTreeMap, HashSet};
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-
-/// Metadata key of the controller kind.
-pub const KEY_CONTROLLER: &str = "controller";
-/// Metadata key of the joint names giving the order of the gains.
-pub const KEY_JOINTS: &str = "joints";
-/// Metadata key of the proportional gains.
-pub const KEY_KP: &str = "kp";
-/// Metadata key of the derivative gains.
-pub const KEY_KV: &str = "kv";
-/// Metadata key of the controller sample period [s].
-pub const KEY_SAMPLE_PERIOD: &str = "sample_period";
-
-/// The controller of an experiment.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ControllerKind {
-    /// τ = Kp (q_ref − q) + Kv (q̇_ref − q̇).
-    Pd,
-    /// The same plus the model's g(q).
-    PdGravity,
-    /// The logged effort applied open-loop.
-    Replay,
-    /// A position-controlled servo: the firmware's P loop drives a PWM duty
-    /// (see [`crate::controller::Servo`]); the log holds no torque.
-    Servo,
-}
-
-impl ControllerKind {
-    /// The metadata spelling: `pd`, `pd_gravity` or `replay`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ControllerKind::Pd => "pd",
-            ControllerKind::PdGravity => "pd_gravity",
-            ControllerKind::Replay => "replay",
-            ControllerKind::Servo => "servo",
-        }
-    }
-}
-
-impl std::str::FromStr for ControllerKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s.trim() {
-            "pd" => Ok(ControllerKind::Pd),
-            "pd_gravity" => Ok(ControllerKind::PdGravity),
-            "replay" => Ok(ControllerKind::Replay),
-            "servo" => Ok(ControllerKind::Servo),
-            other => Err(format!("unknown controller '{other}'; expected pd, pd_gravity, replay or servo")),
-        }
-    }
-}
-
-/// The `simgap.experiment` metadata of a log.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Experiment {
-    /// Controller kind.
-    pub controller: ControllerKind,
-    /// Joint names giving the order of `kp` and `kv`.
-    pub joints: Vec<String>,
-    /// Proportional gains [N·m/rad], aligned with `joints`.
-    pub kp: Vec<f64>,
-    /// Derivative gains [N·m·s/rad], aligned with `joints`.
-    pub kv: Vec<f64>,
-    /// Controller sample period [s].
-    pub sample_period: f64,
-    /// Any other metadata entries, kept as read.
-    pub extra: BTreeMap<String, String>,
-}
+use crate::experiment::check_experiment;
+pub use crate::experiment::{experiment_from_map, experiment_to_map, ControllerKind, Experiment, KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD};
 
 /// A run as columnar arrays. Matrices are row-major `len() × dof()` in `joints` order.
 #[derive(Clone, Debug, PartialEq)]
@@ -397,79 +332,6 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
         experiment: run.experiment.clone(),
         source: run.source.clone(),
     })
-}
-
-/// The `simgap.experiment` string map of an experiment. Numbers are written in
-/// Rust's shortest round-trip form, so [`experiment_from_map`] gives back the same values.
-/// Entries of `extra` with a reserved key are left out.
-pub fn experiment_to_map(e: &Experiment) -> BTreeMap<String, String> {
-    let join = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
-    let mut map: BTreeMap<String, String> =
-        e.extra.iter().filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
-    map.insert(KEY_CONTROLLER.into(), e.controller.as_str().into());
-    map.insert(KEY_JOINTS.into(), e.joints.join(","));
-    map.insert(KEY_KP.into(), join(&e.kp));
-    map.insert(KEY_KV.into(), join(&e.kv));
-    map.insert(KEY_SAMPLE_PERIOD.into(), format!("{}", e.sample_period));
-    map
-}
-
-/// Parses a `simgap.experiment` string map. Unknown keys go to `extra`.
-///
-/// # Errors
-/// A message saying which key is missing or malformed (the caller adds the file).
-pub fn experiment_from_map(map: &BTreeMap<String, String>) -> std::result::Result<Experiment, String> {
-    let get = |k: &str| map.get(k).ok_or_else(|| format!("key '{k}' is missing"));
-    let numbers = |k: &str| -> std::result::Result<Vec<f64>, String> {
-        let s = get(k)?;
-        if s.trim().is_empty() {
-            return Ok(Vec::new());
-        }
-        s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("key '{k}': '{}' is not a number (in '{s}')", x.trim()))).collect()
-    };
-    let controller: ControllerKind = get(KEY_CONTROLLER)?.parse().map_err(|m| format!("key '{KEY_CONTROLLER}': {m}"))?;
-    let joints_s = get(KEY_JOINTS)?;
-    let joints: Vec<String> = if joints_s.trim().is_empty() { Vec::new() } else { joints_s.split(',').map(|s| s.trim().to_string()).collect() };
-    // a replay or a servo has no PD gains; a sample period left out is the log's median
-    // spacing (filled in by the reader, which knows the stamps)
-    let gainless = matches!(controller, ControllerKind::Replay | ControllerKind::Servo);
-    let kp = if gainless && !map.contains_key(KEY_KP) { Vec::new() } else { numbers(KEY_KP)? };
-    let kv = if gainless && !map.contains_key(KEY_KV) { Vec::new() } else { numbers(KEY_KV)? };
-    let sample_period = match map.get(KEY_SAMPLE_PERIOD) {
-        Some(sp) => sp.trim().parse::<f64>().map_err(|_| format!("key '{KEY_SAMPLE_PERIOD}': '{sp}' is not a number"))?,
-        None => f64::NAN,
-    };
-    let extra = map.iter().filter(|(k, _)| ![KEY_CONTROLLER, KEY_JOINTS, KEY_KP, KEY_KV, KEY_SAMPLE_PERIOD].contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
-    let e = Experiment { controller, joints, kp, kv, sample_period, extra };
-    check_experiment(&Experiment { sample_period: if sample_period.is_nan() { 1.0 } else { sample_period }, ..e.clone() })?;
-    Ok(e)
-}
-
-/// Checks an experiment on its own: gains aligned with joints (none for a replay or a servo),
-/// finite, positive sample period, a servo's keys (see [`crate::controller::ServoParams`]).
-fn check_experiment(e: &Experiment) -> std::result::Result<(), String> {
-    if e.joints.iter().any(|j| j.is_empty()) {
-        return Err(format!("'{KEY_JOINTS}' has an empty joint name ('{}')", e.joints.join(",")));
-    }
-    if let Some(j) = e.joints.iter().find(|j| j.contains(',')) {
-        return Err(format!("joint name '{j}' contains a comma"));
-    }
-    let gainless = matches!(e.controller, ControllerKind::Replay | ControllerKind::Servo);
-    for (k, v) in [(KEY_KP, &e.kp), (KEY_KV, &e.kv)] {
-        if v.len() != e.joints.len() && !(gainless && v.is_empty()) {
-            return Err(format!("'{k}' has {} gains for {} joints ({})", v.len(), e.joints.len(), e.joints.join(",")));
-        }
-        if let Some(x) = v.iter().find(|x| !x.is_finite()) {
-            return Err(format!("'{k}' has a gain {x}"));
-        }
-    }
-    if !(e.sample_period.is_finite() && e.sample_period > 0.0) {
-        return Err(format!("'{KEY_SAMPLE_PERIOD}' must be a positive number of seconds, got {}", e.sample_period));
-    }
-    if e.controller == ControllerKind::Servo {
-        crate::controller::ServoParams::from_experiment(e)?;
-    }
-    Ok(())
 }
 
 /// Gives an experiment without a sample period (read as NaN) the median spacing of the run's

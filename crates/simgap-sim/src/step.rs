@@ -32,9 +32,10 @@ use crate::delay::DelayLine;
 use crate::effects::{applied_torque, drive_torque, exact_dry_levels, has_drive_effects, has_exact_dry_friction, stiff_band};
 use crate::error::Result;
 use crate::integrate::{Dopri5, Integrator, Rk4};
+use crate::params::SimParams;
 use crate::plant::{Plant, PlantWorkspace};
 use crate::sensor::Sensor;
-use crate::simulate::{substeps_and_moving_rate, substeps_for_rate, SimParams};
+use crate::substeps::{substeps_and_moving_rate, substeps_for_rate};
 
 /// The per-sample step of the closed loop (see the [module docs](self)): sensors, delay ring,
 /// held torque and integrator workspace of one run of `plant`.

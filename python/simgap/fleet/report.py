@@ -13,16 +13,13 @@ import html
 import io
 import math
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
 
 from . import trends
 from .findings import Findings, find
-
-if TYPE_CHECKING:
-    from .result import FleetResult
 
 __all__ = ["summary_text", "write_html"]
 
@@ -34,6 +31,41 @@ CSS = (
     "figure{margin:1em 0}figcaption{font-size:90%;color:#444}"
 )
 COLOURS = ["#d62728", "#1f77b4", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"]
+
+
+class FleetTables(Protocol):
+    """What the report reads of a fleet's diagnoses (a :class:`simgap.fleet.FleetResult`): the
+    report sits below the result, which offers it as ``to_html``, so it names only these."""
+
+    @property
+    def table(self) -> pd.DataFrame:
+        """One row per robot, day, effect, joint, parameter."""
+        ...
+
+    @property
+    def tasks(self) -> pd.DataFrame:
+        """One row per robot-day: status, error, timings."""
+        ...
+
+    @property
+    def reports(self) -> dict[tuple[str, str], dict[str, Any]]:
+        """The JSON report of each successful robot-day, keyed by ``(robot, day)``."""
+        ...
+
+    @property
+    def failed(self) -> pd.DataFrame:
+        """The robot-days that failed, with their errors."""
+        ...
+
+    @property
+    def wall_seconds(self) -> float:
+        """Wall time of the fleet run [s] (NaN: not known)."""
+        ...
+
+    @property
+    def workers(self) -> int:
+        """Worker processes of the fleet run."""
+        ...
 
 
 def _plot(series: pd.DataFrame, band: pd.DataFrame, absent: pd.DataFrame, days: pd.DataFrame, highlight: dict[str, str], title: str, unit: str, z_outlier: float) -> str:
@@ -140,7 +172,7 @@ TESTS = {
 }
 
 
-def write_html(result: FleetResult, path: str | os.PathLike[str], *, findings: Findings | None = None, title: str = "fleet", **thresholds: Any) -> None:
+def write_html(result: FleetTables, path: str | os.PathLike[str], *, findings: Findings | None = None, title: str = "fleet", **thresholds: Any) -> None:
     """Writes the fleet report of ``result`` to ``path``. ``findings`` (:func:`find` of the
     same result) is computed with ``thresholds`` (as in :func:`simgap.fleet.find`) when not
     given. Needs matplotlib."""
@@ -224,7 +256,7 @@ def write_html(result: FleetResult, path: str | os.PathLike[str], *, findings: F
         out.write("\n".join(h))
 
 
-def summary_text(result: FleetResult, findings: Findings | None = None, **thresholds: Any) -> str:
+def summary_text(result: FleetTables, findings: Findings | None = None, **thresholds: Any) -> str:
     """The terminal summary: robot-days, failures, findings."""
     flags = (findings if findings is not None else find(result.table, result.reports, **thresholds)).flags
     tasks = result.tasks

@@ -2,10 +2,10 @@
 
 use crate::algorithms::kinematics::check_len;
 use crate::algorithms::soa::{self, InertiaLevel};
+use crate::algorithms::workspace::Workspace;
 use crate::formulation::Formulation;
 use crate::lanes::Lanes;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) by the articulated-body algorithm, in place.
 ///

@@ -10,8 +10,8 @@
 use crate::algorithms::crba::mass_matrix;
 use crate::algorithms::energy::potential_energy;
 use crate::algorithms::two_joint::TwoJoint;
+use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// The two-joint closed form of `model`, generated into `ws` if it is not there yet; `None`
 /// when the model is not an arm of two rotational joints.

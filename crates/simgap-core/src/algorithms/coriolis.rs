@@ -16,9 +16,9 @@ use nalgebra::DMatrix;
 
 use crate::algorithms::crba::composite_inertias;
 use crate::algorithms::kinematics::{forward_kinematics, velocities, world_inertias};
+use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
 use crate::spatial::InertiaRate;
-use crate::workspace::Workspace;
 
 /// Re-exported where it was first defined, so that `algorithms::coriolis::Formulation` still names it.
 pub use crate::formulation::Formulation;

@@ -3,8 +3,8 @@
 use nalgebra::DMatrix;
 
 use crate::algorithms::kinematics::{forward_kinematics, world_inertias};
+use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// Accumulates composite inertias `Ic_i = Σ_{l ≥ i} I_l` into `ws.composites`.
 #[inline(always)]

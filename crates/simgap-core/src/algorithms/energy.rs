@@ -1,8 +1,8 @@
 //! Kinetic and potential energy.
 
 use crate::algorithms::kinematics::{check_len, forward_kinematics, velocities, world_inertias};
+use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// Kinetic energy T = ½ q̇ᵀ H(q) q̇ = ½ Σ v_iᵀ I_i v_i [J].
 ///

@@ -6,9 +6,9 @@ use crate::algorithms::closed_forms;
 use crate::algorithms::crba::{composite_inertias, fill_mass_matrix};
 use crate::algorithms::kinematics::check_len;
 use crate::algorithms::rnea::bias_torques_into;
+use crate::algorithms::workspace::Workspace;
 use crate::formulation::Formulation;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
 ///

@@ -1,8 +1,8 @@
 //! Forward kinematics: world poses, world-frame joint subspaces, link velocities.
 
+use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
 use crate::spatial::Motion;
-use crate::workspace::Workspace;
 
 /// Asserts that a joint-space vector has `model.dof()` entries.
 #[inline]

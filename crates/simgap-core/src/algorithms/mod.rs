@@ -1,5 +1,6 @@
 //! One file per algorithm. Every function takes `(model, ws, q, qd[, qdd])`; see the crate root
-//! for the equation of motion and the conventions.
+//! for the equation of motion and the conventions. The [`Workspace`](workspace::Workspace) they
+//! write in lives here too: it holds their scratch (the SoA lanes, the two-joint closed forms).
 
 pub mod aba;
 pub(crate) mod closed_forms;
@@ -13,3 +14,4 @@ pub mod rnea;
 pub(crate) mod soa;
 pub mod terms;
 pub(crate) mod two_joint;
+pub mod workspace;

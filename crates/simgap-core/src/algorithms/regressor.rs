@@ -3,9 +3,9 @@
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 use crate::algorithms::kinematics::{check_len, forward_kinematics, velocities};
+use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
 use crate::spatial::{Motion, SpatialInertia};
-use crate::workspace::Workspace;
 
 /// Number of inertial parameters per link.
 pub const PARAMS_PER_LINK: usize = 10;

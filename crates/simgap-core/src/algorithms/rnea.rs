@@ -4,10 +4,10 @@
 use nalgebra::{DVector, Vector3};
 
 use crate::algorithms::kinematics::{check_len, forward_kinematics, velocities, world_inertias};
+use crate::algorithms::workspace::Workspace;
 use crate::formulation::Formulation;
 use crate::model::Model;
 use crate::spatial::{Force, Motion};
-use crate::workspace::Workspace;
 
 /// Velocity-product RNEA: `ws.forces[i]` = force transmitted by joint i for `q̈ = qdd`
 /// (or 0), base acceleration `-gravity` when `with_gravity`; also subtree momenta into

@@ -6,9 +6,9 @@ use crate::algorithms::closed_forms;
 use crate::algorithms::coriolis::{fill_second_order, second_order_pass, SecondOrderOut};
 use crate::algorithms::kinematics::check_len;
 use crate::algorithms::rnea::gravity_from_composites;
+use crate::algorithms::workspace::Workspace;
 use crate::formulation::Formulation;
 use crate::model::Model;
-use crate::workspace::Workspace;
 
 /// The terms of H(q) q̈ + C(q, q̇) q̇ + g(q) = τ at one state.
 #[derive(Clone, Debug, PartialEq)]
