@@ -6,10 +6,16 @@
 //! row-major slices. Outputs are built from row-major `Vec<f64>`s without copying.
 
 use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
 
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{AllowTypeChange, IntoPyArray, PyArrayDyn, PyArrayLikeDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use simgap_sim::run::experiment_from_map;
+use simgap_sim::Experiment;
 
 use crate::errors::Kind;
 
@@ -138,4 +144,25 @@ pub(crate) fn vector3(name: &str, arr: &ArrayArg<'_>) -> PyResult<[f64; 3]> {
         ([3], [x, y, z]) => Ok([*x, *y, *z]),
         (s, _) => Err(Kind::Dimension.err(format!("{name}: expected 3, got {} (shape {}; expected shape (3,))", s.iter().product::<usize>(), shape_str(s)))),
     }
+}
+
+/// The name of `obj`'s type, for error messages.
+pub(crate) fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "an unknown type".into())
+}
+
+/// The `experiment` argument: a `simgap.experiment` metadata dict (values converted with
+/// `str`), or the path of an experiment JSON file (as the CLI's `--experiment`).
+pub(crate) fn experiment_arg(arg: &Bound<'_, PyAny>) -> PyResult<Experiment> {
+    if let Ok(dict) = arg.cast::<PyDict>() {
+        let mut map = BTreeMap::new();
+        for (k, v) in dict.iter() {
+            map.insert(k.str()?.to_string(), v.str()?.to_string());
+        }
+        return experiment_from_map(&map).map_err(|m| Kind::Log.err(format!("experiment: {m}")));
+    }
+    let path: PathBuf = arg
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("experiment: expected a dict of simgap.experiment metadata or the path of an experiment file, got {}", type_name(arg))))?;
+    simgap_log::experiment::read_experiment_file(&path).map_err(crate::errors::from_log)
 }

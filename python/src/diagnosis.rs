@@ -10,7 +10,6 @@
 //! `--json` output, `where` included.
 
 use std::any::Any;
-use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -21,9 +20,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use simgap_core::{Formulation, Model};
 use simgap_diag::{DiagnoseOptions, Diagnosis, Progress};
-use simgap_sim::run::experiment_from_map;
 use simgap_sim::{Experiment, Run};
 
+use crate::conv::{experiment_arg, type_name};
 use crate::errors::{from_diag, Kind};
 use crate::model::{formulation, PyModel};
 use crate::sim::PyRun;
@@ -62,10 +61,6 @@ impl Source {
             Source::Path(path) => Ok(simgap_log::read_log(path, &simgap_log::LogOptions::default()).map_err(simgap_sim::Error::from)?),
         }
     }
-}
-
-fn type_name(obj: &Bound<'_, PyAny>) -> String {
-    obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "an unknown type".into())
 }
 
 /// The latest progress report of a diagnosis: stage, steps done, steps in all.
@@ -264,22 +259,6 @@ fn write_export(path: &Path, file: &simgap_diag::export::ExportedFile) -> PyResu
     std::fs::write(path, &file.text).map_err(|e| Kind::Simgap.err(format!("{}: cannot write: {e}", path.display())))?;
     std::fs::write(&side, file.sidecar.to_json() + "\n").map_err(|e| Kind::Simgap.err(format!("{}: cannot write: {e}", side.display())))?;
     Ok(side.display().to_string())
-}
-
-/// The `experiment` argument: a `simgap.experiment` metadata dict (values converted with
-/// `str`), or the path of an experiment JSON file (as the CLI's `--experiment`).
-pub(crate) fn experiment_arg(arg: &Bound<'_, PyAny>) -> PyResult<Experiment> {
-    if let Ok(dict) = arg.cast::<PyDict>() {
-        let mut map = BTreeMap::new();
-        for (k, v) in dict.iter() {
-            map.insert(k.str()?.to_string(), v.str()?.to_string());
-        }
-        return experiment_from_map(&map).map_err(|m| Kind::Log.err(format!("experiment: {m}")));
-    }
-    let path: PathBuf = arg
-        .extract()
-        .map_err(|_| PyTypeError::new_err(format!("experiment: expected a dict of simgap.experiment metadata or the path of an experiment file, got {}", type_name(arg))))?;
-    simgap_log::experiment::read_experiment_file(&path).map_err(crate::errors::from_log)
 }
 
 /// The result of `diagnose`: the diagnosis report, with the runs behind its figures.

@@ -541,7 +541,7 @@ pub(crate) fn simulate(
         None => None,
     };
     // the experiment given, else the reference run's
-    let given = experiment.filter(|e| !e.is_none()).map(crate::diagnosis::experiment_arg).transpose()?;
+    let given = experiment.filter(|e| !e.is_none()).map(crate::conv::experiment_arg).transpose()?;
     let logged = given.or_else(|| reference_run.as_ref().and_then(|r| r.experiment.clone()));
 
     // the controller and its experiment
