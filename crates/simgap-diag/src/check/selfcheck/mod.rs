@@ -3,9 +3,9 @@
 //! truth by each family's rule ([`run_scenario`]); for found effects whose truth is known, whether
 //! the true parameter lies within the reported 95 % interval ([`Summary::coverage`]).
 //!
-//! One file per job: the scenario cycle ([`scenarios`]), the servo scenarios ([`servo`]), the
-//! truth against what a diagnosis found ([`truth`]), the scoring by each family's rule
-//! ([`score`]) and the summary ([`summary`]).
+//! One file per job: the scenario cycle (`scenarios.rs`), the servo scenarios (`servo.rs`), the
+//! truth against what a diagnosis found (`truth.rs`), the scoring by each family's rule
+//! (`score.rs`) and the summary (`summary.rs`).
 
 pub(super) mod scenarios;
 mod score;

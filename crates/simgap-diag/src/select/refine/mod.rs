@@ -27,7 +27,9 @@ pub(crate) use drive_in_place_of_inertia::drive_in_place_of_inertia;
 use final_fit::finish;
 pub(crate) use final_fit::Refined;
 pub(crate) use refit::{refit, shooting_score};
-use servo_sets::{load_friction_at_rest, servo_limit, stalled_joints};
+use servo_sets::{load_friction_at_rest, servo_limit};
+// (the scorer caches the stalled joints and names them by this path)
+pub(super) use servo_sets::stalled_joints;
 
 // the crate's tests check the jackknife variance by the stage's path
 #[cfg(test)]

@@ -15,7 +15,7 @@ use super::cross_validation::{transfer, try_set, Tried};
 /// The driven servo joints that some fit log shows stalled ([`servo::stalls`]): at full duty
 /// for [`servo::MIN_STALL`] or more, at rest. Only there is a torque limit evidenced.
 /// Computed once per scorer (the fit logs do not change).
-pub(super) fn stalled_joints<'s>(scorer: &'s Scorer<'_>) -> &'s [usize] {
+pub(in crate::select) fn stalled_joints<'s>(scorer: &'s Scorer<'_>) -> &'s [usize] {
     scorer.stalled.get_or_init(|| stalled_joints_of(scorer))
 }
 
