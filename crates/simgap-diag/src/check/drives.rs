@@ -15,7 +15,8 @@ use simgap_core::{Formulation, Model, UrdfOptions};
 use simgap_sim::{ControllerKind, Effect, Fourier, Run};
 
 use super::bench::{gains_for, generate, random_fourier, random_setpoints, zero_phase_lowpass, RefSpec, RunSpec};
-use super::selfcheck::{as_replay, double_pendulum, draw_effects, rms, servo_scenario, Scenario};
+use super::selfcheck::scenarios::{as_replay, double_pendulum, draw_effects, rms, Scenario};
+use super::selfcheck::servo::servo_scenario;
 
 /// The real-drive families, in the order [`drive_scenario`] cycles through them.
 pub const DRIVE_FAMILIES: [&str; 7] = ["servo", "joint_spring", "coulomb_trap", "directional_friction", "load_friction", "link_side", "filtered"];

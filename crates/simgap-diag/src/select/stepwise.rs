@@ -4,7 +4,9 @@
 
 use rayon::prelude::*;
 
-use super::*;
+use super::{admissible, cv_of, families, residual_after, slot_taken, term_torque_rms, Context, Family, SelectOptions, Selection, Step};
+use crate::lsq::Fit;
+use crate::vocabulary::{n_params, Slot, Term, TermDesign};
 
 /// Extra relative gain demanded of a term found by a large grid search (selection bias: the
 /// best of many columns explains some noise).

@@ -177,7 +177,7 @@ pub(crate) fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectRepo
             e.description = super::describe(model, e);
         }
     }
-    super::actuator::describe_limit_with_gain(&mut out);
+    super::describe_together(&mut out);
     out
 }
 

@@ -401,6 +401,13 @@ fn describe(model: &Model, e: &EffectReport) -> String {
     }
 }
 
+/// Completes the descriptions that read several report entries together, once every entry is
+/// described: a torque limit selected with a torque gain states the most the drive delivers
+/// ([`actuator::describe_limit_with_gain`]).
+fn describe_together(entries: &mut [EffectReport]) {
+    actuator::describe_limit_with_gain(entries);
+}
+
 /// A simpler effect nested in a richer one: the richer with its extra parameters at their
 /// neutral values is the simpler (a Stribeck friction with fs = fc is Coulomb friction).
 #[derive(Clone, Debug)]
