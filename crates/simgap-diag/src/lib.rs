@@ -47,7 +47,8 @@ pub use error::{Error, Result};
 pub use locate::{JointGap, Segment, Where};
 pub use options::{DiagnoseOptions, Progress};
 pub use pipeline::{diagnose, predict};
-pub use prediction::resim::{InferredSensors, RunGap};
+pub use prediction::resim::RunGap;
+pub use prepare::sensors::InferredSensors;
 pub use prepare::{DryWidth, FitData, PrepareOptions};
 #[cfg(feature = "html")]
 pub use report::html;
