@@ -21,18 +21,32 @@ pub(crate) use dataset::align_run;
 pub use dataset::{FitData, PrepareOptions};
 pub use width::DryWidth;
 
-/// Everything the stages share: the model, the prepared runs, the fit context.
+/// What the prepare stage hands to every later stage: the runs aligned to the model, the fit
+/// data smoothed once, the prediction windows, and what the logs showed.
 pub(crate) struct Prepared {
+    /// The model's joint names, in model order.
+    pub(crate) joints: Vec<String>,
+    /// The fit runs, aligned to the model (glitches repaired).
     pub(crate) fit_runs: Vec<Run>,
+    /// The held-out runs, aligned to the model (glitches repaired).
     pub(crate) hold_runs: Vec<Run>,
+    /// Each fit run smoothed and differentiated once, with its nominal residual.
     pub(crate) data: Vec<FitData>,
+    /// The fit runs cut into k-step prediction windows (numbered in folds).
     pub(crate) fit_pred: Vec<PredictionRun>,
+    /// The held-out runs cut into k-step prediction windows.
     pub(crate) hold_pred: Vec<PredictionRun>,
+    /// Prediction horizons [s].
     pub(crate) horizons: Vec<f64>,
+    /// Notes on the logs for the report.
     pub(crate) notes: Vec<String>,
+    /// The sensors each run shows (fit runs, then held-out runs).
     pub(crate) sensors: Vec<InferredSensors>,
+    /// Per joint, whether nothing drives it.
     pub(crate) passive: Vec<bool>,
-    /// The motor constants of servo runs (none without servo runs).
+    /// Whether the fit runs move (some smoothed velocity above 1e-3 rad/s or m/s): without
+    /// motion no effect can be told apart.
+    pub(crate) moving: bool,
     pub(crate) servo: Option<servo::Constants>,
 }
 
@@ -172,7 +186,9 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
             message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]),
         });
     }
-    Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive, servo })
+    let joints = model.joint_names().iter().map(|s| s.to_string()).collect();
+    let moving = data.iter().any(|d| d.qd.iter().any(|v| v.abs() > 1e-3));
+    Ok(Prepared { joints, fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive, moving, servo })
 }
 
 /// Writes every servo run's drive command `en (kt/R) V duty` as its effort (see
