@@ -28,7 +28,7 @@ use crate::prepare::{prepare, sample_period};
 use crate::report::{Diagnosis, KStep, WindowStart};
 use crate::select::scorer::Scorer;
 use crate::select::{parameter_scales, Context};
-use runner::Stages;
+use runner::{shown, Stages};
 
 /// Diagnoses the gap between `model` (in `formulation`) and logged runs.
 ///
@@ -44,16 +44,13 @@ use runner::Stages;
 pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &[Run], options: &DiagnoseOptions, progress: &mut dyn FnMut(Progress)) -> Result<Diagnosis> {
     let mut stages = Stages::new(options, progress);
     // prepare: every log aligned, checked, repaired, smoothed once
-    let prep = stages.run(Some(Progress { stage: "preparing logs", done: 0, total: fit.len() + holdout.len() }), |_| {
-        prepare(model, formulation, fit, holdout, &options.prepare, &options.horizons)
-    })?;
+    let prep = stages.run(shown("preparing logs", 0, fit.len() + holdout.len()), |_| prepare(model, formulation, fit, holdout, &options.prepare, &options.horizons))?;
     // the fit context every later stage fits in: the torque-residual problem and its caches
     let ctx = Context::new(&prep.data, sample_period(&prep.fit_runs), &parameter_scales(model));
     // locate: where the gap lies, from the nominal closed loop on the fit runs
-    let located = stages.run(Some(Progress { stage: "locating the gap", done: 0, total: prep.fit_runs.len() }), |_| Ok(locate::locate_gap(model, formulation, &prep)))?;
+    let located = stages.run(shown("locating the gap", 0, prep.fit_runs.len()), |_| Ok(locate::locate_gap(model, formulation, &prep)))?;
     // select: forward stepwise on the torque residual
-    let selection =
-        stages.run(Some(Progress { stage: "selecting on the torque residual", done: 0, total: 1 }), |_| Ok(select::select_on_residual(&ctx, &prep, &options.select)))?;
+    let selection = stages.run(shown("selecting on the torque residual", 0, 1), |_| Ok(select::select_on_residual(&ctx, &prep, &options.select)))?;
     // the k-step scorer every stage by prediction scores sets with
     let scorer = Scorer::new(model, formulation, &ctx, &prep);
     // candidates: every effect alone, scored by prediction
@@ -67,18 +64,15 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // drive swap: on a one-joint servo arm, the drive's constants in place of an inertia
     let chosen = stages.run(None, |s| drive_swap::drive_swap(&scorer, chosen, s))?;
     // intervals: 95 % intervals, and the plausibility rounds
-    let intervals =
-        stages.run(Some(Progress { stage: "intervals and plausibility", done: 0, total: 1 }), |s| intervals::intervals(model, formulation, &scorer, &prep, chosen, s))?;
+    let intervals = stages.run(shown("intervals and plausibility", 0, 1), |s| intervals::intervals(model, formulation, &scorer, &prep, chosen, s))?;
     // how far: held-out runs predicted and re-simulated, before and after
-    let how_far =
-        stages.run(Some(Progress { stage: "predicting held-out runs", done: 0, total: 3 }), |s| how_far::how_far(model, formulation, &prep, &located, &intervals.effects, s))?;
+    let how_far = stages.run(shown("predicting held-out runs", 0, 3), |s| how_far::how_far(model, formulation, &prep, &located, &intervals.effects, s))?;
     // screen: every candidate alone on the held-out runs
     let screened = stages.run(None, |s| screen::screen(&scorer, &prep, &candidates, &intervals.chosen, &how_far, s))?;
     // notes: alternatives and notes
-    let notes = stages
-        .run(Some(Progress { stage: "naming alternatives and notes", done: 0, total: 1 }), |_| Ok(notes::notes(&scorer, &prep, &located, &candidates, &intervals, &how_far)))?;
+    let notes = stages.run(shown("naming alternatives and notes", 0, 1), |_| Ok(notes::notes(&scorer, &prep, &located, &candidates, &intervals, &how_far)))?;
     // what is left: the torque residual after the selected effects, joint by joint
-    let notes = stages.run(Some(Progress { stage: "testing what is left", done: 0, total: 1 }), |_| Ok(what_is_left::what_is_left(&scorer, &prep, &intervals, notes)))?;
+    let notes = stages.run(shown("testing what is left", 0, 1), |_| Ok(what_is_left::what_is_left(&scorer, &prep, &intervals, notes)))?;
     // report: headline, verdict, the report
     let report = report::report(&scorer, &prep, located, screened, &intervals, &how_far, notes);
     Ok(report::diagnosis(report, prep, intervals, how_far))

@@ -74,3 +74,8 @@ impl<'a> Stages<'a> {
         (self.progress)(Progress { stage, done: self.step.min(self.total), total: self.total });
     }
 }
+
+/// The progress a stage is announced with: `stage` with `done` of `total` steps.
+pub(crate) fn shown(stage: &'static str, done: usize, total: usize) -> Option<Progress> {
+    Some(Progress { stage, done, total })
+}
