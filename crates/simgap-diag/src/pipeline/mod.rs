@@ -64,7 +64,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // drive swap: on a one-joint servo arm, the drive's constants in place of an inertia
     let chosen = stages.run(None, |s| drive_swap::drive_swap(&scorer, chosen, s))?;
     // intervals: 95 % intervals, and the plausibility rounds
-    let intervals = stages.run(shown("intervals and plausibility", 0, 1), |s| intervals::intervals(model, formulation, &scorer, &prep, chosen, s))?;
+    let intervals = stages.run(shown("intervals and plausibility", 0, 1), |s| intervals::intervals(&scorer, &prep, chosen, s))?;
     // how far: held-out runs predicted and re-simulated, before and after
     let how_far = stages.run(shown("predicting held-out runs", 0, 3), |s| how_far::how_far(model, formulation, &prep, &located, &intervals.effects, s))?;
     // screen: every candidate alone on the held-out runs
