@@ -11,7 +11,6 @@ use rayon::prelude::*;
 
 use crate::lsq::design::{Column, TermDesign};
 use crate::lsq::inertial::InertialPrior;
-use crate::prepare::dataset::FitData;
 pub(crate) use bounded::solve_bounded;
 
 /// Blocks per run for the bootstrap; cross-validation folds group [`BLOCKS_PER_FOLD`] of them.
@@ -42,6 +41,19 @@ type PairKey = (usize, Option<usize>, usize, Option<usize>);
 /// The columns' values (held weakly) and their block products.
 type PairEntry = (std::sync::Weak<Vec<f64>>, std::sync::Weak<Vec<f64>>, Vec<f64>);
 
+/// What the fitting problem reads of one prepared run (the prepare stage's fit data implements
+/// it, so `lsq` depends on no stage).
+pub(crate) trait Samples {
+    /// Degrees of freedom.
+    fn dof(&self) -> usize;
+    /// Number of samples.
+    fn samples(&self) -> usize;
+    /// Nominal residual [N·m or N], row-major by sample and joint.
+    fn residual(&self) -> &[f64];
+    /// Commanded torque [N·m or N], row-major by sample and joint.
+    fn tau(&self) -> &[f64];
+}
+
 /// The fitting problem: residuals of all runs, joint weights and sample blocks.
 #[derive(Clone, Debug)]
 pub(crate) struct Problem {
@@ -71,21 +83,21 @@ pub(crate) struct Problem {
 
 impl Problem {
     /// Builds the problem from prepared runs.
-    pub(crate) fn new(data: &[FitData]) -> Problem {
-        let dof = data[0].dof;
+    pub(crate) fn new<S: Samples>(data: &[S]) -> Problem {
+        let dof = data[0].dof();
         let mut block_of = Vec::new();
         let mut blocks = 0;
         for d in data {
-            let n = d.len();
+            let n = d.samples();
             for s in 0..n {
                 block_of.push(blocks + (s * BLOCKS_PER_RUN / n.max(1)).min(BLOCKS_PER_RUN - 1));
             }
             blocks += BLOCKS_PER_RUN;
         }
-        let y = Column::new(None, data.iter().flat_map(|d| d.residual.iter().copied()).collect());
+        let y = Column::new(None, data.iter().flat_map(|d| d.residual().iter().copied()).collect());
         let samples = block_of.len();
         let rms = |f: &dyn Fn(usize, usize) -> f64, j: usize| ((0..samples).map(|s| f(s, j).powi(2)).sum::<f64>() / samples.max(1) as f64).sqrt();
-        let tau: Vec<f64> = data.iter().flat_map(|d| d.tau.iter().copied()).collect();
+        let tau: Vec<f64> = data.iter().flat_map(|d| d.tau().iter().copied()).collect();
         let tau_rms: Vec<f64> = (0..dof).map(|j| rms(&|s, j| tau[s * dof + j], j)).collect();
         // each joint's rows in units of its own commanded torque, so joints count alike
         let weights = (0..dof).map(|j| 1.0 / tau_rms[j].max(rms(&|s, j| y.values[s * dof + j], j)).max(1e-9)).collect();

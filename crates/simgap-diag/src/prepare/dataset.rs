@@ -5,6 +5,7 @@ use simgap_core::{bias_torques_into, inverse_dynamics_regressor_into, mass_matri
 use simgap_sim::{DelayLine, Run};
 
 use crate::error::{Error, Result};
+use crate::lsq::Samples;
 use crate::prepare::differentiate::Smoother;
 use crate::prepare::width::DryWidth;
 
@@ -291,6 +292,24 @@ impl FitData {
     /// (before the first sample, the first command; see [`simgap_sim::DelayLine`]).
     pub fn delayed_torque(&self, k: usize, delay: f64, period: f64, j: usize) -> f64 {
         DelayLine::new(delay, period).delayed(k, |i| self.raw.tau[i * self.dof + j])
+    }
+}
+
+impl Samples for FitData {
+    fn dof(&self) -> usize {
+        self.dof
+    }
+
+    fn samples(&self) -> usize {
+        self.len()
+    }
+
+    fn residual(&self) -> &[f64] {
+        &self.residual
+    }
+
+    fn tau(&self) -> &[f64] {
+        &self.tau
     }
 }
 

@@ -54,7 +54,7 @@ pub(crate) fn recorder_bandwidth(run: &Run) -> Option<f64> {
     if n == 0 || len < 2 * SEGMENT + 2 {
         return None;
     }
-    let fs = 1.0 / crate::prediction::kstep::median_spacing(&run.t);
+    let fs = 1.0 / crate::prepare::windows::median_spacing(&run.t);
     let mut planner = FftPlanner::new();
     let fft = planner.plan_fft_forward(SEGMENT);
     let window: Vec<f64> = (0..SEGMENT).map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / SEGMENT as f64).cos()).collect();

@@ -6,31 +6,47 @@ pub(crate) mod dataset;
 pub(crate) mod differentiate;
 pub(crate) mod lowpass;
 pub(crate) mod robust;
+pub(crate) mod sensors;
 pub(crate) mod servo;
 pub(crate) mod width;
+pub(crate) mod windows;
 
 use simgap_core::{Formulation, Model};
 use simgap_sim::Run;
 
 use crate::error::{Error, Result};
-use crate::prediction::kstep::{self, PredictionRun, FOLDS_PER_RUN};
-use crate::prediction::resim;
+use crate::prepare::sensors::{infer_sensors, InferredSensors};
+use crate::prepare::windows::{median_spacing, PredictionRun, DEFAULT_HORIZONS, FIT_WINDOWS_PER_RUN, FOLDS_PER_RUN, MAX_WINDOWS_PER_RUN};
 pub(crate) use dataset::align_run;
 pub use dataset::{FitData, PrepareOptions};
 pub use width::DryWidth;
 
-/// Everything the stages share: the model, the prepared runs, the fit context.
+/// What the prepare stage hands to every later stage: the runs aligned to the model, the fit
+/// data smoothed once, the prediction windows, and what the logs showed.
 pub(crate) struct Prepared {
+    /// The model's joint names, in model order.
+    pub(crate) joints: Vec<String>,
+    /// The fit runs, aligned to the model (glitches repaired).
     pub(crate) fit_runs: Vec<Run>,
+    /// The held-out runs, aligned to the model (glitches repaired).
     pub(crate) hold_runs: Vec<Run>,
+    /// Each fit run smoothed and differentiated once, with its nominal residual.
     pub(crate) data: Vec<FitData>,
+    /// The fit runs cut into k-step prediction windows (numbered in folds).
     pub(crate) fit_pred: Vec<PredictionRun>,
+    /// The held-out runs cut into k-step prediction windows.
     pub(crate) hold_pred: Vec<PredictionRun>,
+    /// Prediction horizons [s].
     pub(crate) horizons: Vec<f64>,
+    /// Notes on the logs for the report.
     pub(crate) notes: Vec<String>,
-    pub(crate) sensors: Vec<resim::InferredSensors>,
+    /// The sensors each run shows (fit runs, then held-out runs).
+    pub(crate) sensors: Vec<InferredSensors>,
+    /// Per joint, whether nothing drives it.
     pub(crate) passive: Vec<bool>,
-    /// The motor constants of servo runs (none without servo runs).
+    /// Whether the fit runs move (some smoothed velocity above 1e-3 rad/s or m/s): without
+    /// motion no effect can be told apart.
+    pub(crate) moving: bool,
     pub(crate) servo: Option<servo::Constants>,
 }
 
@@ -39,7 +55,7 @@ pub(crate) fn sample_period(runs: &[Run]) -> f64 {
     runs.iter()
         .find_map(|r| r.experiment.as_ref().map(|e| e.sample_period))
         .filter(|t| t.is_finite() && *t > 0.0)
-        .unwrap_or_else(|| runs.first().map_or(0.0025, |r| kstep::median_spacing(&r.t)))
+        .unwrap_or_else(|| runs.first().map_or(0.0025, |r| median_spacing(&r.t)))
 }
 
 /// The prepare stage: align, check, repair glitches, infer sensors, smooth.
@@ -74,7 +90,7 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
         if r.len() < 3 {
             return Err(Error::Log { log: r.source.clone(), message: format!("{} samples; expected a log of at least a few seconds", r.len()) });
         }
-        let spacing = kstep::median_spacing(&r.t);
+        let spacing = median_spacing(&r.t);
         let ratio = exp.sample_period / spacing;
         if !(exp.sample_period.is_finite() && exp.sample_period > 0.0 && (0.02..=50.0).contains(&ratio)) {
             return Err(Error::Log {
@@ -113,7 +129,7 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
         }
     }
     // sensors as the logs show them
-    let sensors: Vec<resim::InferredSensors> = fit_runs.iter().chain(&hold_runs).map(resim::infer_sensors).collect();
+    let sensors: Vec<InferredSensors> = fit_runs.iter().chain(&hold_runs).map(infer_sensors).collect();
     let mut kinds: Vec<(String, Vec<&str>)> = Vec::new();
     for s in sensors.iter().filter(|s| s.velocity == "backward_difference" || s.counts_per_rev.is_some()) {
         let kind = format!("velocity {}{}", s.velocity.replace('_', " "), s.counts_per_rev.map_or(String::new(), |c| format!(", encoder {c} counts per revolution")));
@@ -162,15 +178,17 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
     let horizons = self::horizons(horizons)?;
     let sensor_of = |r: &Run| sensors.iter().find(|s| s.log == r.source).map(|s| s.params()).unwrap_or_else(simgap_sim::SensorParams::exact);
     let fit_pred: Vec<PredictionRun> =
-        fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.window, sensor_of(r), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN)).collect();
-    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.window, sensor_of(r), 0, kstep::MAX_WINDOWS_PER_RUN)).collect();
+        fit_runs.iter().enumerate().map(|(i, r)| PredictionRun::new(r.clone(), &horizons, options.window, sensor_of(r), i * FOLDS_PER_RUN, FIT_WINDOWS_PER_RUN)).collect();
+    let hold_pred: Vec<PredictionRun> = hold_runs.iter().map(|r| PredictionRun::new(r.clone(), &horizons, options.window, sensor_of(r), 0, MAX_WINDOWS_PER_RUN)).collect();
     if let Some(pr) = hold_pred.iter().find(|p| p.windows() == 0) {
         return Err(Error::Log {
             log: pr.run.source.clone(),
             message: format!("too short to predict: {:.3} s; expected at least the shortest horizon ({} s) plus the smoothing window", pr.run.duration(), horizons[0]),
         });
     }
-    Ok(Prepared { fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive, servo })
+    let joints = model.joint_names().iter().map(|s| s.to_string()).collect();
+    let moving = data.iter().any(|d| d.qd.iter().any(|v| v.abs() > 1e-3));
+    Ok(Prepared { joints, fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive, moving, servo })
 }
 
 /// Writes every servo run's drive command `en (kt/R) V duty` as its effort (see
@@ -272,12 +290,12 @@ fn split_in_time(runs: &[Run], share: f64) -> (Vec<Run>, Vec<Run>) {
     (fit, hold)
 }
 
-/// The prediction horizons [s]: `given`, or [`kstep::DEFAULT_HORIZONS`] when empty.
+/// The prediction horizons [s]: `given`, or [`DEFAULT_HORIZONS`] when empty.
 ///
 /// # Errors
 /// [`Error::Input`] for a horizon that is not a positive number.
 pub(crate) fn horizons(given: &[f64]) -> Result<Vec<f64>> {
-    let horizons = if given.is_empty() { kstep::DEFAULT_HORIZONS.to_vec() } else { given.to_vec() };
+    let horizons = if given.is_empty() { DEFAULT_HORIZONS.to_vec() } else { given.to_vec() };
     if let Some(h) = horizons.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
         return Err(Error::Input(format!("prediction horizon {h} s; expected positive numbers")));
     }
@@ -297,8 +315,8 @@ pub(crate) fn prediction_runs(model: &Model, runs: &[Run], horizons: &[f64], win
             return Err(Error::Log { log: run.source.clone(), message: "no experiment (controller, joints, kp, kv, sample_period); expected one to predict the run".into() });
         }
         robust::repair_glitches(&mut run);
-        let sensor = resim::infer_sensors(&run).params();
-        let pr = PredictionRun::new(run, horizons, window, sensor, 0, kstep::MAX_WINDOWS_PER_RUN);
+        let sensor = infer_sensors(&run).params();
+        let pr = PredictionRun::new(run, horizons, window, sensor, 0, MAX_WINDOWS_PER_RUN);
         if pr.windows() == 0 {
             return Err(Error::Log {
                 log: pr.run.source.clone(),

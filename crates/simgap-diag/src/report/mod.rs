@@ -196,7 +196,7 @@ pub struct Report {
     pub alternatives: Vec<Alternative>,
     /// The sensors the re-simulation and prediction give each run's controller, as inferred
     /// from its samples.
-    pub sensors: Vec<crate::prediction::resim::InferredSensors>,
+    pub sensors: Vec<crate::prepare::sensors::InferredSensors>,
     /// Warnings about the logs and the answer (glitches removed, sensors inferred, URDF
     /// pitfalls the data reveal, what the residual still holds).
     pub notes: Vec<String>,

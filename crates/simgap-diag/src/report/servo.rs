@@ -4,7 +4,8 @@
 
 use simgap_sim::Run;
 
-use crate::prediction::kstep::{Errors, PredictionRun};
+use crate::prediction::kstep::Errors;
+use crate::prepare::windows::PredictionRun;
 
 /// Below this speed [rad/s or m/s] an enabled servo is holding rather than moving.
 const HOLDING_SPEED: f64 = 0.05;

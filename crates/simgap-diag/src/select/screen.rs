@@ -1,5 +1,7 @@
-//! The candidates: every effect of the vocabulary as one group of terms, and the screen of each
-//! alone.
+//! The candidates: every effect of the vocabulary as one group of terms (scored alone by the
+//! candidates stage, `pipeline/candidates.rs`, and on the held-out runs by the screen,
+//! `pipeline/screen.rs`), and the selection's treatment of passive joints and of logs without
+//! motion.
 
 use crate::select::{families, Context, Selection};
 use crate::vocabulary::{Column, Term};

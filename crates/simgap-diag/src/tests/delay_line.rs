@@ -4,7 +4,8 @@
 
 use std::collections::BTreeMap;
 
-use crate::prediction::kstep::{predict, PredictionRun};
+use crate::prediction::kstep::predict;
+use crate::prepare::windows::PredictionRun;
 use crate::{FitData, PrepareOptions};
 use simgap_core::{Formulation, Model};
 use simgap_sim::paper::{KP, KV, Q_DESIRED};

@@ -4,7 +4,8 @@
 
 use std::collections::BTreeMap;
 
-use crate::prediction::kstep::{predict, predict_split, PredictionRun, MAX_WINDOWS_PER_RUN};
+use crate::prediction::kstep::{predict, predict_split};
+use crate::prepare::windows::{PredictionRun, MAX_WINDOWS_PER_RUN};
 use crate::PrepareOptions;
 use simgap_core::{Formulation, Model};
 use simgap_sim::paper::{KP, KV, Q_DESIRED};

@@ -8,8 +8,8 @@ use super::common::{have_data, replay, shared_data};
 
 use crate::check::bench::{demo_specs, generate};
 use crate::lsq::Problem;
-use crate::prediction::kstep::{self, PredictionRun, FOLDS_PER_RUN};
 use crate::prepare::align_run;
+use crate::prepare::windows::{PredictionRun, DEFAULT_HORIZONS, FIT_WINDOWS_PER_RUN, FOLDS_PER_RUN};
 use crate::select::shooting;
 use crate::vocabulary::effects;
 use crate::vocabulary::Term;
@@ -54,11 +54,11 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
     let (designs, _, torque_fit) = fit_terms(&problem, &data, &terms);
 
     // multiple shooting from it
-    let horizons = kstep::DEFAULT_HORIZONS;
+    let horizons = DEFAULT_HORIZONS;
     let fit_pred: Vec<PredictionRun> = fit
         .iter()
         .enumerate()
-        .map(|(i, r)| PredictionRun::new(align_run(&model, r).unwrap(), &horizons, prepare.window, SensorParams::exact(), i * FOLDS_PER_RUN, kstep::FIT_WINDOWS_PER_RUN))
+        .map(|(i, r)| PredictionRun::new(align_run(&model, r).unwrap(), &horizons, prepare.window, SensorParams::exact(), i * FOLDS_PER_RUN, FIT_WINDOWS_PER_RUN))
         .collect();
     let options = shooting::Options::default();
     let runs = shooting::shooting_runs(&fit_pred, prepare.window, &options);
@@ -99,8 +99,8 @@ fn a_set_without_parameters_is_fitted_as_it_is() {
     let formulation = Formulation::EulerLagrange;
     let (fit_specs, _) = demo_specs(1);
     let run = generate(&model, formulation, &[], &fit_specs[0], 0.0025, 1_024_000.0).unwrap();
-    let horizons = kstep::DEFAULT_HORIZONS;
-    let pr = PredictionRun::new(align_run(&model, &run).unwrap(), &horizons, 0.05, SensorParams::exact(), 0, kstep::FIT_WINDOWS_PER_RUN);
+    let horizons = DEFAULT_HORIZONS;
+    let pr = PredictionRun::new(align_run(&model, &run).unwrap(), &horizons, 0.05, SensorParams::exact(), 0, FIT_WINDOWS_PER_RUN);
     let options = shooting::Options::default();
     let runs = shooting::shooting_runs(&[pr], 0.05, &options);
     let keep = |_: usize, _: usize| true;
