@@ -19,14 +19,14 @@ use rayon::prelude::*;
 use simgap::core::Formulation;
 use simgap::diag::bench::{generate_servo, random_fourier};
 use simgap::diag::{diagnose, selfcheck, DiagnoseOptions, Param};
-use simgap::sim::Effect;
+use simgap::sim::{Effect, EffectKind};
 
 /// The hidden limit as a share of the gravity torque at the horizontal.
 const LIMIT_SHARE: f64 = 0.6;
 
 /// The drive's own effect beside the corrections of its fitted motor constants
 /// ([`selfcheck::MOTOR_CONSTANTS`]): the limit itself.
-const LIMIT: &str = "torque_saturation";
+const LIMIT: EffectKind = EffectKind::TorqueSaturation;
 
 struct Outcome {
     text: String,
@@ -55,13 +55,13 @@ fn one(seed: u64, i: usize) -> Result<Outcome, String> {
     let d = diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &DiagnoseOptions::default(), &mut |_| {}).map_err(|e| e.to_string())?;
     let r = &d.report;
     let stalled = r.notes.iter().any(|n| n.contains("delete-one-log jackknife"));
-    let per_joint = |name: &str, key: &str| {
-        r.selected_effects.iter().find(|e| e.effect == name).and_then(|e| match e.parameters.get(key) {
+    let per_joint = |kind: EffectKind, key: &str| {
+        r.selected_effects.iter().find(|e| e.effect == kind).and_then(|e| match e.parameters.get(key) {
             Some(Param::PerJoint(v)) => v.first().copied(),
             _ => None,
         })
     };
-    let most = per_joint("torque_saturation", "limit").map(|l| l * per_joint("torque_gain", "k").unwrap_or(1.0));
+    let most = per_joint(LIMIT, "limit").map(|l| l * per_joint(EffectKind::TorqueGain, "k").unwrap_or(1.0));
     let names = model.joint_names();
     let hidden: BTreeSet<String> =
         sc.effects.iter().flat_map(|e| e.joints_acted().into_iter().map(move |j| (e.name().to_string(), j))).map(|(e, j)| format!("{e}@{}", names[j])).collect();

@@ -534,7 +534,7 @@ impl PyReport {
     fn __repr__(&self) -> String {
         let r = &self.diagnosis.report;
         let selected: Vec<String> =
-            r.selected_effects.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{}[{}]", e.effect, e.joints.join(",")) }).collect();
+            r.selected_effects.iter().map(|e| if e.joints.is_empty() { e.effect.to_string() } else { format!("{}[{}]", e.effect, e.joints.join(",")) }).collect();
         format!(
             "Report(model={:?}, formulation={:?}, selected_effects={:?}, holdout_l2_before={}, holdout_l2_after={})",
             r.model, r.formulation, selected, r.gap.holdout_l2_before, r.gap.holdout_l2_after

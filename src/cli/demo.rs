@@ -15,9 +15,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use simgap::core::{Formulation, Model, PAPER_ARM_URDF};
 use simgap::diag::bench::{demo_effects, demo_specs, generate};
-use simgap::diag::{Param, Report};
+use simgap::diag::Report;
 use simgap::log::write_mcap;
-use simgap::sim::Effect;
+use simgap::sim::{Effect, EffectKind};
 
 use super::diagnose::{execute, write_atomically, Job};
 
@@ -98,10 +98,10 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// The hidden effects as (effect, parameter, joint, value) rows.
-fn truth_rows(effects: &[Effect], model: &Model) -> Vec<(&'static str, &'static str, String, f64)> {
+fn truth_rows(effects: &[Effect], model: &Model) -> Vec<(EffectKind, &'static str, String, f64)> {
     let names = model.joint_names();
     let mut rows = Vec::new();
-    let mut per_joint = |effect: &'static str, param: &'static str, v: &[f64]| {
+    let mut per_joint = |effect: EffectKind, param: &'static str, v: &[f64]| {
         for (j, x) in v.iter().enumerate() {
             if x.is_finite() && *x != 0.0 {
                 rows.push((effect, param, names[j].to_string(), *x));
@@ -110,24 +110,13 @@ fn truth_rows(effects: &[Effect], model: &Model) -> Vec<(&'static str, &'static 
     };
     for e in effects {
         match e {
-            Effect::ViscousFriction { b } => per_joint("viscous_friction", "b", b),
-            Effect::CoulombFriction { fc, .. } => per_joint("coulomb_friction", "fc", fc),
-            Effect::TorqueSaturation { limit } => per_joint("torque_saturation", "limit", limit),
+            Effect::ViscousFriction { b } => per_joint(e.kind(), "b", b),
+            Effect::CoulombFriction { fc, .. } => per_joint(e.kind(), "fc", fc),
+            Effect::TorqueSaturation { limit } => per_joint(e.kind(), "limit", limit),
             _ => {}
         }
     }
     rows
-}
-
-/// The value the report found for `effect`'s `param` on `joint`.
-pub(crate) fn found_value(report: &Report, effect: &str, param: &str, joint: &str) -> Option<f64> {
-    let e = report.selected_effects.iter().find(|e| e.effect == effect)?;
-    let j = e.joints.iter().position(|x| x == joint)?;
-    match e.parameters.get(param)? {
-        Param::PerJoint(v) => v.get(j).copied(),
-        Param::Number(x) => Some(*x),
-        _ => None,
-    }
 }
 
 fn truth_table(effects: &[Effect], model: &Model, report: &Report) -> String {
@@ -136,19 +125,19 @@ fn truth_table(effects: &[Effect], model: &Model, report: &Report) -> String {
     let _ = writeln!(s, "HIDDEN TRUTH vs FOUND");
     let _ = writeln!(s, "  {:<18} {:<6} {:<9} {:>10} {:>10} {:>9}", "effect", "param", "joint", "true", "found", "rel. err");
     for (effect, param, joint, truth) in truth_rows(effects, model) {
-        let found = found_value(report, effect, param, &joint);
+        let found = report.selected_effects.iter().find(|e| e.effect == effect).and_then(|e| e.value(param, &joint));
         let (f, r) = match found {
             Some(v) => (format!("{v:.4}"), format!("{:.1} %", 100.0 * (v - truth).abs() / truth.abs())),
             None => ("not found".to_string(), "–".to_string()),
         };
-        let _ = writeln!(s, "  {effect:<18} {param:<6} {joint:<9} {truth:>10.4} {f:>10} {r:>9}");
+        let _ = writeln!(s, "  {:<18} {param:<6} {joint:<9} {truth:>10.4} {f:>10} {r:>9}", effect.as_str());
     }
     // anything selected that was not hidden
     for e in &report.selected_effects {
         let hidden = truth_rows(effects, model);
         for j in if e.joints.is_empty() { vec![String::new()] } else { e.joints.clone() } {
             if !hidden.iter().any(|(he, _, hj, _)| *he == e.effect && (j.is_empty() || *hj == j)) {
-                let _ = writeln!(s, "  {:<18} {:<6} {:<9} {:>10} {:>10} {:>9}", e.effect, "", j, "absent", "selected", "spurious");
+                let _ = writeln!(s, "  {:<18} {:<6} {:<9} {:>10} {:>10} {:>9}", e.effect.as_str(), "", j, "absent", "selected", "spurious");
             }
         }
     }

@@ -8,7 +8,7 @@ use simgap_diag::bench::{demo_effects, demo_specs, generate};
 use simgap_diag::{diagnose, DiagnoseOptions, Param};
 
 fn param(d: &simgap_diag::Diagnosis, effect: &str, key: &str, joint: &str) -> f64 {
-    let e = d.report.selected_effects.iter().find(|e| e.effect == effect).unwrap_or_else(|| panic!("{effect} not selected"));
+    let e = d.report.selected_effects.iter().find(|e| e.effect.as_str() == effect).unwrap_or_else(|| panic!("{effect} not selected"));
     let i = e.joints.iter().position(|j| j == joint).unwrap_or_else(|| panic!("{effect} not on {joint}"));
     match &e.parameters[key] {
         Param::PerJoint(v) => v[i],

@@ -15,7 +15,7 @@ use simgap_sim::{Effect, LinkDelta};
 
 fn effect(name: &str, joints: &[&str], params: &[(&str, Param)]) -> EffectReport {
     EffectReport {
-        effect: name.into(),
+        effect: name.parse().unwrap_or_else(|e| panic!("{e}")),
         joints: joints.iter().map(|s| s.to_string()).collect(),
         parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
         uncertainty: BTreeMap::new(),
@@ -152,7 +152,7 @@ fn exported_urdf_keeps_every_other_byte_and_writes_friction_into_dynamics() {
     let names: Vec<&str> = out.sidecar.selected_effects.iter().map(|e| e.effect.as_str()).collect();
     assert_eq!(names, ["armature", "torque_gain", "time_delay"]);
     assert!(out.sidecar.selected_effects.iter().all(|e| !e.apply.is_empty() && e.units.len() == e.parameters.len()));
-    let coulomb = out.sidecar.held.iter().find(|h| h.effect == "coulomb_friction").unwrap();
+    let coulomb = out.sidecar.held.iter().find(|h| h.effect.as_str() == "coulomb_friction").unwrap();
     assert_eq!(coulomb.parameters.get("w"), Some(&Param::PerJoint(vec![0.02])));
     let json: serde_json::Value = serde_json::from_str(&out.sidecar.to_json()).unwrap();
     assert_eq!(json["selected_effects"][2]["parameters"]["delay"], 0.005);
@@ -364,7 +364,7 @@ fn servo_joints_are_mujoco_position_actuators_with_the_motor_law_in_kp_kv_and_fo
     assert!(t.contains("damping=\"0.3\""), "joint effects stay on the joints: {t}");
     // the back-EMF is in kv (folded into the effective constants), the friction on the joint
     assert!(out.sidecar.selected_effects.is_empty(), "{:?}", out.sidecar.selected_effects);
-    assert!(out.sidecar.held.iter().any(|h| h.effect == "back_emf" && h.written_as.contains("kv")), "{:?}", out.sidecar.held);
+    assert!(out.sidecar.held.iter().any(|h| h.effect.as_str() == "back_emf" && h.written_as.contains("kv")), "{:?}", out.sidecar.held);
     let notes = out.sidecar.notes.join("\n");
     assert!(notes.contains("position actuators") && notes.contains("V = 12 V (supply_voltage of servo.csv)"), "{notes}");
     assert!(notes.contains("duty and torque are proportional at zero speed") && notes.contains("(kt²/R)·|q̇|"), "the approximation is stated: {notes}");

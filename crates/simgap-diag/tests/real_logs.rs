@@ -18,7 +18,7 @@ fn run_diagnosis(fit: &[Run], hold: &[Run]) -> simgap_diag::Result<Diagnosis> {
 }
 
 fn selected(d: &Diagnosis) -> Vec<String> {
-    let mut v: Vec<String> = d.report.selected_effects.iter().map(|e| e.effect.clone()).collect();
+    let mut v: Vec<String> = d.report.selected_effects.iter().map(|e| e.effect.to_string()).collect();
     v.sort();
     v
 }

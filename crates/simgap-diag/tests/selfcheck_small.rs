@@ -87,7 +87,10 @@ fn per_joint_gains_are_exchanged_for_the_inertial_correction_taken_first() {
     for (j, (found, true_k)) in k.iter().zip(&truth).enumerate() {
         assert!((found - true_k).abs() <= 0.02 * true_k, "joint {j}: gain {found} against {true_k}");
     }
-    assert!(d.report.selection_log.iter().any(|s| s.effect == "inertial_error" && s.reason.starts_with("exchanged for torque_gain")), "the inertial correction was not exchanged");
+    assert!(
+        d.report.selection_log.iter().any(|s| s.effect.as_str() == "inertial_error" && s.reason.starts_with("exchanged for torque_gain")),
+        "the inertial correction was not exchanged"
+    );
 }
 
 #[test]

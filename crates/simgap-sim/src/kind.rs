@@ -282,8 +282,9 @@ impl EffectKind {
 }
 
 impl fmt::Display for EffectKind {
+    /// The contract name, padded to a width where one is given (`{:<18}`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
+        f.pad(self.as_str())
     }
 }
 

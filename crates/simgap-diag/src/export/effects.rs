@@ -2,7 +2,7 @@
 //! and the corrected link inertias.
 
 use simgap_core::{Model, SpatialInertia};
-use simgap_sim::{Effect, LinkDelta};
+use simgap_sim::{Effect, EffectKind, LinkDelta};
 
 use super::ExportError;
 use crate::{EffectReport, Param};
@@ -60,7 +60,7 @@ pub(super) fn joint_indices(model: &Model, e: &EffectReport) -> Result<Vec<usize
 }
 
 fn bad(e: &EffectReport, message: String) -> ExportError {
-    ExportError::Effect { effect: e.effect.clone(), message }
+    ExportError::Effect { effect: e.effect.to_string(), message }
 }
 
 fn number(e: &EffectReport, key: &str) -> Result<f64, ExportError> {
@@ -82,15 +82,15 @@ fn triple(e: &EffectReport, key: &str, v: &[f64]) -> Result<[f64; 3], ExportErro
 /// The payload and inertial-error entries as simulator effects (the form
 /// [`simgap_sim::effects::apply_inertial_effects`] applies).
 fn inertial_effect(model: &Model, e: &EffectReport) -> Result<Option<Effect>, ExportError> {
-    match e.effect.as_str() {
-        "payload" => {
+    match e.effect {
+        EffectKind::Payload => {
             let com = match e.parameters.get("com") {
                 Some(Param::Vector(v)) | Some(Param::PerJoint(v)) => triple(e, "com", v)?,
                 _ => return Err(bad(e, "has no parameter 'com' (3 numbers, the last link's frame)".into())),
             };
             Ok(Some(Effect::Payload { mass: number(e, "mass")?, com }))
         }
-        "inertial_error" => {
+        EffectKind::InertialError => {
             let idx = joint_indices(model, e)?;
             let rows = |key: &str, width: usize| -> Result<Vec<Vec<f64>>, ExportError> {
                 let rows: Vec<Vec<f64>> = match e.parameters.get(key) {
@@ -146,13 +146,13 @@ impl Corrections {
                 }
                 Ok(v)
             };
-            match e.effect.as_str() {
-                "viscous_friction" => nonneg("b")?.into_iter().for_each(|(j, x)| c.viscous[j] += x),
-                "coulomb_friction" => nonneg("fc")?.into_iter().for_each(|(j, x)| c.coulomb[j] += x),
-                "armature" => nonneg("ia")?.into_iter().for_each(|(j, x)| c.armature[j] += x),
-                "torque_gain" => per_joint(model, e, "k")?.into_iter().for_each(|(j, x)| c.gain[j] *= x),
-                "torque_saturation" => nonneg("limit")?.into_iter().for_each(|(j, x)| c.limit[j] = c.limit[j].min(x)),
-                "joint_spring" => {
+            match e.effect {
+                EffectKind::ViscousFriction => nonneg("b")?.into_iter().for_each(|(j, x)| c.viscous[j] += x),
+                EffectKind::CoulombFriction => nonneg("fc")?.into_iter().for_each(|(j, x)| c.coulomb[j] += x),
+                EffectKind::Armature => nonneg("ia")?.into_iter().for_each(|(j, x)| c.armature[j] += x),
+                EffectKind::TorqueGain => per_joint(model, e, "k")?.into_iter().for_each(|(j, x)| c.gain[j] *= x),
+                EffectKind::TorqueSaturation => nonneg("limit")?.into_iter().for_each(|(j, x)| c.limit[j] = c.limit[j].min(x)),
+                EffectKind::JointSpring => {
                     let (k, q0) = (nonneg("k")?, per_joint(model, e, "q0")?);
                     for ((j, k), (_, q0)) in k.into_iter().zip(q0) {
                         c.spring_k[j] += k;

@@ -12,6 +12,7 @@ use super::sidecar::{Format, Sidecar};
 use super::urdf::num;
 use super::{ExportError, ExportedFile};
 use crate::EffectReport;
+use simgap_sim::EffectKind;
 
 /// A revolute joint whose limits span at least this much [rad] is taken as unlimited: a
 /// `±π` range states the angle's convention, not a stop, and must not clip a run through π.
@@ -237,24 +238,24 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     let mut sidecar = Sidecar::new("mjcf");
     let on_servos = |e: &EffectReport| options.servo.as_ref().is_some_and(|sv| !e.joints.is_empty() && e.joints.iter().all(|j| sv.index(j).is_some()));
     for e in effects {
-        match e.effect.as_str() {
-            "torque_gain" | "back_emf" if on_servos(e) => sidecar.hold(e, "servo position actuator kp, kv and forcerange (folded into the servo's effective kt and R)", ""),
-            "torque_saturation" if on_servos(e) => sidecar.hold(
+        match e.effect {
+            EffectKind::TorqueGain | EffectKind::BackEmf if on_servos(e) => sidecar.hold(e, "servo position actuator kp, kv and forcerange (folded into the servo's effective kt and R)", ""),
+            EffectKind::TorqueSaturation if on_servos(e) => sidecar.hold(
                 e,
                 "servo position actuator forcerange, where below the servo's own",
                 "MuJoCo clamps the actuator's whole force (after the back-EMF term); simgap clamps the drive torque before subtracting the selected back-EMF",
             ),
-            "inertial_error" | "payload" => sidecar.hold(e, "body <inertial>", ""),
-            "viscous_friction" => sidecar.hold(e, "joint damping", ""),
-            "coulomb_friction" => sidecar.hold(
+            EffectKind::InertialError | EffectKind::Payload => sidecar.hold(e, "body <inertial>", ""),
+            EffectKind::ViscousFriction => sidecar.hold(e, "joint damping", ""),
+            EffectKind::CoulombFriction => sidecar.hold(
                 e,
                 "joint frictionloss",
                 "MuJoCo's frictionloss is dry friction solved as a constraint (it holds a joint at rest up to fc); simgap simulated −fc·tanh(q̇/w) (w in the parameters, or 0.01 rad/s where the report gives none)",
             ),
-            "armature" => sidecar.hold(e, "joint armature", ""),
-            "torque_gain" => sidecar.hold(e, "motor gear", ""),
-            "torque_saturation" => sidecar.hold(e, "motor forcerange (forcelimited), applied to ctrl before the gear as simgap clamps before the gain", ""),
-            "joint_spring" => sidecar.hold(e, "joint stiffness and springref", ""),
+            EffectKind::Armature => sidecar.hold(e, "joint armature", ""),
+            EffectKind::TorqueGain => sidecar.hold(e, "motor gear", ""),
+            EffectKind::TorqueSaturation => sidecar.hold(e, "motor forcerange (forcelimited), applied to ctrl before the gear as simgap clamps before the gain", ""),
+            EffectKind::JointSpring => sidecar.hold(e, "joint stiffness and springref", ""),
             _ => sidecar.defer(e, Format::Mjcf),
         }
     }

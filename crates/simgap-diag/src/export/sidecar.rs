@@ -3,6 +3,8 @@
 
 use std::collections::BTreeMap;
 
+use simgap_sim::EffectKind;
+
 use crate::{EffectReport, Param};
 
 /// One selected effect the exported format does not hold: the report's entry (`effect`,
@@ -10,8 +12,9 @@ use crate::{EffectReport, Param};
 /// to apply it in a simulator.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SidecarEntry {
-    /// Contract name (§3.2 of the brief), e.g. `time_delay`.
-    pub effect: String,
+    /// The effect (its contract name in the JSON, e.g. `time_delay`).
+    #[serde(serialize_with = "crate::vocabulary::effects::contract_name")]
+    pub effect: EffectKind,
     /// Joints it acts on (names); empty for whole-robot effects.
     pub joints: Vec<String>,
     /// Parameters, as in the report's `selected_effects` (per-joint lists aligned with
@@ -26,8 +29,9 @@ pub struct SidecarEntry {
 /// One selected effect the exported file does hold, and where it was written.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct HeldEntry {
-    /// Contract name.
-    pub effect: String,
+    /// The effect (its contract name in the JSON).
+    #[serde(serialize_with = "crate::vocabulary::effects::contract_name")]
+    pub effect: EffectKind,
     /// Joints it acts on.
     pub joints: Vec<String>,
     /// Its parameters as the report states them (`w` included for dry friction).
@@ -66,7 +70,7 @@ impl Sidecar {
     /// Records `e` as held by the file.
     pub(super) fn hold(&mut self, e: &EffectReport, written_as: impl Into<String>, approximation: impl Into<String>) {
         self.held.push(HeldEntry {
-            effect: e.effect.clone(),
+            effect: e.effect,
             joints: e.joints.clone(),
             parameters: e.parameters.clone(),
             written_as: written_as.into(),
@@ -77,13 +81,7 @@ impl Sidecar {
     /// Records `e` as not held, with how to apply it in a simulator.
     pub(super) fn defer(&mut self, e: &EffectReport, format: Format) {
         let units = e.parameters.keys().map(|k| (k.clone(), e.units.get(k).cloned().unwrap_or_default())).collect();
-        self.selected_effects.push(SidecarEntry {
-            effect: e.effect.clone(),
-            joints: e.joints.clone(),
-            parameters: e.parameters.clone(),
-            units,
-            apply: how_to_apply(&e.effect, format),
-        });
+        self.selected_effects.push(SidecarEntry { effect: e.effect, joints: e.joints.clone(), parameters: e.parameters.clone(), units, apply: how_to_apply(e.effect, format) });
     }
 }
 
@@ -95,32 +93,32 @@ pub(super) enum Format {
 }
 
 /// How to apply an effect the file does not hold, in one sentence.
-pub(super) fn how_to_apply(effect: &str, format: Format) -> String {
+pub(super) fn how_to_apply(effect: EffectKind, format: Format) -> String {
     let each_step = "to the joint's generalised force at every step (MuJoCo: qfrc_applied before mj_step; Pinocchio: to τ before aba)";
     match (effect, format) {
-        ("armature", _) => "Add ia to the joint's diagonal of the mass matrix: Pinocchio model.armature[v] = ia (v the joint's velocity index), MJCF joint armature; it is the rotor inertia reflected through the gearbox.".into(),
-        ("torque_gain", _) => "Multiply the commanded torque by k before it reaches the joint (τ_applied = k·clamp(τ_cmd, ±limit) + offset); in MJCF it is the motor's gear.".into(),
-        ("torque_saturation", _) => {
+        (EffectKind::Armature, _) => "Add ia to the joint's diagonal of the mass matrix: Pinocchio model.armature[v] = ia (v the joint's velocity index), MJCF joint armature; it is the rotor inertia reflected through the gearbox.".into(),
+        (EffectKind::TorqueGain, _) => "Multiply the commanded torque by k before it reaches the joint (τ_applied = k·clamp(τ_cmd, ±limit) + offset); in MJCF it is the motor's gear.".into(),
+        (EffectKind::TorqueSaturation, _) => {
             "Clamp the commanded torque to ±limit before the gain (MJCF: motor forcerange with forcelimited=\"true\"; Gazebo enforces <limit effort>, Pinocchio does not).".into()
         }
-        ("torque_offset", _) => "Add offset to the torque the drive applies, after the saturation and the gain: τ_applied = k·clamp(τ_cmd, ±limit) + offset.".into(),
-        ("time_delay", _) => {
+        (EffectKind::TorqueOffset, _) => "Add offset to the torque the drive applies, after the saturation and the gain: τ_applied = k·clamp(τ_cmd, ±limit) + offset.".into(),
+        (EffectKind::TimeDelay, _) => {
             "Apply each command delay seconds late, for the whole robot: a buffer of delay / sample period samples between the controller and the actuators (τ_applied(t) = τ_cmd(t − delay)), or the simulator's actuator delay where it has one.".into()
         }
-        ("stribeck_friction", _) => format!(
+        (EffectKind::StribeckFriction, _) => format!(
             "Add −(fc + (fs − fc)·exp(−(q̇/vs)²))·tanh(q̇/w) {each_step}; a constant dry friction (URDF friction, MJCF frictionloss) cannot hold the breakaway hump, so it is not approximated by one."
         ),
-        ("cogging", _) => format!("Add −amplitude·sin(periods_per_rev·q) {each_step}."),
-        ("directional_friction", _) => format!("Add −(fc_pos·tanh(q̇/w) + b_pos·q̇) while q̇ > 0 and (fc_neg·tanh(−q̇/w) − b_neg·q̇) while q̇ < 0 {each_step}: friction that differs with the direction of motion."),
-        ("load_friction", _) => format!(
+        (EffectKind::Cogging, _) => format!("Add −amplitude·sin(periods_per_rev·q) {each_step}."),
+        (EffectKind::DirectionalFriction, _) => format!("Add −(fc_pos·tanh(q̇/w) + b_pos·q̇) while q̇ > 0 and (fc_neg·tanh(−q̇/w) − b_neg·q̇) while q̇ < 0 {each_step}: friction that differs with the direction of motion."),
+        (EffectKind::LoadFriction, _) => format!(
             "Add −(fc + mu·|τ_drive|)·tanh(q̇/w), τ_drive the torque the drive applies at the joint, {each_step}: dry friction that grows with the drive torque, which no joint attribute sees."
         ),
-        ("load_stribeck_friction", _) => format!(
+        (EffectKind::LoadStribeckFriction, _) => format!(
             "Add −(fc + mu·|τ_drive| + ((fs − fc) + (mus − mu)·|τ_drive|)·exp(−(q̇/vs)²))·tanh(q̇/w), τ_drive the torque the drive applies at the joint, {each_step}: dry friction that grows with the drive torque and is higher at rest (w = 0: hold the joint while the torque that would move it is below fs + mus·|τ_drive|)."
         ),
-        ("back_emf", _) => "Add −kb·q̇ while the drive is enabled (torque on) and nothing with torque off; a robot whose torque is always on may add kb to the joint's damping instead.".into(),
-        ("joint_spring", Format::Urdf) => format!("Add −k·(q − q0) {each_step} (MJCF: joint stiffness = k, springref = q0)."),
-        ("coriolis_structure", _) => "Pinocchio and MuJoCo compute the true (Euler–Lagrange) Coriolis torque: with the simplified C under test that is already the correction; with the Euler–Lagrange C under test the robot behaves as the simplified C = Ḣ/2, which neither can simulate.".into(),
+        (EffectKind::BackEmf, _) => "Add −kb·q̇ while the drive is enabled (torque on) and nothing with torque off; a robot whose torque is always on may add kb to the joint's damping instead.".into(),
+        (EffectKind::JointSpring, Format::Urdf) => format!("Add −k·(q − q0) {each_step} (MJCF: joint stiffness = k, springref = q0)."),
+        (EffectKind::CoriolisStructure, _) => "Pinocchio and MuJoCo compute the true (Euler–Lagrange) Coriolis torque: with the simplified C under test that is already the correction; with the Euler–Lagrange C under test the robot behaves as the simplified C = Ḣ/2, which neither can simulate.".into(),
         (_, _) => "Apply it as its entry in the report's selected_effects states it: this exporter does not map it onto the format.".into(),
     }
 }

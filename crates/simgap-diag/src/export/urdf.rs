@@ -8,6 +8,7 @@ use super::effects::{joint_indices, Corrections};
 use super::sidecar::{Format, Sidecar};
 use super::{ExportError, ExportedFile};
 use crate::EffectReport;
+use simgap_sim::EffectKind;
 
 /// The URDF `urdf_text` (read from `source_name`, named in errors) with the selected effects
 /// written in, and its sidecar.
@@ -65,7 +66,7 @@ pub fn export_urdf(urdf_text: &str, source_name: &str, model: &Model, effects: &
         let delta = difference(&corrections.bodies[i], &joint.inertia);
         let new = add(&old, &delta);
         check_link(&new).map_err(|m| ExportError::Effect {
-            effect: "inertial_error".into(),
+            effect: EffectKind::InertialError.to_string(),
             message: format!(
                 "the corrected body of joint '{}' cannot be written into link '{}': {m} (the rest of the body is links merged by fixed joints, which keep their inertials)",
                 joint.name, joint.link
@@ -105,13 +106,13 @@ pub fn export_urdf(urdf_text: &str, source_name: &str, model: &Model, effects: &
     // the sidecar: what the file holds and what it does not
     for e in effects {
         let links = || -> Result<String, ExportError> {
-            let idx = if e.effect == "payload" { vec![model.dof() - 1] } else { joint_indices(model, e)? };
+            let idx = if e.effect == EffectKind::Payload { vec![model.dof() - 1] } else { joint_indices(model, e)? };
             Ok(idx.iter().map(|&j| format!("'{}'", model.joints()[j].link)).collect::<Vec<_>>().join(", "))
         };
-        match e.effect.as_str() {
-            "inertial_error" | "payload" => sidecar.hold(e, format!("<inertial> of link {}", links()?), ""),
-            "viscous_friction" => sidecar.hold(e, "<dynamics damping> of the joints", ""),
-            "coulomb_friction" => sidecar.hold(
+        match e.effect {
+            EffectKind::InertialError | EffectKind::Payload => sidecar.hold(e, format!("<inertial> of link {}", links()?), ""),
+            EffectKind::ViscousFriction => sidecar.hold(e, "<dynamics damping> of the joints", ""),
+            EffectKind::CoulombFriction => sidecar.hold(
                 e,
                 "<dynamics friction> of the joints",
                 "URDF friction is a constant dry friction whose law the simulator chooses; simgap simulated −fc·tanh(q̇/w) (w in the parameters, or 0.01 rad/s where the report gives none)",

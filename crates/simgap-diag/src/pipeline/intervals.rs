@@ -406,7 +406,7 @@ fn report_effects(model: &Model, scorer: &Scorer<'_>, prep: &Prepared, terms: &[
     // an effect kept although its interval holds no effect says so where it is described
     for t in kept_needed.iter().filter(|t| terms.contains(t)) {
         let joint = t.joint().and_then(|j| joints.get(j));
-        if let Some(e) = selected_effects.iter_mut().find(|e| e.effect == t.effect_name() && joint.is_none_or(|j| e.joints.contains(j))) {
+        if let Some(e) = selected_effects.iter_mut().find(|e| e.effect == t.kind() && joint.is_none_or(|j| e.joints.contains(j))) {
             let on = joint.map_or(String::new(), |j| format!(" on {j}"));
             e.description
                 .push_str(&format!("; not established{on}: its 95 % interval holds the value of no effect, and it is kept because the fit runs are predicted worse without it"));

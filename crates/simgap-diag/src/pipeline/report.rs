@@ -28,13 +28,7 @@ pub(crate) fn report(scorer: &Scorer<'_>, prep: &Prepared, located: Located, can
     let selection_log = selection
         .log
         .iter()
-        .map(|s| Decision {
-            effect: s.term.effect_name().into(),
-            joint: s.term.joint().map(|j| joints[j].clone()),
-            cv_mse: s.cv_mse,
-            accepted: s.accepted,
-            reason: s.reason.clone(),
-        })
+        .map(|s| Decision { effect: s.term.kind(), joint: s.term.joint().map(|j| joints[j].clone()), cv_mse: s.cv_mse, accepted: s.accepted, reason: s.reason.clone() })
         .collect();
     // the report
     Report {

@@ -41,7 +41,7 @@ pub(crate) fn screen(scorer: &Scorer<'_>, prep: &Prepared, candidates: &Candidat
     }
     // each with its figures and why it is or is not selected
     let mut screened_candidates = Vec::new();
-    for (gi, ((name, _), (fitted_c, cv_mse, kstep_after, l2))) in candidates.groups.iter().zip(screened).enumerate() {
+    for (gi, ((name, terms), (fitted_c, cv_mse, kstep_after, l2))) in candidates.groups.iter().zip(screened).enumerate() {
         let rep = effects::to_reports(scorer.model, &fitted_c).into_iter().next();
         let unphysical: Vec<String> = fitted_c.iter().filter(|f| !crate::vocabulary::physical(&f.term, &f.theta)).map(|f| f.term.describe(&prep.joints)).collect();
         let selected = chosen.selection.terms.iter().any(|t| t.effect_name() == *name);
@@ -63,7 +63,7 @@ pub(crate) fn screen(scorer: &Scorer<'_>, prep: &Prepared, candidates: &Candidat
         };
         screened_candidates.push(Candidate {
             rank: 0,
-            effect: name.to_string(),
+            effect: terms[0].kind(),
             joints: joints_c,
             parameters,
             uncertainty,

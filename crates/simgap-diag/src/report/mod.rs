@@ -12,7 +12,7 @@ use crate::locate::Where;
 use crate::prediction::resim::RunGap;
 use crate::prepare::FitData;
 use crate::vocabulary::effects::{EffectReport, Param};
-use simgap_sim::{Effect, Run};
+use simgap_sim::{Effect, EffectKind, Run};
 use std::collections::BTreeMap;
 
 /// One candidate effect, fitted alone on the nominal model.
@@ -20,8 +20,9 @@ use std::collections::BTreeMap;
 pub struct Candidate {
     /// Rank (1 = explains most of the cross-validated residual).
     pub rank: usize,
-    /// Contract name.
-    pub effect: String,
+    /// The effect (its contract name in the JSON).
+    #[serde(serialize_with = "crate::vocabulary::effects::contract_name")]
+    pub effect: EffectKind,
     /// Joints fitted.
     pub joints: Vec<String>,
     /// Fitted parameters (as in `selected_effects`).
@@ -156,8 +157,9 @@ pub struct Gap {
 /// A decision of the stepwise selection.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Decision {
-    /// Effect name.
-    pub effect: String,
+    /// The effect (its contract name in the JSON).
+    #[serde(serialize_with = "crate::vocabulary::effects::contract_name")]
+    pub effect: EffectKind,
     /// Joint, when per joint.
     pub joint: Option<String>,
     /// Cross-validated weighted MSE with the term.

@@ -1,7 +1,7 @@
 //! The verdict and the headline: which figure answers "how far", and the one-sentence
 //! conclusion drawn from the figures.
 
-use simgap_sim::{ControllerKind, Run};
+use simgap_sim::{ControllerKind, EffectKind, Run};
 
 use crate::prediction::resim;
 use crate::report::units::Units;
@@ -72,7 +72,7 @@ pub(crate) fn verdict(moving: bool, selected: &[EffectReport], headline: &str, k
     if !moving {
         return format!("cannot tell: the fit logs show no motion (all velocities below 1e-3 {v}), so no effect can be told apart");
     }
-    let names: Vec<String> = selected.iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
+    let names: Vec<String> = selected.iter().map(|e| if e.joints.is_empty() { e.effect.to_string() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
     let (figure, b, a) = if headline == "closed_loop" {
         ("closed-loop L²".to_string(), before, after)
     } else {
@@ -187,7 +187,8 @@ pub fn assess(r: &Report) -> Assessment {
     let units = Units::of_types(&r.joint_types);
     let u = units.position.as_str();
     let g = &r.gap;
-    let names: Vec<String> = ranked_selection(r).iter().map(|e| if e.joints.is_empty() { e.effect.clone() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
+    let names: Vec<String> =
+        ranked_selection(r).iter().map(|e| if e.joints.is_empty() { e.effect.to_string() } else { format!("{} on {}", e.effect, e.joints.join(", ")) }).collect();
     let nominal_bad = not_completed(&g.runs_before);
     let corrected_bad = if r.selected_effects.is_empty() { vec![] } else { not_completed(&g.runs_after) };
     let k = &g.kstep;
@@ -258,9 +259,9 @@ fn lowercase_first(s: &str) -> String {
 /// The selected effects in candidate rank order, each with its joints (and per-joint
 /// parameters) in model order.
 pub(crate) fn ranked_selection(r: &Report) -> Vec<EffectReport> {
-    let rank = |effect: &str| r.candidates.iter().find(|c| c.effect == effect).map_or(usize::MAX, |c| c.rank);
+    let rank = |effect: EffectKind| r.candidates.iter().find(|c| c.effect == effect).map_or(usize::MAX, |c| c.rank);
     let mut out: Vec<EffectReport> = r.selected_effects.iter().map(|e| in_model_order(e, &r.joints)).collect();
-    out.sort_by_key(|e| rank(&e.effect));
+    out.sort_by_key(|e| rank(e.effect));
     out
 }
 
@@ -301,7 +302,7 @@ mod tests {
     }
 
     fn one_effect() -> Vec<EffectReport> {
-        vec![EffectReport { effect: "armature".into(), joints: vec!["j1".into()], ..Default::default() }]
+        vec![EffectReport { joints: vec!["j1".into()], ..EffectReport::new(EffectKind::Armature) }]
     }
 
     #[test]

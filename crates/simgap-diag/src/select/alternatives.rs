@@ -22,7 +22,7 @@ pub(crate) fn alternatives(
     selected: &[EffectReport],
     effects: &[Effect],
 ) -> Vec<Alternative> {
-    let names: Vec<String> = selected.iter().map(|e| e.effect.clone()).collect();
+    let names: Vec<String> = selected.iter().map(|e| e.effect.to_string()).collect();
     let with = |drop: &str, add: &str| -> Vec<String> {
         let mut v: Vec<String> = names.iter().filter(|n| n.as_str() != drop).cloned().collect();
         if !v.iter().any(|n| n == add) {

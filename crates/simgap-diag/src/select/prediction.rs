@@ -13,6 +13,7 @@ use crate::select::uncertainty;
 use crate::select::{self, Context};
 use crate::vocabulary::fitted_terms;
 use crate::vocabulary::{effects, EffectReport, Term};
+use simgap_sim::EffectKind;
 
 /// Removing a term keeps it out when prediction worsens by less than this (relative).
 pub(crate) const PRUNE_TOLERANCE: f64 = 0.02;
@@ -340,15 +341,15 @@ pub(crate) fn rank_selected(scorer: &Scorer<'_>, terms: &[Term], reports: &mut [
     if reports.len() < 2 {
         return;
     }
-    let loss: Vec<(String, f64)> = reports
+    let loss: Vec<(EffectKind, f64)> = reports
         .par_iter()
         .map(|r| {
-            let rest: Vec<Term> = terms.iter().filter(|t| t.effect_name() != r.effect).cloned().collect();
-            (r.effect.clone(), scorer.score(&rest))
+            let rest: Vec<Term> = terms.iter().filter(|t| t.kind() != r.effect).cloned().collect();
+            (r.effect, scorer.score(&rest))
         })
         .collect();
-    let of = |name: &str| loss.iter().find(|l| l.0 == name).map_or(0.0, |l| l.1);
-    reports.sort_by(|a, b| of(&b.effect).total_cmp(&of(&a.effect)));
+    let of = |kind: EffectKind| loss.iter().find(|l| l.0 == kind).map_or(0.0, |l| l.1);
+    reports.sort_by(|a, b| of(b.effect).total_cmp(&of(a.effect)));
 }
 
 /// The candidates (indices into `groups`) tried in place of the selected effect `name`: the two

@@ -326,7 +326,7 @@ fn no_effect_is_physically_impossible_on_dfki_runs() {
     for e in d.report.selected_effects.iter() {
         println!("selected: {}", e.description);
     }
-    for c in d.report.candidates.iter().filter(|c| c.effect == "inertial_error") {
+    for c in d.report.candidates.iter().filter(|c| c.effect.as_str() == "inertial_error") {
         println!("simple pendulum inertial_error candidate: {:?}", c.parameters);
     }
     assert_report_physical(&model, &d, &[], "DFKI simple pendulum");

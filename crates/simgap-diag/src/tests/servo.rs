@@ -77,7 +77,7 @@ fn a_servo_is_diagnosed_from_its_goal_and_duty_with_its_motor_constants_rotor_in
     // the motor constants the corrected model drives with: kt/R and kt²/R within 10 %
     let (kt, res) = (servo.effective.kt[0], servo.effective.r[0]);
     assert!(((kt / res) / (KT / R) - 1.0).abs() < 0.1 && ((kt * kt / res) / (KT * KT / R) - 1.0).abs() < 0.1, "kt = {kt}, R = {res}\n{}", r.summary());
-    let found = |name: &str| r.selected_effects.iter().find(|e| e.effect == name);
+    let found = |name: &str| r.selected_effects.iter().find(|e| e.effect.as_str() == name);
     let value = |name: &str, key: &str| match found(name).map(|e| &e.parameters[key]) {
         Some(Param::PerJoint(v)) => v[0],
         other => panic!("{name}.{key}: {other:?}\n{}", r.summary()),
@@ -201,7 +201,7 @@ fn a_stalled_servo_s_intervals_come_from_the_jackknife_over_its_fit_logs_and_hol
         println!("{}", r.summary());
     }
     assert!(r.notes.iter().any(|n| n.contains("delete-one-log jackknife variance of the answers fitted with each of the 4 fit logs left out")), "{}", r.summary());
-    let viscous = r.selected_effects.iter().find(|e| e.effect == "viscous_friction").unwrap_or_else(|| panic!("no viscous friction\n{}", r.summary()));
+    let viscous = r.selected_effects.iter().find(|e| e.effect.as_str() == "viscous_friction").unwrap_or_else(|| panic!("no viscous friction\n{}", r.summary()));
     let (Param::PerJoint(b), Param::PerJoint(u)) = (&viscous.parameters["b"], &viscous.uncertainty["b"]) else { panic!("{viscous:?}") };
     assert!((b[0] - 0.3).abs() <= u[0], "b = {} ± {}, truth 0.3\n{}", b[0], u[0], r.summary());
     assert!(!viscous.description.contains("not established"), "{}\n{}", viscous.description, r.summary());
@@ -212,7 +212,7 @@ fn a_stalled_servo_s_intervals_come_from_the_jackknife_over_its_fit_logs_and_hol
 /// the selected torque limit and gain).
 fn assert_most_torque(r: &crate::Report, limit: f64) {
     let per_joint = |name: &str, key: &str| -> Option<f64> {
-        r.selected_effects.iter().find(|e| e.effect == name).and_then(|e| match &e.parameters[key] {
+        r.selected_effects.iter().find(|e| e.effect.as_str() == name).and_then(|e| match &e.parameters[key] {
             Param::PerJoint(v) => v.first().copied(),
             _ => None,
         })

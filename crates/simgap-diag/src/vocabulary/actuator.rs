@@ -107,7 +107,7 @@ pub(super) fn describe(e: &EffectReport) -> String {
 /// clamps the command first and then scales it (`k · clamp(τ_cmd, ±limit)`), so the most the
 /// drive delivers is `k · limit`, which the description states.
 pub(super) fn describe_limit_with_gain(entries: &mut [EffectReport]) {
-    let is = |e: &EffectReport, kind: EffectKind| e.effect == kind.as_str();
+    let is = |e: &EffectReport, kind: EffectKind| e.effect == kind;
     let gains: Vec<(String, f64)> = entries.iter().filter(|e| is(e, EffectKind::TorqueGain)).flat_map(|e| reported(e, "k").into_iter().map(|(j, k)| (j.to_string(), k))).collect();
     for e in entries.iter_mut().filter(|e| is(e, EffectKind::TorqueSaturation)) {
         let unit = unit_of(e, "limit").to_string();

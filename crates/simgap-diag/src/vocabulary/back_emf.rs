@@ -48,7 +48,7 @@ pub(crate) fn mark_damping_sums(model: &simgap_core::Model, fit_runs: &[simgap_s
         return;
     }
     let names = model.joint_names();
-    for e in selected.iter_mut().filter(|e| matches!(e.effect.parse::<EffectKind>(), Ok(EffectKind::BackEmf))) {
+    for e in selected.iter_mut().filter(|e| e.effect == EffectKind::BackEmf) {
         let alike: Vec<String> =
             e.joints.iter().filter(|j| names.iter().position(|n| n == *j).is_some_and(|i| !crate::prepare::servo::moves_with_drive_off(model, fit_runs, i))).cloned().collect();
         if !alike.is_empty() {

@@ -22,10 +22,11 @@ pub enum Param {
 }
 
 /// One effect as the report states it.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct EffectReport {
-    /// Contract name.
-    pub effect: String,
+    /// The effect (its contract name in the JSON report: `viscous_friction`, …).
+    #[serde(serialize_with = "contract_name")]
+    pub effect: EffectKind,
     /// Joints it acts on (names); empty for whole-robot effects.
     pub joints: Vec<String>,
     /// Parameters.
@@ -39,11 +40,34 @@ pub struct EffectReport {
     pub description: String,
 }
 
+impl EffectReport {
+    /// An entry of `effect` with no joint, parameter or description yet.
+    pub fn new(effect: EffectKind) -> Self {
+        EffectReport { effect, joints: Vec::new(), parameters: BTreeMap::new(), uncertainty: BTreeMap::new(), units: BTreeMap::new(), description: String::new() }
+    }
+
+    /// The value of parameter `key` on joint `joint` (its per-joint value, or the entry's
+    /// whole-robot number), when the entry acts on that joint and has that parameter: the one
+    /// reader of a report entry's numbers.
+    pub fn value(&self, key: &str, joint: &str) -> Option<f64> {
+        let at = self.joints.iter().position(|j| j == joint)?;
+        match self.parameters.get(key)? {
+            Param::PerJoint(v) => v.get(at).copied(),
+            Param::Number(x) => Some(*x),
+            _ => None,
+        }
+    }
+}
+
+/// Writes an effect as its contract name.
+pub(crate) fn contract_name<S: serde::Serializer>(kind: &EffectKind, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(kind.as_str())
+}
+
 /// The unit of parameter `param` of `effect` on joints of types `kinds` (units follow the joint
 /// type: N·m on a revolute joint, N on a prismatic one; `-` for an unknown parameter). An
 /// effect on joints of both types states both: `N·m (revolute), N (prismatic)`.
-pub(crate) fn unit_on(effect: &str, param: &str, kinds: &[JointKind]) -> String {
-    let Ok(kind) = effect.parse::<EffectKind>() else { return "-".into() };
+pub(crate) fn unit_on(kind: EffectKind, param: &str, kinds: &[JointKind]) -> String {
     let of = |k: JointKind| kind.unit(param, k).unwrap_or("-");
     let rotational = kinds.iter().any(|k| k.is_rotational());
     let linear = kinds.iter().any(|k| !k.is_rotational());
@@ -127,18 +151,11 @@ pub(crate) fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectRepo
     let names: Vec<String> = model.joint_names().iter().map(|s| s.to_string()).collect();
     let mut out: Vec<EffectReport> = Vec::new();
     for f in fitted {
-        let effect = f.term.effect_name();
+        let effect = f.term.kind();
         let idx = match out.iter().position(|e| e.effect == effect) {
             Some(i) => i,
             None => {
-                out.push(EffectReport {
-                    effect: effect.into(),
-                    joints: vec![],
-                    parameters: BTreeMap::new(),
-                    uncertainty: BTreeMap::new(),
-                    units: BTreeMap::new(),
-                    description: String::new(),
-                });
+                out.push(EffectReport::new(effect));
                 out.len() - 1
             }
         };
@@ -156,7 +173,7 @@ pub(crate) fn to_reports(model: &Model, fitted: &[FittedTerm]) -> Vec<EffectRepo
         } else {
             e.joints.iter().filter_map(|n| model.joints().iter().find(|j| j.name == *n)).map(|j| j.kind).collect()
         };
-        e.units = e.parameters.keys().map(|k| (k.clone(), unit_on(&e.effect, k, &kinds))).collect();
+        e.units = e.parameters.keys().map(|k| (k.clone(), unit_on(e.effect, k, &kinds))).collect();
         // joints in model order, per-joint parameters along with them
         let mut order: Vec<usize> = (0..e.joints.len()).collect();
         order.sort_by_key(|&i| names.iter().position(|n| *n == e.joints[i]).unwrap_or(usize::MAX));
@@ -223,16 +240,17 @@ pub(super) fn list_per_joint(e: &EffectReport, key: &str) -> String {
 mod tests {
     use super::unit_on;
     use simgap_core::JointKind::{Continuous, Prismatic, Revolute};
+    use simgap_sim::EffectKind;
 
     #[test]
     fn units_follow_the_type_of_the_joints_an_effect_acts_on() {
-        assert_eq!(unit_on("viscous_friction", "b", &[Prismatic]), "N·s/m");
-        assert_eq!(unit_on("coulomb_friction", "fc", &[Prismatic]), "N");
-        assert_eq!(unit_on("coulomb_friction", "fc", &[Revolute, Continuous]), "N·m");
-        assert_eq!(unit_on("armature", "ia", &[Prismatic]), "kg");
-        assert_eq!(unit_on("torque_offset", "offset", &[Revolute, Prismatic]), "N·m (revolute), N (prismatic)");
-        assert_eq!(unit_on("payload", "mass", &[Prismatic]), "kg");
-        assert_eq!(unit_on("no_such_effect", "b", &[Revolute]), "-");
+        assert_eq!(unit_on(EffectKind::ViscousFriction, "b", &[Prismatic]), "N·s/m");
+        assert_eq!(unit_on(EffectKind::CoulombFriction, "fc", &[Prismatic]), "N");
+        assert_eq!(unit_on(EffectKind::CoulombFriction, "fc", &[Revolute, Continuous]), "N·m");
+        assert_eq!(unit_on(EffectKind::Armature, "ia", &[Prismatic]), "kg");
+        assert_eq!(unit_on(EffectKind::TorqueOffset, "offset", &[Revolute, Prismatic]), "N·m (revolute), N (prismatic)");
+        assert_eq!(unit_on(EffectKind::Payload, "mass", &[Prismatic]), "kg");
+        assert_eq!(unit_on(EffectKind::ViscousFriction, "no_such_parameter", &[Revolute]), "-");
     }
 
     #[test]
@@ -244,7 +262,7 @@ mod tests {
         // the gain's column coefficient is 1 − k: k = 2.5
         let gain = FittedTerm { term: Term::Gain(0), theta: vec![-1.5], std: vec![0.0] };
         let both = to_reports(&model, &[limit.clone(), gain]);
-        let saturation = both.iter().find(|e| e.effect == "torque_saturation").unwrap();
+        let saturation = both.iter().find(|e| e.effect == EffectKind::TorqueSaturation).unwrap();
         assert!(saturation.description.contains("±0.200 N·m") && saturation.description.contains("at most ±0.500 N·m on hinge"), "{}", saturation.description);
         // alone, the limit is the most the drive delivers
         let alone = to_reports(&model, &[limit]);

@@ -383,21 +383,21 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
 
 /// The effect of a report entry in words (its `description`).
 fn describe(model: &Model, e: &EffectReport) -> String {
-    match e.effect.parse::<EffectKind>() {
-        Ok(EffectKind::ViscousFriction | EffectKind::CoulombFriction | EffectKind::StribeckFriction) => friction::describe(e),
-        Ok(EffectKind::LoadFriction) => load_friction::describe(e),
-        Ok(EffectKind::LoadStribeckFriction) => load_stribeck::describe(e),
-        Ok(EffectKind::BackEmf) => back_emf::describe(e),
-        Ok(EffectKind::Armature) => rotor::describe(e),
-        Ok(EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation) => actuator::describe(e),
-        Ok(EffectKind::Cogging) => cogging::describe(e),
-        Ok(EffectKind::JointSpring) => spring::describe(e),
-        Ok(EffectKind::TimeDelay) => delay::describe(e),
-        Ok(EffectKind::CoriolisStructure) => coriolis::describe(),
-        Ok(EffectKind::Payload) => payload::describe(model, e),
-        Ok(EffectKind::DirectionalFriction) => directional::describe(e),
+    match e.effect {
+        EffectKind::ViscousFriction | EffectKind::CoulombFriction | EffectKind::StribeckFriction => friction::describe(e),
+        EffectKind::LoadFriction => load_friction::describe(e),
+        EffectKind::LoadStribeckFriction => load_stribeck::describe(e),
+        EffectKind::BackEmf => back_emf::describe(e),
+        EffectKind::Armature => rotor::describe(e),
+        EffectKind::TorqueGain | EffectKind::TorqueOffset | EffectKind::TorqueSaturation => actuator::describe(e),
+        EffectKind::Cogging => cogging::describe(e),
+        EffectKind::JointSpring => spring::describe(e),
+        EffectKind::TimeDelay => delay::describe(e),
+        EffectKind::CoriolisStructure => coriolis::describe(),
+        EffectKind::Payload => payload::describe(model, e),
+        EffectKind::DirectionalFriction => directional::describe(e),
         // an inertial error states its changes per link
-        Ok(EffectKind::InertialError) | Err(_) => String::new(),
+        EffectKind::InertialError => String::new(),
     }
 }
 

@@ -5,7 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use simgap_core::Formulation;
-use simgap_sim::Effect;
+use simgap_sim::{Effect, EffectKind};
 
 use super::scenarios::{family_of, scenario, Scenario, CYCLE, GLITCH_VALUE};
 use super::servo::{servo_family, servo_scenario};
@@ -150,24 +150,23 @@ pub fn run_drive_scenario(seed: u64, index: usize) -> ScenarioScore {
 /// gain; no limit selected is an infinite error); `None` without a hidden limit.
 fn most_torque_error(joints: &[&str], hidden: &[Effect], selected: &[EffectReport]) -> Option<f64> {
     let limits = hidden.iter().find_map(|e| if let Effect::TorqueSaturation { limit } = e { Some(limit.clone()) } else { None })?;
-    let value = |name: &str, key: &str, j: usize| selected_value(selected, name, key, joints[j]).filter(|v| v.is_finite());
-    let errors = limits.iter().enumerate().filter(|(_, l)| l.is_finite()).map(|(j, l)| match value("torque_saturation", "limit", j) {
-        Some(fitted) => (fitted * value("torque_gain", "k", j).unwrap_or(1.0) / l - 1.0).abs(),
+    let value = |kind: EffectKind, key: &str, j: usize| selected_value(selected, kind, key, joints[j]).filter(|v| v.is_finite());
+    let errors = limits.iter().enumerate().filter(|(_, l)| l.is_finite()).map(|(j, l)| match value(EffectKind::TorqueSaturation, "limit", j) {
+        Some(fitted) => (fitted * value(EffectKind::TorqueGain, "k", j).unwrap_or(1.0) / l - 1.0).abs(),
         None => f64::INFINITY,
     });
     Some(errors.fold(0.0, f64::max))
 }
 
 /// The value of parameter `key` of the selected `effect` on `joint`, if selected there.
-fn selected_value(selected: &[EffectReport], effect: &str, key: &str, joint: &str) -> Option<f64> {
-    let e = selected.iter().find(|e| e.effect == effect)?;
-    crate::vocabulary::effects::per_joint(e, key).into_iter().find(|(at, _)| *at == joint).map(|(_, v)| v)
+fn selected_value(selected: &[EffectReport], effect: EffectKind, key: &str, joint: &str) -> Option<f64> {
+    selected.iter().find(|e| e.effect == effect)?.value(key, joint)
 }
 
 /// The effects that, on a servo whose motor constants were fitted from its logs, correct those
 /// constants rather than add mechanics: a torque gain scales `kt/R` and `kt²/R` alike, a
 /// back-EMF `kt²/R` alone. A servo scenario is scored on the other selected effects.
-pub const MOTOR_CONSTANTS: [&str; 2] = ["torque_gain", "back_emf"];
+pub const MOTOR_CONSTANTS: [&str; 2] = [EffectKind::TorqueGain.as_str(), EffectKind::BackEmf.as_str()];
 
 /// Of every [`MIXED_CYCLE`] scenarios `simgap selfcheck` runs, the first [`CYCLE`] are one cycle
 /// of [`scenario`] and the rest one of each real-drive family
@@ -218,7 +217,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
             (ok, format!("nearest in-vocabulary friction on the true joint, only friction there, k-step at 0.5 s after/before {kstep_ratio:.3} (< 1 needed)"))
         }
         "urdf_inertia_pitfall" => {
-            let links = d.report.selected_effects.iter().find(|e| e.effect == "inertial_error").map_or(0, |e| e.joints.len());
+            let links = d.report.selected_effects.iter().find(|e| e.effect == EffectKind::InertialError).map_or(0, |e| e.joints.len());
             let ok = (exact && links == sc.model.dof()) || in_alternatives;
             (ok, format!("an inertial correction of all {} links (the selected one corrects {links})", sc.model.dof()))
         }
@@ -240,7 +239,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
             // friction act alike and only their sum is in the logs: the sum is scored there
             let viscous = |j: usize| -> (f64, f64) {
                 let hidden = sc.effects.iter().find_map(|e| if let Effect::ViscousFriction { b } = e { Some(b[j]) } else { None }).unwrap_or(0.0);
-                let selected = selected_value(&d.report.selected_effects, "viscous_friction", "b", names[j]).unwrap_or(0.0);
+                let selected = selected_value(&d.report.selected_effects, EffectKind::ViscousFriction, "b", names[j]).unwrap_or(0.0);
                 (hidden, selected)
             };
             let summed: Vec<usize> = (0..names.len()).filter(|&j| !crate::prepare::servo::moves_with_drive_off(&sc.model, &sc.fit, j)).collect();

@@ -6,7 +6,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use simgap_core::{mass_matrix, Model, Workspace};
-use simgap_sim::{Effect, Run};
+use simgap_sim::{Effect, EffectKind, Run};
 
 use crate::report::Diagnosis;
 use crate::vocabulary::effects::{EffectReport, Param};
@@ -44,10 +44,10 @@ pub fn found_set(d: &Diagnosis) -> BTreeSet<(String, Option<String>)> {
     let mut s = BTreeSet::new();
     for e in &d.report.selected_effects {
         if WHOLE.contains(&e.effect.as_str()) {
-            s.insert((e.effect.clone(), None));
+            s.insert((e.effect.to_string(), None));
         } else {
             for j in &e.joints {
-                s.insert((e.effect.clone(), Some(j.clone())));
+                s.insert((e.effect.to_string(), Some(j.clone())));
             }
         }
     }
@@ -64,7 +64,7 @@ pub(super) fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectRepo
     let names = model.joint_names();
     let mut out = Vec::new();
     for e in truth {
-        let Some(rep) = reports.iter().find(|r| r.effect == e.name()) else { continue };
+        let Some(rep) = reports.iter().find(|r| r.effect == e.kind()) else { continue };
         let per_joint = |key: &str, values: &[f64]| -> Vec<Comparison> {
             let mut v = Vec::new();
             if let (Some(Param::PerJoint(found)), unc) = (rep.parameters.get(key), rep.uncertainty.get(key)) {
@@ -201,7 +201,7 @@ pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<
                 out.push(format!("{}@{joint}{}", e.effect, if in_range { " (its interval holds no effect)" } else { " (outside its physical range)" }));
             }
         }
-        if e.effect == "payload" && !matches!(e.parameters.get("mass"), Some(Param::Number(m)) if *m > 0.0) {
+        if e.effect == EffectKind::Payload && !matches!(e.parameters.get("mass"), Some(Param::Number(m)) if *m > 0.0) {
             out.push("payload (mass not positive)".into());
         }
     }
@@ -217,7 +217,7 @@ pub fn contradicted(report: &crate::Report) -> Vec<String> {
         for j in joints {
             let last = report.selection_log.iter().rev().find(|d| d.effect == e.effect && (j.is_none() || d.joint.as_ref() == j));
             if last.is_some_and(|d| !d.accepted) {
-                out.push(j.map_or(e.effect.clone(), |j| format!("{}@{j}", e.effect)));
+                out.push(j.map_or(e.effect.to_string(), |j| format!("{}@{j}", e.effect)));
             }
         }
     }

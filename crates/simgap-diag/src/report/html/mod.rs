@@ -14,6 +14,7 @@ use crate::report::verdict::ranked_selection;
 pub use crate::report::verdict::{assess, Assessment};
 use crate::report::Diagnosis;
 use simgap_core::Model;
+use simgap_sim::EffectKind;
 
 pub use cells::esc;
 use cells::{fixed, inertial_cell, num, num_in, params_cell, pct};
@@ -164,9 +165,13 @@ pub fn render_html_linking(d: &Diagnosis, model: Option<&Model>, files: &[Linked
     } else {
         let _ = writeln!(h, "<table class=\"selected\"><tr><th>effect</th><th>joints</th><th>parameters (± 95 %)</th></tr>");
         for e in &ranked_selection(r) {
-            let cell = if e.effect == "inertial_error" { inertial_cell(&e.joints, &e.parameters, model) } else { params_cell(&e.parameters, Some(&e.uncertainty), Some(&e.units)) };
+            let cell = if e.effect == EffectKind::InertialError {
+                inertial_cell(&e.joints, &e.parameters, model)
+            } else {
+                params_cell(&e.parameters, Some(&e.uncertainty), Some(&e.units))
+            };
             let description = if e.description.is_empty() { String::new() } else { format!("<br><small>{}</small>", esc(&e.description)) };
-            let _ = writeln!(h, "<tr><td><code>{}</code>{description}</td><td>{}</td><td>{cell}</td></tr>", esc(&e.effect), esc(&e.joints.join(", ")));
+            let _ = writeln!(h, "<tr><td><code>{}</code>{description}</td><td>{}</td><td>{cell}</td></tr>", esc(e.effect.as_str()), esc(&e.joints.join(", ")));
         }
         let _ = writeln!(h, "</table>");
     }
@@ -275,9 +280,9 @@ pub fn render_html_linking(d: &Diagnosis, model: Option<&Model>, files: &[Linked
             "<tr{}><td>{}</td><td><code>{}</code></td><td>{}</td><td>{}</td>{}{}{}{kcell}<td>{}</td><td>{}</td></tr>",
             if c.selected { " class=\"sel\"" } else { "" },
             c.rank,
-            esc(&c.effect),
+            esc(c.effect.as_str()),
             esc(&c.joints.join(", ")),
-            if c.effect == "inertial_error" { inertial_cell(&c.joints, &c.parameters, model) } else { params_cell(&c.parameters, Some(&c.uncertainty), Some(&c.units)) },
+            if c.effect == EffectKind::InertialError { inertial_cell(&c.joints, &c.parameters, model) } else { params_cell(&c.parameters, Some(&c.uncertainty), Some(&c.units)) },
             pct(c.cv_residual_reduction),
             num(c.holdout_l2_after),
             fixed(c.holdout_ratio, 3),
@@ -292,7 +297,7 @@ pub fn render_html_linking(d: &Diagnosis, model: Option<&Model>, files: &[Linked
             let _ = writeln!(
                 h,
                 "<tr><td><code>{}</code></td><td>{}</td>{}<td>{}</td><td>{}</td></tr>",
-                esc(&s.effect),
+                esc(s.effect.as_str()),
                 esc(s.joint.as_deref().unwrap_or("")),
                 num(s.cv_mse),
                 if s.accepted { "yes" } else { "no" },

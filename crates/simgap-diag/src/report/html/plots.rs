@@ -254,7 +254,7 @@ pub(super) fn shrink_svg(r: &Report) -> std::result::Result<String, String> {
             } else {
                 Outcome::Better
             };
-            let label = if c.joints.is_empty() || c.joints.len() > 3 { c.effect.clone() } else { format!("{} ({})", c.effect, c.joints.join(", ")) };
+            let label = if c.joints.is_empty() || c.joints.len() > 3 { c.effect.to_string() } else { format!("{} ({})", c.effect, c.joints.join(", ")) };
             (label, ratio, outcome)
         })
         .collect();
