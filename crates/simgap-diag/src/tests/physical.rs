@@ -224,7 +224,7 @@ fn assert_report_physical(model: &Model, d: &crate::Diagnosis, delivered: &[f64]
     }
     for c in &d.report.candidates {
         let e = EffectReport {
-            effect: c.effect.clone(),
+            effect: c.effect,
             joints: c.joints.clone(),
             parameters: c.parameters.clone(),
             uncertainty: Default::default(),
