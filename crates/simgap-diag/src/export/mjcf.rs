@@ -120,7 +120,7 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "<!-- {}: the corrected model of a simgap diagnosis (docs/export.md). Selected effects MJCF cannot hold are in the .effects.json beside it. -->",
+        "<!-- {}: the corrected model of a simgap diagnosis (docs/guide/export.md). Selected effects MJCF cannot hold are in the .effects.json beside it. -->",
         xml(model.name())
     );
     let _ = writeln!(s, "<mujoco model=\"{}\">", xml(model.name()));
