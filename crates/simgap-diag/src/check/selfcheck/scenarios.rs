@@ -6,7 +6,7 @@ use std::collections::BTreeSet;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use simgap_core::{mass_matrix, Formulation, Model, UrdfOptions, Workspace};
-use simgap_sim::{ControllerKind, Effect, LinkDelta, Run};
+use simgap_sim::{ControllerKind, Effect, EffectKind, LinkDelta, Run};
 
 use super::truth::{truth_set, WHOLE};
 use crate::check::bench::{gains_for, generate, random_fourier, random_setpoints, RefSpec, RunSpec};
@@ -95,10 +95,19 @@ fn max_abs(run: &Run, m: &[f64], j: usize) -> f64 {
     m.iter().skip(j).step_by(run.dof()).fold(0.0f64, |a, x| a.max(x.abs()))
 }
 
-const PER_JOINT: [&str; 8] = ["viscous_friction", "coulomb_friction", "stribeck_friction", "armature", "torque_gain", "torque_offset", "torque_saturation", "cogging"];
+const PER_JOINT: [EffectKind; 8] = [
+    EffectKind::ViscousFriction,
+    EffectKind::CoulombFriction,
+    EffectKind::StribeckFriction,
+    EffectKind::Armature,
+    EffectKind::TorqueGain,
+    EffectKind::TorqueOffset,
+    EffectKind::TorqueSaturation,
+    EffectKind::Cogging,
+];
 
-/// Draws an effect of kind `name` sized against a nominal run.
-fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut ChaCha8Rng) -> Effect {
+/// Draws an effect of kind `kind` sized against a nominal run.
+fn draw_effect(kind: EffectKind, model: &Model, nominal: &Run, joint: usize, rng: &mut ChaCha8Rng) -> Effect {
     let n = model.dof();
     // a passive joint is commanded no torque: its effects are sized against the largest joint's
     let tau = rms(nominal, &nominal.tau, joint);
@@ -109,10 +118,10 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
         out[joint] = x;
         out
     };
-    match name {
-        "viscous_friction" => Effect::ViscousFriction { b: v(0.0, rng.random_range(0.08..0.25) * tau / qd) },
-        "coulomb_friction" => Effect::CoulombFriction { fc: v(0.0, rng.random_range(0.08..0.25) * tau), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] },
-        "stribeck_friction" => {
+    match kind {
+        EffectKind::ViscousFriction => Effect::ViscousFriction { b: v(0.0, rng.random_range(0.08..0.25) * tau / qd) },
+        EffectKind::CoulombFriction => Effect::CoulombFriction { fc: v(0.0, rng.random_range(0.08..0.25) * tau), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] },
+        EffectKind::StribeckFriction => {
             let fc = rng.random_range(0.08..0.2) * tau;
             Effect::StribeckFriction {
                 fc: v(0.0, fc),
@@ -121,20 +130,20 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
                 w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n],
             }
         }
-        "armature" => {
+        EffectKind::Armature => {
             let mut ws = Workspace::new(model);
             let h = mass_matrix(model, &mut ws, &vec![0.0; n]);
             Effect::Armature { ia: v(0.0, rng.random_range(0.2..0.6) * h[(joint, joint)]) }
         }
-        "torque_gain" => Effect::TorqueGain { k: v(1.0, if rng.random_bool(0.5) { rng.random_range(0.6..0.85) } else { rng.random_range(1.15..1.4) }) },
-        "torque_offset" => Effect::TorqueOffset { offset: v(0.0, rng.random_range(0.08..0.25) * tau * if rng.random_bool(0.5) { 1.0 } else { -1.0 }) },
-        "torque_saturation" => Effect::TorqueSaturation { limit: v(f64::INFINITY, rng.random_range(0.45..0.75) * max_abs(nominal, &nominal.tau, joint)) },
-        "cogging" => Effect::Cogging { amplitude: v(0.0, rng.random_range(0.08..0.2) * tau), periods_per_rev: v(1.0, rng.random_range(4..30) as f64) },
-        "payload" => {
+        EffectKind::TorqueGain => Effect::TorqueGain { k: v(1.0, if rng.random_bool(0.5) { rng.random_range(0.6..0.85) } else { rng.random_range(1.15..1.4) }) },
+        EffectKind::TorqueOffset => Effect::TorqueOffset { offset: v(0.0, rng.random_range(0.08..0.25) * tau * if rng.random_bool(0.5) { 1.0 } else { -1.0 }) },
+        EffectKind::TorqueSaturation => Effect::TorqueSaturation { limit: v(f64::INFINITY, rng.random_range(0.45..0.75) * max_abs(nominal, &nominal.tau, joint)) },
+        EffectKind::Cogging => Effect::Cogging { amplitude: v(0.0, rng.random_range(0.08..0.2) * tau), periods_per_rev: v(1.0, rng.random_range(4..30) as f64) },
+        EffectKind::Payload => {
             let last = model.joints()[n - 1].inertia.mass.max(0.5);
             Effect::Payload { mass: rng.random_range(0.3..1.0) * last, com: [rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05), rng.random_range(-0.1..0.1)] }
         }
-        "inertial_error" => {
+        EffectKind::InertialError => {
             // a mass change of the last link is a payload; draw another link (robots with one
             // link never draw this effect)
             let link = rng.random_range(0..n.saturating_sub(1).max(1));
@@ -143,7 +152,7 @@ fn draw_effect(name: &str, model: &Model, nominal: &Run, joint: usize, rng: &mut
                 deltas: vec![LinkDelta { joint: link, mass: m * rng.random_range(0.15..0.35) * if rng.random_bool(0.5) { 1.0 } else { -1.0 }, com: [0.0; 3], inertia: [0.0; 6] }],
             }
         }
-        "time_delay" => Effect::TimeDelay { delay: rng.random_range(1..=3) as f64 * 0.0025 },
+        EffectKind::TimeDelay => Effect::TimeDelay { delay: rng.random_range(1..=3) as f64 * 0.0025 },
         _ => Effect::CoriolisStructure,
     }
 }
@@ -216,27 +225,27 @@ pub(crate) fn draw_effects(model: &Model, nominal: &Run, count: usize, rng: &mut
     let n = model.dof();
     let mut effects: Vec<Effect> = Vec::new();
     while effects.len() < count {
-        let all: Vec<&str> = PER_JOINT.iter().chain(WHOLE.iter()).copied().collect();
-        let name = all[rng.random_range(0..all.len())];
+        let all: Vec<EffectKind> = PER_JOINT.iter().chain(WHOLE.iter()).copied().collect();
+        let kind = all[rng.random_range(0..all.len())];
         // on a one-joint robot a torque gain is exactly a scaling of its inertial parameters,
         // and an inertial error of its only link is a payload: not identifiable apart
         // a one-joint robot has no Coriolis terms at all, so neither formulation differs
-        if n == 1 && matches!(name, "torque_gain" | "inertial_error" | "payload" | "coriolis_structure") {
+        if n == 1 && matches!(kind, EffectKind::TorqueGain | EffectKind::InertialError | EffectKind::Payload | EffectKind::CoriolisStructure) {
             continue;
         }
         // Coulomb plus Stribeck on one joint is a single Stribeck friction
-        let dry = |e: &Effect| matches!(e.name(), "coulomb_friction" | "stribeck_friction");
-        if matches!(name, "coulomb_friction" | "stribeck_friction") && effects.iter().any(dry) {
+        let is_dry = |k: EffectKind| matches!(k, EffectKind::CoulombFriction | EffectKind::StribeckFriction);
+        if is_dry(kind) && effects.iter().any(|e| is_dry(e.kind())) {
             continue;
         }
-        if effects.iter().any(|e| e.name() == name)
-            || (name == "payload" && effects.iter().any(|e| e.name() == "inertial_error"))
-            || (name == "inertial_error" && effects.iter().any(|e| e.name() == "payload"))
+        if effects.iter().any(|e| e.kind() == kind)
+            || (kind == EffectKind::Payload && effects.iter().any(|e| e.kind() == EffectKind::InertialError))
+            || (kind == EffectKind::InertialError && effects.iter().any(|e| e.kind() == EffectKind::Payload))
         {
             continue;
         }
         let joint = rng.random_range(0..n);
-        effects.push(draw_effect(name, model, nominal, joint, rng));
+        effects.push(draw_effect(kind, model, nominal, joint, rng));
     }
     effects
 }
@@ -321,13 +330,11 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
             "urdf_inertia_pitfall" => vec![],
             "passive_joint" => {
                 let joint = rng.random_range(0..n);
-                let kinds: &[&str] = if joint == 0 {
-                    &["viscous_friction", "coulomb_friction", "armature"]
-                } else {
-                    &["viscous_friction", "coulomb_friction", "armature", "torque_gain", "torque_offset"]
-                };
-                let name = kinds[rng.random_range(0..kinds.len())];
-                vec![draw_effect(name, &model, &nominal, joint, &mut rng)]
+                use EffectKind::{Armature, CoulombFriction, TorqueGain, TorqueOffset, ViscousFriction};
+                let kinds: &[EffectKind] =
+                    if joint == 0 { &[ViscousFriction, CoulombFriction, Armature] } else { &[ViscousFriction, CoulombFriction, Armature, TorqueGain, TorqueOffset] };
+                let kind = kinds[rng.random_range(0..kinds.len())];
+                vec![draw_effect(kind, &model, &nominal, joint, &mut rng)]
             }
             "friction_shape" => {
                 let width = rng.random_range(0.1..0.3);
@@ -354,7 +361,7 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
             "delay" => vec![Effect::TimeDelay { delay: rng.random_range(1..=3) as f64 * 0.0025 }],
             _ => {
                 if rng.random_bool(0.5) {
-                    vec![draw_effect("payload", &model, &nominal, n - 1, &mut rng)]
+                    vec![draw_effect(EffectKind::Payload, &model, &nominal, n - 1, &mut rng)]
                 } else {
                     let k = if rng.random_bool(0.5) { rng.random_range(0.6..0.85) } else { rng.random_range(1.15..1.4) };
                     vec![Effect::TorqueGain { k: vec![k; n] }]
@@ -380,7 +387,7 @@ pub fn scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
             match family {
                 "urdf_inertia_pitfall" => {
                     diagnosis_model = inertia_about_axis_as_com(&model);
-                    truth = BTreeSet::from([("inertial_error".to_string(), None)]);
+                    truth = BTreeSet::from([(EffectKind::InertialError.to_string(), None)]);
                 }
                 "glitch" => {
                     let (r, j) = (rng.random_range(0..fit.len()), rng.random_range(0..n));

@@ -211,9 +211,10 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
     let (right, rule) = match sc.family {
         "friction_shape" => {
             let joint = sc.effects.iter().flat_map(|e| e.joints_acted()).next().map(|j| names[j].to_string());
-            let on = |e: &str| found.contains(&(e.to_string(), joint.clone()));
-            let only_friction = found.iter().all(|(e, j)| *j == joint && matches!(e.as_str(), "coulomb_friction" | "stribeck_friction" | "viscous_friction"));
-            let ok = (on("coulomb_friction") || on("stribeck_friction")) && only_friction && kstep_ratio < 1.0;
+            use EffectKind::{CoulombFriction, StribeckFriction, ViscousFriction};
+            let on = |k: EffectKind| found.contains(&(k.to_string(), joint.clone()));
+            let only_friction = found.iter().all(|(e, j)| *j == joint && [CoulombFriction, StribeckFriction, ViscousFriction].iter().any(|k| k.as_str() == e));
+            let ok = (on(CoulombFriction) || on(StribeckFriction)) && only_friction && kstep_ratio < 1.0;
             (ok, format!("nearest in-vocabulary friction on the true joint, only friction there, k-step at 0.5 s after/before {kstep_ratio:.3} (< 1 needed)"))
         }
         "urdf_inertia_pitfall" => {
@@ -223,7 +224,9 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
         }
         "passive_joint" => {
             let passive = names[0].to_string();
-            let actuator = found.iter().any(|(e, j)| j.as_deref() == Some(passive.as_str()) && matches!(e.as_str(), "torque_gain" | "torque_offset" | "torque_saturation"));
+            let actuator = found.iter().any(|(e, j)| {
+                j.as_deref() == Some(passive.as_str()) && [EffectKind::TorqueGain, EffectKind::TorqueOffset, EffectKind::TorqueSaturation].iter().any(|k| k.as_str() == e)
+            });
             let flagged = d.report.notes.iter().any(|n| n.contains(&format!("joint {passive} is passive")));
             ((exact || in_alternatives) && !actuator && flagged, format!("no actuator effect on the passive joint {passive} (one found: {actuator}); flagged passive: {flagged}"))
         }
@@ -277,7 +280,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
             )
         }
         "coulomb_trap" => {
-            let richer = found.iter().any(|(e, _)| e == "stribeck_friction");
+            let richer = found.iter().any(|(e, _)| e == EffectKind::StribeckFriction.as_str());
             (exact, format!("exactly the hidden set, not even among alternatives (a Stribeck friction selected: {richer})"))
         }
         "directional_friction" => {
@@ -288,8 +291,8 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
         "link_side" => {
             // the offsets and the spring must be found, and no rotor inertia: a link-side torque
             // holds none; the viscous frictions are part of the truth but not required
-            let needed: BTreeSet<(String, Option<String>)> = truth.iter().filter(|(e, _)| e != "viscous_friction").cloned().collect();
-            let armature = found.iter().any(|(e, _)| e == "armature");
+            let needed: BTreeSet<(String, Option<String>)> = truth.iter().filter(|(e, _)| e != EffectKind::ViscousFriction.as_str()).cloned().collect();
+            let armature = found.iter().any(|(e, _)| e == EffectKind::Armature.as_str());
             let extra: Vec<String> = label(&found.difference(&truth).cloned().collect());
             (
                 needed.is_subset(&found) && !armature,

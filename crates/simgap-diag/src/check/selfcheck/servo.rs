@@ -5,7 +5,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use simgap_core::Model;
-use simgap_sim::{Effect, Run};
+use simgap_sim::{Effect, EffectKind, Run};
 
 use super::scenarios::{double_pendulum, Scenario};
 
@@ -97,11 +97,11 @@ fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool) -> crate:
         let servo = ServoSpec { duty_gain, volts, kt: kt.clone(), r: r.clone() };
         // one or two effects, not two dry frictions
         let joint = rng.random_range(0..n);
-        let kinds = ["armature", "coulomb_friction", "viscous_friction", "load_friction"];
+        let kinds = [EffectKind::Armature, EffectKind::CoulombFriction, EffectKind::ViscousFriction, EffectKind::LoadFriction];
         let first = kinds[rng.random_range(0..kinds.len())];
         let mut names = vec![first];
         if rng.random_bool(0.5) {
-            let dry = |k: &str| matches!(k, "coulomb_friction" | "load_friction");
+            let dry = |k: EffectKind| matches!(k, EffectKind::CoulombFriction | EffectKind::LoadFriction);
             let second = kinds[rng.random_range(0..kinds.len())];
             if second != first && !(dry(first) && dry(second)) {
                 names.push(second);
@@ -112,9 +112,9 @@ fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool) -> crate:
         let mut effects: Vec<Effect> = names
             .iter()
             .map(|k| match *k {
-                "armature" => Effect::Armature { ia: v(rng.random_range(0.2..0.6) * h[(joint, joint)]) },
-                "coulomb_friction" => Effect::CoulombFriction { fc: v(rng.random_range(0.03..0.08) * stall[joint]), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] },
-                "viscous_friction" => Effect::ViscousFriction { b: v(rng.random_range(0.5..1.5) * back_emf) },
+                EffectKind::Armature => Effect::Armature { ia: v(rng.random_range(0.2..0.6) * h[(joint, joint)]) },
+                EffectKind::CoulombFriction => Effect::CoulombFriction { fc: v(rng.random_range(0.03..0.08) * stall[joint]), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] },
+                EffectKind::ViscousFriction => Effect::ViscousFriction { b: v(rng.random_range(0.5..1.5) * back_emf) },
                 _ => {
                     Effect::LoadFriction { fc: v(rng.random_range(0.01..0.03) * stall[joint]), mu: v(rng.random_range(0.15..0.35)), w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; n] }
                 }

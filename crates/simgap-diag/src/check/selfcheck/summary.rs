@@ -3,6 +3,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
+use simgap_sim::EffectKind;
+
 use super::score::ScenarioScore;
 
 /// Aggregate of a self-check.
@@ -88,9 +90,9 @@ pub fn summarise(scores: &[ScenarioScore]) -> Summary {
                 e.2 += 1;
             }
         }
-        if true_effects.contains("time_delay") {
+        if true_effects.contains(EffectKind::TimeDelay.as_str()) {
             delays_found.0 += 1;
-            if found_effects.contains("time_delay") {
+            if found_effects.contains(EffectKind::TimeDelay.as_str()) {
                 delays_found.1 += 1;
             }
         }

@@ -12,7 +12,7 @@ use crate::report::Diagnosis;
 use crate::vocabulary::effects::{EffectReport, Param};
 
 /// The whole-robot effects: their (effect, joint) pairs have joint `None`.
-pub(super) const WHOLE: [&str; 4] = ["payload", "inertial_error", "time_delay", "coriolis_structure"];
+pub(super) const WHOLE: [EffectKind; 4] = [EffectKind::Payload, EffectKind::InertialError, EffectKind::TimeDelay, EffectKind::CoriolisStructure];
 
 /// The (effect, joint) pairs of a set of effects; whole-robot effects have joint `None`.
 ///
@@ -25,7 +25,7 @@ pub fn truth_set(model: &Model, effects: &[Effect]) -> BTreeSet<(String, Option<
     let sprung: BTreeSet<usize> = effects.iter().filter(|e| matches!(e, Effect::JointSpring { .. })).flat_map(|e| e.joints_acted()).collect();
     let mut s = BTreeSet::new();
     for e in effects {
-        if WHOLE.contains(&e.name()) {
+        if WHOLE.contains(&e.kind()) {
             s.insert((e.name().to_string(), None));
         } else {
             for j in e.joints_acted() {
@@ -43,7 +43,7 @@ pub fn truth_set(model: &Model, effects: &[Effect]) -> BTreeSet<(String, Option<
 pub fn found_set(d: &Diagnosis) -> BTreeSet<(String, Option<String>)> {
     let mut s = BTreeSet::new();
     for e in &d.report.selected_effects {
-        if WHOLE.contains(&e.effect.as_str()) {
+        if WHOLE.contains(&e.effect) {
             s.insert((e.effect.to_string(), None));
         } else {
             for j in &e.joints {
@@ -112,7 +112,7 @@ pub(super) fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectRepo
             }
             Effect::TimeDelay { delay } => {
                 if let Some(Param::Number(f)) = rep.parameters.get("delay") {
-                    out.push(("time_delay.delay".into(), *delay, *f, f64::NAN));
+                    out.push((format!("{}.delay", EffectKind::TimeDelay), *delay, *f, f64::NAN));
                 }
             }
             Effect::Payload { mass, .. } => {
@@ -121,7 +121,7 @@ pub(super) fn comparisons(model: &Model, truth: &[Effect], reports: &[EffectRepo
                         Some(Param::Number(u)) => *u,
                         _ => f64::NAN,
                     };
-                    out.push(("payload.mass".into(), *mass, *f, hw));
+                    out.push((format!("{}.mass", EffectKind::Payload), *mass, *f, hw));
                 }
             }
             _ => {}
@@ -178,20 +178,20 @@ pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<
             let value = |key: &str| at(&e.parameters, key, pos);
             let hw = |key: &str| at(&e.uncertainty, key, pos);
             let nonneg = |keys: &[&str]| keys.iter().all(|k| !(value(k) < -1e-9));
-            let (in_range, neutral): (bool, Vec<(&str, f64)>) = match e.effect.as_str() {
-                "armature" => (value("ia") > 0.0 && value("ia") <= 100.0 * h_max[j], vec![("ia", 0.0)]),
-                "torque_offset" => (tau_max[j] == 0.0 || value("offset").abs() <= tau_max[j], vec![("offset", 0.0)]),
-                "torque_gain" => ((0.2..=5.0).contains(&value("k")), vec![("k", 1.0)]),
-                "viscous_friction" => (nonneg(&["b"]), vec![("b", 0.0)]),
-                "coulomb_friction" => (nonneg(&["fc"]), vec![("fc", 0.0)]),
-                "stribeck_friction" => (nonneg(&["fc", "fs"]), vec![("fc", 0.0), ("fs", 0.0)]),
-                "joint_spring" => (nonneg(&["k"]), vec![("k", 0.0)]),
-                "load_friction" => (nonneg(&["fc", "mu"]) && !(value("mu") > 1.0), vec![("fc", 0.0), ("mu", 0.0)]),
-                "load_stribeck_friction" => (
+            let (in_range, neutral): (bool, Vec<(&str, f64)>) = match e.effect {
+                EffectKind::Armature => (value("ia") > 0.0 && value("ia") <= 100.0 * h_max[j], vec![("ia", 0.0)]),
+                EffectKind::TorqueOffset => (tau_max[j] == 0.0 || value("offset").abs() <= tau_max[j], vec![("offset", 0.0)]),
+                EffectKind::TorqueGain => ((0.2..=5.0).contains(&value("k")), vec![("k", 1.0)]),
+                EffectKind::ViscousFriction => (nonneg(&["b"]), vec![("b", 0.0)]),
+                EffectKind::CoulombFriction => (nonneg(&["fc"]), vec![("fc", 0.0)]),
+                EffectKind::StribeckFriction => (nonneg(&["fc", "fs"]), vec![("fc", 0.0), ("fs", 0.0)]),
+                EffectKind::JointSpring => (nonneg(&["k"]), vec![("k", 0.0)]),
+                EffectKind::LoadFriction => (nonneg(&["fc", "mu"]) && !(value("mu") > 1.0), vec![("fc", 0.0), ("mu", 0.0)]),
+                EffectKind::LoadStribeckFriction => (
                     nonneg(&["fc", "mu"]) && !(value("fs") < value("fc") - 1e-9) && !(value("mus") < value("mu") - 1e-9) && !(value("mus") > 1.0),
                     vec![("fc", 0.0), ("mu", 0.0), ("fs", 0.0), ("mus", 0.0)],
                 ),
-                "directional_friction" => (nonneg(&["fc_pos", "fc_neg", "b_pos", "b_neg"]), vec![("fc_pos", 0.0), ("fc_neg", 0.0), ("b_pos", 0.0), ("b_neg", 0.0)]),
+                EffectKind::DirectionalFriction => (nonneg(&["fc_pos", "fc_neg", "b_pos", "b_neg"]), vec![("fc_pos", 0.0), ("fc_neg", 0.0), ("b_pos", 0.0), ("b_neg", 0.0)]),
                 _ => (true, vec![]),
             };
             // no finding: every neutral-valued parameter's interval (where given) holds it
@@ -202,7 +202,7 @@ pub fn implausible(model: &Model, fit: &[Run], reports: &[EffectReport]) -> Vec<
             }
         }
         if e.effect == EffectKind::Payload && !matches!(e.parameters.get("mass"), Some(Param::Number(m)) if *m > 0.0) {
-            out.push("payload (mass not positive)".into());
+            out.push(format!("{} (mass not positive)", EffectKind::Payload));
         }
     }
     out
