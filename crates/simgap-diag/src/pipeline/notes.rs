@@ -4,6 +4,8 @@
 //! ([`crate::report::pitfalls`]), the actuator and mechanics parts of the gap, and what the
 //! held-out prediction leaves ([`crate::report::verdict::residual_notes`]).
 
+use simgap_sim::EffectKind;
+
 use crate::pipeline::candidates::Candidates;
 use crate::pipeline::how_far::HowFar;
 use crate::pipeline::intervals::Intervals;
@@ -56,9 +58,9 @@ pub(crate) fn notes(scorer: &Scorer<'_>, prep: &Prepared, located: &Located, can
         let alone = |effect: &str| groups.iter().position(|g| g.0 == effect).map(|i| alone_score[i]);
         for note in pitfalls::urdf_pitfalls(model, data) {
             let effect = if note.contains("rotor inertia") {
-                Some("armature")
+                Some(EffectKind::Armature.as_str())
             } else if note.contains("inertia about") {
-                Some("inertial_error")
+                Some(EffectKind::InertialError.as_str())
             } else {
                 None
             };
@@ -76,7 +78,7 @@ pub(crate) fn notes(scorer: &Scorer<'_>, prep: &Prepared, located: &Located, can
             let selected_it = |e: &str| selection.terms.iter().any(|t| t.effect_name() == e);
             match effect.and_then(|e| alone(e).map(|a| (e, a))) {
                 Some((e, _)) if selected_it(e) => notes.push(format!("{note}; the selected {e} corrects it")),
-                Some(("armature", a)) if a >= 1.0 - ADD_GAIN => {}
+                Some((e, a)) if e == EffectKind::Armature.as_str() && a >= 1.0 - ADD_GAIN => {}
                 Some((e, _)) if !selection.terms.is_empty() && needless(e) => {}
                 Some((e, a)) => notes.push(format!("{note}; fitted alone, {e} predicts the fit runs at {a:.2} of the nominal model's cross-validated k-step error")),
                 None => notes.push(note),

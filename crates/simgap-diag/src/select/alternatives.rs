@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 use simgap_core::{gravity_torques, mass_matrix, JointKind, Model, Workspace};
-use simgap_sim::Effect;
+use simgap_sim::{Effect, EffectKind};
 
 use crate::report::Alternative;
 use crate::select::prediction::{swap_candidates, swapped, ADD_GAIN, PRUNE_TOLERANCE, TIE_TOLERANCE};
@@ -30,20 +30,21 @@ pub(crate) fn alternatives(
         }
         v
     };
+    use EffectKind::{Armature, CoulombFriction, InertialError, Payload, StribeckFriction, TorqueGain};
     let mut out = Vec::new();
     // exact equivalences
     for e in selected {
-        match e.effect.as_str() {
-            "payload" => out.push(Alternative {
-                effects: with("payload", "inertial_error"),
+        match e.effect {
+            Payload => out.push(Alternative {
+                effects: with(Payload.as_str(), InertialError.as_str()),
                 why: "a point mass on the last link is an inertial error of the last link: the same dynamics".into(),
             }),
-            "torque_gain" => {
+            TorqueGain => {
                 if let Some(Param::PerJoint(k)) = e.parameters.get("k") {
                     let mean = k.iter().sum::<f64>() / k.len().max(1) as f64;
                     if e.joints.len() == scorer.model.dof() && k.iter().all(|x| (x - mean).abs() <= 0.02 * mean.abs()) {
                         out.push(Alternative {
-                            effects: with("torque_gain", "inertial_error"),
+                            effects: with(TorqueGain.as_str(), InertialError.as_str()),
                             why: format!(
                                 "a torque gain equal on every joint (k ≈ {mean:.3}) and every link's inertial parameters scaled by 1/k are the same dynamics up to friction"
                             ),
@@ -51,11 +52,11 @@ pub(crate) fn alternatives(
                     }
                 }
             }
-            "inertial_error" => {
+            InertialError => {
                 if let Some(e) = one_joint_equivalent(scorer.model, effects) {
-                    let mut set = with("inertial_error", "torque_gain");
-                    if !set.iter().any(|n| n == "armature") {
-                        set.push("armature".into());
+                    let mut set = with(InertialError.as_str(), TorqueGain.as_str());
+                    if !set.iter().any(|n| n == Armature.as_str()) {
+                        set.push(Armature.to_string());
                     }
                     let why = format!(
                         "on a one-joint arm an inertial correction changes only the weight's moment about the axis (here ×{:.3}) and the inertia about it (×{:.3}): a torque gain k = {:.3} with a rotor inertia ia = {} kg·m² gives the same dynamics up to friction{}",
@@ -68,11 +69,11 @@ pub(crate) fn alternatives(
                     out.push(Alternative { effects: set, why });
                 }
             }
-            "stribeck_friction" => {
+            StribeckFriction => {
                 if let Some(Param::PerJoint(vs)) = e.parameters.get("vs") {
                     if vs.iter().all(|v| *v <= 0.02) {
                         out.push(Alternative {
-                            effects: with("stribeck_friction", "coulomb_friction"),
+                            effects: with(StribeckFriction.as_str(), CoulombFriction.as_str()),
                             why: "the Stribeck velocity is below what these runs resolve: Coulomb friction is the same effect here".into(),
                         });
                     }

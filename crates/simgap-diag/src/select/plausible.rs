@@ -405,6 +405,7 @@ pub(crate) fn richer_alternatives(set: &[Term], replacements: &[Replacement]) ->
 mod tests {
     use super::*;
     use crate::lsq::design::Column;
+    use simgap_sim::EffectKind;
 
     fn design(lo: f64, hi: f64) -> TermDesign {
         TermDesign { cols: vec![Column::new(Some(0), vec![1.0])], lo: vec![lo], hi: vec![hi], ..Default::default() }
@@ -560,7 +561,7 @@ mod tests {
         // the simpler term selected: the richer one is the alternative
         let a = richer_alternatives(&[coulomb.clone(), viscous.clone()], std::slice::from_ref(&replaced));
         assert_eq!(a.len(), 1);
-        assert_eq!(a[0].effects, vec!["viscous_friction".to_string(), "load_friction".to_string()]);
+        assert_eq!(a[0].effects, vec![EffectKind::ViscousFriction.to_string(), EffectKind::LoadFriction.to_string()]);
         assert!(a[0].why.contains("in place of the selected coulomb_friction"), "{}", a[0].why);
         // a later stage selected the richer term again, or dropped the simpler one: none
         assert!(richer_alternatives(&[load, viscous.clone()], std::slice::from_ref(&replaced)).is_empty());

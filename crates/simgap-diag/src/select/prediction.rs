@@ -361,8 +361,8 @@ pub(crate) fn swap_candidates(groups: &[(&'static str, Vec<Term>)], alone_score:
     let mut others: Vec<usize> = (0..groups.len()).filter(|&i| i != si && !names.iter().any(|n| n == groups[i].0) && alone_score[i] <= alone_score[si] * within).collect();
     others.sort_by(|a, b| alone_score[*a].total_cmp(&alone_score[*b]));
     others.truncate(2);
-    if name == "inertial_error" {
-        for partner in ["payload", "torque_gain"] {
+    if name == EffectKind::InertialError.as_str() {
+        for partner in [EffectKind::Payload.as_str(), EffectKind::TorqueGain.as_str()] {
             if let Some(i) = groups.iter().position(|g| g.0 == partner) {
                 if !others.contains(&i) && !names.iter().any(|n| n == partner) {
                     others.push(i);

@@ -3,6 +3,8 @@
 //! `pipeline/screen.rs`), and the selection's treatment of passive joints and of logs without
 //! motion.
 
+use simgap_sim::EffectKind;
+
 use crate::select::{families, Context, Selection};
 use crate::vocabulary::{Column, Term};
 
@@ -30,7 +32,7 @@ pub(crate) fn candidate_groups(ctx: &Context<'_>, resid: &Column) -> Vec<(&'stat
         }
     }
     if ctx.inertial_basis.ncols() > 0 {
-        groups.push(("inertial_error", vec![ctx.inertial_term()]));
+        groups.push((EffectKind::InertialError.as_str(), vec![ctx.inertial_term()]));
     }
     groups
 }

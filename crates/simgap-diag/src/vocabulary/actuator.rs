@@ -89,12 +89,12 @@ pub(super) fn report(f: &FittedTerm, entry: &mut Entry<'_>) {
 
 /// The actuator effect in words.
 pub(super) fn describe(e: &EffectReport) -> String {
-    match e.effect.as_str() {
-        "torque_gain" => {
+    match e.effect {
+        EffectKind::TorqueGain => {
             let parts: Vec<String> = reported(e, "k").iter().map(|(j, k)| format!("k = {} on {j} (the drive delivers {:.0} % of the command)", sig3(*k), 100.0 * k)).collect();
             format!("torque gain {}", parts.join(", "))
         }
-        "torque_offset" => format!("torque offset {}", list_per_joint(e, "offset")),
+        EffectKind::TorqueOffset => format!("torque offset {}", list_per_joint(e, "offset")),
         _ => {
             let unit = unit_of(e, "limit");
             let parts: Vec<String> = reported(e, "limit").iter().map(|(j, l)| format!("±{} {unit} on {j}", sig3(*l))).collect();

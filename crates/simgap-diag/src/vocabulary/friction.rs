@@ -12,6 +12,7 @@
 
 use simgap_sim::effects::smooth_sign;
 use simgap_sim::Effect;
+use simgap_sim::EffectKind;
 
 use super::effects::{list_per_joint, per_joint as reported, sig3, unit_of, Entry, FittedTerm};
 use super::{filtered_per_joint, EffectReport, Term, TermDesign};
@@ -130,9 +131,9 @@ pub(super) fn report(f: &FittedTerm, entry: &mut Entry<'_>) {
 
 /// The friction in words.
 pub(super) fn describe(e: &EffectReport) -> String {
-    match e.effect.as_str() {
-        "viscous_friction" => format!("viscous friction {}", list_per_joint(e, "b")),
-        "coulomb_friction" => format!("Coulomb friction {}", list_per_joint(e, "fc")),
+    match e.effect {
+        EffectKind::ViscousFriction => format!("viscous friction {}", list_per_joint(e, "b")),
+        EffectKind::CoulombFriction => format!("Coulomb friction {}", list_per_joint(e, "fc")),
         _ => {
             let (fc, fs, vs) = (reported(e, "fc"), reported(e, "fs"), reported(e, "vs"));
             let (uf, uv) = (unit_of(e, "fc"), unit_of(e, "vs"));
