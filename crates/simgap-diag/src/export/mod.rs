@@ -9,6 +9,11 @@
 //! text and the sidecar ([`ExportedFile`]) and write nothing. Units follow the joint type:
 //! revolute rad, N·m, kg·m²; prismatic m, N, kg.
 //!
+//! The front ends (the CLI's `--export-urdf`, `--export-mjcf`, Python's `Report.export_urdf`,
+//! `Report.export_mjcf`) call [`corrected_urdf`] and [`corrected_mjcf`], which read the
+//! diagnosis alone: its report, and the time step, passive joints and servo firmware it decided
+//! from its prepared runs ([`ExportBasis`]), so they write the same bytes.
+//!
 //! What goes where (also in `docs/guide/export.md`):
 //!
 //! | effect | URDF | MJCF |
