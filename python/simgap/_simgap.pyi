@@ -550,7 +550,7 @@ class Report:
     def export_mjcf(self, path: str | PathLike[str]) -> str:
         """Writes an MJCF of the corrected robot to ``path`` (body inertials; joint armature,
         damping, frictionloss, stiffness/springref; a motor per driven joint with gear and
-        forcerange; ``<option timestep>`` = the held-out logs' sample period, gravity, RK4), and
+        forcerange; ``<option timestep>`` = the logs' sample period, gravity, RK4), and
         the selected effects MJCF cannot hold (delay, Stribeck shape, offsets, ...) to
         ``path + ".effects.json"`` (the CLI's ``--export-mjcf``).
         ``mujoco.MjModel.from_xml_path(path)`` loads it as it is. Returns the sidecar's path.

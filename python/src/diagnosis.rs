@@ -338,14 +338,14 @@ impl PyReport {
         let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
         py.detach(move || {
             let text = std::fs::read_to_string(&urdf).map_err(|e| Kind::Urdf.err(format!("{}: cannot read: {e}", urdf.display())))?;
-            let file = simgap_diag::export::export_urdf(&text, &urdf.display().to_string(), &model, &diagnosis.report.selected_effects).map_err(from_export)?;
+            let file = simgap_diag::export::corrected_urdf(&text, &urdf.display().to_string(), &model, &diagnosis).map_err(from_export)?;
             write_export(&path, &file)
         })
     }
 
     /// Writes an MJCF of the corrected robot to `path` (body inertials; joint armature,
     /// damping, frictionloss, stiffness/springref; a motor per driven joint with gear and
-    /// forcerange; `<option timestep>` = the held-out logs' sample period, gravity, RK4), and
+    /// forcerange; `<option timestep>` = the logs' sample period, gravity, RK4), and
     /// the selected effects MJCF cannot hold (delay, Stribeck shape, offsets, ...) to
     /// `path + ".effects.json"` (the CLI's `--export-mjcf`). `mujoco.MjModel.from_xml_path`
     /// loads it as it is. Returns the sidecar's path.
@@ -355,15 +355,7 @@ impl PyReport {
     fn export_mjcf(&self, py: Python<'_>, path: PathBuf) -> PyResult<String> {
         let (diagnosis, model) = (self.diagnosis.clone(), self.model.clone());
         py.detach(move || {
-            use simgap_diag::export::{export_mjcf, passive_joints, sample_period_of, MjcfOptions, ServoActuators};
-            let timestep = sample_period_of(&diagnosis.holdout)
-                .ok_or_else(|| Kind::Simgap.err("export_mjcf: the held-out logs have no sample period (no experiment sample_period, fewer than two stamps)"))?;
-            let servo = match &diagnosis.report.servo {
-                Some(sr) => ServoActuators::of(&model, sr, &diagnosis.holdout).map_err(from_export)?,
-                None => None,
-            };
-            let options = MjcfOptions { passive: passive_joints(&model, &diagnosis.holdout), servo, ..MjcfOptions::new(timestep) };
-            let file = export_mjcf(&model, &diagnosis.report.selected_effects, &options).map_err(from_export)?;
+            let file = simgap_diag::export::corrected_mjcf(&model, &diagnosis).map_err(from_export)?;
             write_export(&path, &file)
         })
     }

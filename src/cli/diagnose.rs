@@ -219,8 +219,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         write_atomically(path, |tmp| write_corrected_mcap(&diagnosis, tmp))?;
         println!("wrote {} (topics /holdout/<run>/{{joint_states,joint_reference,nominal/joint_states,measured/joint_states}})", path.display());
     }
-    let runs: Vec<Run> = fit.into_iter().chain(holdout).collect();
-    let exported = write_exports(job, &diagnosis, &runs)?;
+    let exported = write_exports(job, &diagnosis)?;
     // the page links the exported files: by name beside it, else by their absolute path
     if let Some(path) = job.html {
         let here = path.parent().map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf()));
@@ -241,11 +240,11 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     Ok(diagnosis)
 }
 
-/// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`;
-/// returns the files written, each with what it is.
-fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::Result<Vec<(String, PathBuf)>> {
-    use simgap::diag::export::{export_mjcf, export_urdf, passive_joints, sample_period_of, sidecar_path, ExportedFile, MjcfOptions, ServoActuators};
-    let effects = &diagnosis.report.selected_effects;
+/// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`, from
+/// the diagnosis alone (Python's `report.export_urdf` and `report.export_mjcf` write the same
+/// files); returns the files written, each with what it is.
+fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis) -> anyhow::Result<Vec<(String, PathBuf)>> {
+    use simgap::diag::export::{corrected_mjcf, corrected_urdf, sidecar_path, ExportedFile};
     let mut written: Vec<(String, PathBuf)> = Vec::new();
     let mut write = |path: &Path, file: &ExportedFile, what: &str| -> anyhow::Result<()> {
         write_atomically(path, |tmp| std::fs::write(tmp, &file.text).map_err(Into::into))?;
@@ -261,20 +260,16 @@ fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis, runs: &[Run]) -> anyhow::
         written.push((format!("sidecar of the {what}, in the report's selected_effects form: {left}"), side));
         Ok(())
     };
+    // the URDF the model came from, with the selected effects written in
     if let Some(path) = job.export_urdf {
         let urdf = job.urdf.context("--export-urdf needs the URDF the model was loaded from")?;
         let text = std::fs::read_to_string(urdf).with_context(|| format!("{}: cannot read the URDF to export", urdf.display()))?;
-        let file = export_urdf(&text, &urdf.display().to_string(), job.model, effects).with_context(|| format!("cannot export the corrected URDF to {}", path.display()))?;
+        let file = corrected_urdf(&text, &urdf.display().to_string(), job.model, diagnosis).with_context(|| format!("cannot export the corrected URDF to {}", path.display()))?;
         write(path, &file, "corrected URDF (Pinocchio, Gazebo, Isaac)")?;
     }
+    // the MJCF of the corrected robot
     if let Some(path) = job.export_mjcf {
-        let timestep = sample_period_of(runs).context("--export-mjcf: the logs have no sample period (no experiment sample_period and fewer than two stamps)")?;
-        let servo = match &diagnosis.report.servo {
-            Some(sr) => ServoActuators::of(job.model, sr, runs).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?,
-            None => None,
-        };
-        let options = MjcfOptions { passive: passive_joints(job.model, runs), servo, ..MjcfOptions::new(timestep) };
-        let file = export_mjcf(job.model, effects, &options).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
+        let file = corrected_mjcf(job.model, diagnosis).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
         write(path, &file, "corrected MJCF (MuJoCo)")?;
     }
     Ok(written)

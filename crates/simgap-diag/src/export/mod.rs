@@ -9,6 +9,11 @@
 //! text and the sidecar ([`ExportedFile`]) and write nothing. Units follow the joint type:
 //! revolute rad, N·m, kg·m²; prismatic m, N, kg.
 //!
+//! The front ends (the CLI's `--export-urdf`, `--export-mjcf`, Python's `Report.export_urdf`,
+//! `Report.export_mjcf`) call [`corrected_urdf`] and [`corrected_mjcf`], which read the
+//! diagnosis alone: its report, and the time step, passive joints and servo firmware it decided
+//! from its prepared runs ([`ExportBasis`]), so they write the same bytes.
+//!
 //! What goes where (also in `docs/guide/export.md`):
 //!
 //! | effect | URDF | MJCF |
@@ -24,6 +29,7 @@
 //! | `torque_gain`, `back_emf` on servo runs | sidecar | folded into the servo's `kp`, `kv` |
 //! | everything else | sidecar | sidecar |
 
+mod corrected;
 mod effects;
 mod mjcf;
 mod servo;
@@ -32,6 +38,8 @@ mod urdf;
 
 use std::path::{Path, PathBuf};
 
+pub use crate::report::export_basis::{passive_joints, sample_period_of, ExportBasis, ServoFirmware};
+pub use corrected::{corrected_mjcf, corrected_urdf};
 pub use mjcf::{export_mjcf, MjcfOptions, FULL_TURN};
 pub use servo::ServoActuators;
 pub use sidecar::{HeldEntry, Sidecar, SidecarEntry};
@@ -88,38 +96,4 @@ pub fn sidecar_path(path: &Path) -> PathBuf {
     let mut name = path.as_os_str().to_os_string();
     name.push(".effects.json");
     PathBuf::from(name)
-}
-
-/// The sample period of logs [s]: their experiment's `sample_period` where one states it,
-/// else the median spacing of their stamps; `None` when no run has two samples.
-pub fn sample_period_of(runs: &[simgap_sim::Run]) -> Option<f64> {
-    if let Some(dt) = runs.iter().filter_map(|r| r.experiment.as_ref()).map(|e| e.sample_period).find(|dt| dt.is_finite() && *dt > 0.0) {
-        return Some(dt);
-    }
-    let mut steps: Vec<f64> = runs.iter().flat_map(|r| r.t.windows(2).map(|w| w[1] - w[0])).filter(|d| d.is_finite() && *d > 0.0).collect();
-    if steps.is_empty() {
-        return None;
-    }
-    steps.sort_by(f64::total_cmp);
-    Some(steps[steps.len() / 2])
-}
-
-/// The model's joints whose commanded torque is zero on every sample of every run (joints
-/// matched by name; a run without the joint or without torques does not count as zero):
-/// passive joints, which get no motor in the MJCF. Names in model order.
-pub fn passive_joints(model: &simgap_core::Model, runs: &[simgap_sim::Run]) -> Vec<String> {
-    if runs.is_empty() {
-        return Vec::new();
-    }
-    model
-        .joint_names()
-        .into_iter()
-        .filter(|name| {
-            runs.iter().all(|r| match r.joints.iter().position(|j| j == name) {
-                Some(j) if !r.tau.is_empty() && r.dof() > 0 => r.tau.iter().skip(j).step_by(r.dof()).all(|v| *v == 0.0),
-                _ => false,
-            })
-        })
-        .map(str::to_string)
-        .collect()
 }

@@ -5,6 +5,7 @@ use simgap_core::Model;
 use simgap_sim::Run;
 
 use super::ExportError;
+use crate::report::export_basis::ServoFirmware;
 use crate::ServoReport;
 
 /// The position-controlled servos of a diagnosis of servo runs, as MuJoCo position actuators
@@ -37,58 +38,42 @@ pub struct ServoActuators {
 
 impl ServoActuators {
     /// The servo actuators of a diagnosis whose report has the `servo` key `servo`, with the
-    /// firmware settings of the first servo log among `runs` (`None` when none is a servo log).
+    /// firmware settings of the first servo log among `runs` ([`ServoFirmware::of`]; `None`
+    /// when none is a servo log).
     ///
     /// # Errors
     /// [`ExportError::Option`] for a servo log whose experiment cannot be read, or that has
-    /// neither a `supply_voltage` nor a logged voltage.
-    pub fn of(model: &Model, servo: &ServoReport, runs: &[Run]) -> Result<Option<ServoActuators>, ExportError> {
-        let servo_runs: Vec<&Run> = runs.iter().filter(|r| crate::prepare::servo::is_servo(r)).collect();
-        let Some(first) = servo_runs.first() else { return Ok(None) };
-        let params = |r: &Run| crate::prepare::servo::params(model, r).map_err(|e| ExportError::Option(format!("servo actuators: {e}")));
-        let p = params(first)?;
+    /// neither a `supply_voltage` nor a logged voltage; as [`ServoActuators::with_firmware`].
+    pub fn of<'a>(model: &Model, servo: &ServoReport, runs: impl IntoIterator<Item = &'a Run>) -> Result<Option<ServoActuators>, ExportError> {
+        match ServoFirmware::of(model, runs).map_err(ExportError::Option)? {
+            Some(firmware) => Self::with_firmware(model, servo, &firmware).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The servo actuators of a diagnosis whose report has the `servo` key `servo` (its
+    /// effective constants, picked in model order), driven by `firmware`.
+    ///
+    /// # Errors
+    /// [`ExportError::Option`] when the report's servo key lacks one of the model's joints.
+    pub fn with_firmware(model: &Model, servo: &ServoReport, firmware: &ServoFirmware) -> Result<ServoActuators, ExportError> {
+        // the report's constants in model order
         let names = model.joint_names();
         let order: Vec<usize> = names
             .iter()
             .map(|j| servo.joints.iter().position(|s| s == j).ok_or_else(|| ExportError::Option(format!("servo actuators: the report's servo key has no joint '{j}'"))))
             .collect::<Result<_, _>>()?;
         let pick = |v: &[f64]| order.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-        let mut notes = Vec::new();
-        let (voltage, voltage_source) = if p.supply_voltage.is_finite() {
-            (p.supply_voltage, format!("supply_voltage of {}", first.source))
-        } else {
-            let logged: Vec<f64> = servo_runs.iter().flat_map(|r| r.drive.voltage.iter().copied()).filter(|v| v.is_finite()).collect();
-            if logged.is_empty() {
-                return Err(ExportError::Option(format!("servo actuators: {} has no supply_voltage and no servo log has a logged voltage", first.source)));
-            }
-            let mean = logged.iter().sum::<f64>() / logged.len() as f64;
-            let (lo, hi) = logged.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
-            notes.push(format!(
-                "the servo's voltage V = {mean:.4} V is the mean of the logged voltage ({lo:.4}–{hi:.4} V); simgap simulated each sample with its own logged voltage, MuJoCo's kp and forcerange hold one V"
-            ));
-            (mean, "mean logged voltage".to_string())
-        };
-        let others: Vec<&str> =
-            servo_runs[1..].iter().filter(|r| params(r).is_ok_and(|q| q.duty_gain != p.duty_gain || q.max_duty != p.max_duty)).map(|r| r.source.as_str()).collect();
-        if !others.is_empty() {
-            notes.push(format!(
-                "kp and forcerange are for the firmware gain (duty_gain) and max_duty of {}; logs {others:?} set others: for them set kp = kt/R·V·duty_gain and forcerange = ±kt/R·V·max_duty (MuJoCo: actuator_gainprm[i][0] = kp, actuator_biasprm[i][1] = −kp, actuator_forcerange[i])",
-                first.source
-            ));
-        }
-        if p.goal_rate_limit.is_some() {
-            notes.push("the firmware's goal rate limit (goal_rate_limit) is not in the MJCF: limit the rate of ctrl before mj_step".into());
-        }
-        Ok(Some(ServoActuators {
+        Ok(ServoActuators {
             joints: names.iter().map(|s| s.to_string()).collect(),
             kt: pick(&servo.effective.kt),
             r: pick(&servo.effective.r),
-            voltage,
-            voltage_source,
-            duty_gain: p.duty_gain,
-            max_duty: p.max_duty,
-            notes,
-        }))
+            voltage: firmware.voltage,
+            voltage_source: firmware.voltage_source.clone(),
+            duty_gain: firmware.duty_gain.clone(),
+            max_duty: firmware.max_duty.clone(),
+            notes: firmware.notes.clone(),
+        })
     }
 
     /// The index of joint `name`, if it is a servo joint.

@@ -75,7 +75,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let notes = stages.run(shown("testing what is left", 0, 1), |_| Ok(what_is_left::what_is_left(&scorer, &prep, &intervals, notes)))?;
     // report: headline, verdict, the report
     let report = report::report(&scorer, &prep, located, screened, &intervals, &how_far, notes);
-    Ok(report::diagnosis(report, prep, intervals, how_far))
+    Ok(report::diagnosis(model, report, prep, intervals, how_far))
 }
 
 /// k-step prediction of logged runs by `model` alone (`before`) and with `effects` (`after`),

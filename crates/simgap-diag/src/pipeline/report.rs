@@ -6,10 +6,12 @@ use crate::pipeline::intervals::Intervals;
 use crate::pipeline::locate::Located;
 use crate::pipeline::notes::Notes;
 use crate::prepare::Prepared;
+use crate::report::export_basis::ExportBasis;
 use crate::report::units::Units;
 use crate::report::verdict::{headline, verdict};
 use crate::report::{Candidate, Decision, Diagnosis, Gap, Report, ServoReport};
 use crate::select::scorer::Scorer;
+use simgap_core::Model;
 
 /// The report stage: the headline and verdict, the selection log in words, and the report of
 /// every stage's findings (`candidates` from the screen, `notes` from the notes and what-is-left
@@ -69,9 +71,14 @@ pub(crate) fn report(scorer: &Scorer<'_>, prep: &Prepared, located: Located, can
     }
 }
 
-/// The diagnosis handed to the caller: `report`, the selected effects, and the held-out runs
-/// with their nominal and corrected simulations and the fit data, for plots and export.
-pub(crate) fn diagnosis(report: Report, prep: Prepared, intervals: Intervals, how_far: HowFar) -> Diagnosis {
+/// The diagnosis handed to the caller: `report`, the selected effects, the held-out runs with
+/// their nominal and corrected simulations and the fit data, for plots, and what the export
+/// takes from the logs ([`ExportBasis`]), decided here once from the prepared runs (fit, then
+/// held out) so that every front end exports the same files.
+pub(crate) fn diagnosis(model: &Model, report: Report, prep: Prepared, intervals: Intervals, how_far: HowFar) -> Diagnosis {
+    // the export's time step, passive joints and servo firmware, from every prepared run
+    let export = ExportBasis::of(model, prep.fit_runs.iter().chain(&prep.hold_runs));
+    // the runs behind the figures
     let Prepared { hold_runs, data, .. } = prep;
     Diagnosis {
         report,
@@ -81,5 +88,6 @@ pub(crate) fn diagnosis(report: Report, prep: Prepared, intervals: Intervals, ho
         holdout_corrected: how_far.holdout_corrected,
         fit_data: data,
         interval_variants: intervals.variants,
+        export,
     }
 }

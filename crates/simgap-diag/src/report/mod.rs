@@ -1,5 +1,6 @@
 //! The diagnosis report: its JSON keys are a public contract that other scripts read.
 
+pub(crate) mod export_basis;
 #[cfg(feature = "html")]
 pub mod html;
 pub(crate) mod pitfalls;
@@ -437,6 +438,10 @@ pub struct Diagnosis {
     /// bootstrap's bias correction, measured beside the reported intervals, not reported); for a
     /// fit by multiple shooting `multiple_shooting`.
     pub interval_variants: Vec<(&'static str, Vec<EffectReport>)>,
+    /// What the export takes from the logs (time step, passive joints, a servo's firmware),
+    /// decided once from the runs the diagnosis prepared, so that every front end writes the
+    /// same files (see [`crate::export`]); not in the JSON report.
+    pub export: export_basis::ExportBasis,
 }
 
 impl Diagnosis {
