@@ -2,7 +2,7 @@
 //! ([`Effect::CoulombFriction`]).
 
 use super::spelling::Spelling;
-use super::{check, dry_included, dry_slope, nonzero, smooth_sign, Effect, Simulated, STIFF_WIDTHS};
+use super::{check, dry_included, dry_slope, dry_stiff_band, nonzero, smooth_sign, Effect, Simulated};
 use crate::error::Result;
 use crate::kind::EffectKind;
 
@@ -44,11 +44,7 @@ impl Simulated for CoulombFriction<'_> {
     }
 
     fn stiff_band(&self, i: usize) -> f64 {
-        if self.w[i] > 0.0 {
-            STIFF_WIDTHS * self.w[i]
-        } else {
-            0.0
-        }
+        dry_stiff_band(self.w[i])
     }
 
     fn exact_dry_levels(&self, i: usize, _qd: f64, _tau_drive: f64) -> (f64, f64) {

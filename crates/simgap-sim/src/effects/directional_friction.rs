@@ -3,7 +3,7 @@
 //! (`w = 0`: the exact sign).
 
 use super::spelling::Spelling;
-use super::{check, dry_included, dry_slope, smooth_sign, Effect, Simulated, STIFF_WIDTHS};
+use super::{check, dry_included, dry_slope, dry_stiff_band, smooth_sign, Effect, Simulated};
 use crate::error::Result;
 use crate::kind::EffectKind;
 
@@ -58,11 +58,7 @@ impl Simulated for DirectionalFriction<'_> {
     }
 
     fn stiff_band(&self, i: usize) -> f64 {
-        if self.w[i] > 0.0 {
-            STIFF_WIDTHS * self.w[i]
-        } else {
-            0.0
-        }
+        dry_stiff_band(self.w[i])
     }
 
     fn exact_dry_levels(&self, i: usize, _qd: f64, _tau_drive: f64) -> (f64, f64) {

@@ -4,7 +4,7 @@
 //! [`Stepper`](crate::step::Stepper) knows ([`drive_torque`](super::drive_torque)).
 
 use super::spelling::Spelling;
-use super::{check, dry_slope, smooth_sign, Effect, Simulated, STIFF_WIDTHS};
+use super::{check, dry_slope, dry_stiff_band, smooth_sign, Effect, Simulated};
 use crate::error::Result;
 use crate::kind::EffectKind;
 
@@ -66,11 +66,7 @@ impl Simulated for LoadFriction<'_> {
     }
 
     fn stiff_band(&self, i: usize) -> f64 {
-        if self.w[i] > 0.0 {
-            STIFF_WIDTHS * self.w[i]
-        } else {
-            0.0
-        }
+        dry_stiff_band(self.w[i])
     }
 
     fn exact_dry_levels(&self, i: usize, qd: f64, tau_drive: f64) -> (f64, f64) {

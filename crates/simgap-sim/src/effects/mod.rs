@@ -324,6 +324,16 @@ fn dry_included(exact: bool, w: f64) -> bool {
     exact || w > 0.0
 }
 
+/// The velocity band [rad/s or m/s] around rest where a dry friction of sign width `w` is stiff:
+/// [`STIFF_WIDTHS`] widths, none for the exact sign (`w = 0`).
+fn dry_stiff_band(w: f64) -> f64 {
+    if w > 0.0 {
+        STIFF_WIDTHS * w
+    } else {
+        0.0
+    }
+}
+
 /// The slope `dry · level / w` of a smoothed dry step of `level` [N·m or N] and width `w`
 /// [rad/s or m/s]; 0 for the exact sign (`w = 0`, a jump, not a slope).
 fn dry_slope(dry: f64, level: f64, w: f64) -> f64 {
