@@ -65,10 +65,8 @@ pub fn switch(name: &str) -> Option<&'static Switch> {
 /// # Errors
 /// The name of a switch that does not exist, with the names that do.
 pub fn options_with(on: &[(&str, bool)]) -> Result<DiagnoseOptions, String> {
+    // every switch starts at its default (the table's defaults are the options', a test checks)
     let mut options = DiagnoseOptions::default();
-    for s in SWITCHES {
-        (s.set)(&mut options, s.default);
-    }
     for (name, value) in on {
         let s = switch(name).ok_or_else(|| format!("no diagnosis option '{name}'; expected one of {:?}", SWITCHES.iter().map(|s| s.name).collect::<Vec<_>>()))?;
         (s.set)(&mut options, *value);
