@@ -14,6 +14,7 @@ Needs SIMGAP_BIN, as the other CLI tests.
 
 from __future__ import annotations
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -28,6 +29,16 @@ KP = [64.72, 32.36]
 KV = [48.54, 6.472]
 HIDDEN = ["viscous_friction:b=2.288,0.175"]
 FILES = ["corrected.urdf", "corrected.urdf.effects.json", "corrected.xml", "corrected.xml.effects.json"]
+
+
+@pytest.fixture(scope="module")
+def simgap_bin() -> str:
+    binary = os.environ.get("SIMGAP_BIN")
+    if not binary:
+        if os.environ.get("CI"):
+            pytest.fail("SIMGAP_BIN is not set: CI must build the CLI (cargo build --release --bin simgap) and set it")
+        pytest.skip("SIMGAP_BIN is not set (cargo build --release --bin simgap; SIMGAP_BIN=$PWD/target/release/simgap)")
+    return binary
 
 
 def sine_reference(model: simgap.Model, duration: float, dt: float, freqs: tuple[float, float], amps: tuple[float, float], name: str) -> simgap.Run:
