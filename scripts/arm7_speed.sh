@@ -12,7 +12,10 @@
 #   BIN: simgap binaries to compare side by side (default target/release/simgap); e.g. a copy
 #   of the binary before a change and the current one. Set CASES="replay" to run one case,
 #   CORES="0" to pin to one core (taskset), OUT=DIR for the logs and reports, FIT_S and HELD_S
-#   for the durations of the fit and held-out runs (default 20 and 10 s).
+#   for the durations of the fit and held-out runs (default 20 and 10 s). FILTER_HZ=3 passes the
+#   replayed logs' effort through a causal first-order low-pass of that cutoff (a recorder's
+#   filter); LINK=1 diagnoses with `--link-side-torque` (a torque-sensing arm's joint sensors);
+#   TIMINGS=1 adds `--timings` (the per-stage table goes to CASE/diagnose.BIN.txt).
 set -euo pipefail
 
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -59,6 +62,26 @@ n = len(e["joints"].split(","))
 e.update(controller="replay", kp=",".join(["0"] * n), kv=",".join(["0"] * n))
 json.dump(e, open(sys.argv[2], "w"), indent=2)
 EOF
+  if [ -n "${FILTER_HZ:-}" ]; then
+    python3 - "replay/$f.csv" "$FILTER_HZ" <<'EOF'
+import csv, math, sys
+path, fc = sys.argv[1], float(sys.argv[2])
+rows = list(csv.reader(open(path)))
+head, body = rows[0], rows[1:]
+t = head.index("time")
+cols = [i for i, h in enumerate(head) if h.startswith("tau_")]
+state, prev = {}, None
+for r in body:
+    now = float(r[t])
+    a = 1.0 if prev is None else 1.0 - math.exp(-2 * math.pi * fc * (now - prev))
+    for i in cols:
+        v = float(r[i])
+        state[i] = v if prev is None else state[i] + a * (v - state[i])
+        r[i] = repr(state[i])
+    prev = now
+csv.writer(open(path, "w", newline="")).writerows(rows)
+EOF
+  fi
 done
 
 uptime
@@ -68,7 +91,7 @@ for c in $cases; do
     tag="$(basename "$b")"
     start=$(date +%s.%N)
     "${pin[@]}" "$b" diagnose --urdf arm7.urdf --tip panda_hand --log "$c/fit0.csv" --log "$c/fit1.csv" \
-      --holdout "$c/held.csv" --json "$c/report.$tag.json" > "$c/diagnose.$tag.txt" 2>&1
+      --holdout "$c/held.csv" --json "$c/report.$tag.json" ${LINK:+--link-side-torque} ${TIMINGS:+--timings} > "$c/diagnose.$tag.txt" 2>&1
     end=$(date +%s.%N)
     sel=$(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); print(' '.join(e['effect'] + '@' + str(len(e['joints'])) for e in r['selected_effects']))" "$c/report.$tag.json" 2>/dev/null || echo '?')
     printf '%-8s %-40s %10.2f  %s\n' "$c" "$tag" "$(echo "$end - $start" | bc -l)" "$sel"

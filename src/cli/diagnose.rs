@@ -352,30 +352,37 @@ fn write_corrected_mcap(d: &Diagnosis, path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Wall time per stage of a diagnosis, in the order the stages were first entered (a stage
-/// entered again adds to its total).
+/// Wall time per stage of a diagnosis, with the sets scored and the RK4 steps integrated in it
+/// ([`simgap::diag::cost`]), in the order the stages were first entered (a stage entered again
+/// adds to its totals).
 #[derive(Default)]
 struct StageTimes {
-    current: Option<(&'static str, std::time::Instant)>,
-    totals: Vec<(&'static str, f64)>,
+    current: Option<(&'static str, std::time::Instant, simgap::diag::cost::Cost)>,
+    totals: Vec<(&'static str, f64, simgap::diag::cost::Cost)>,
 }
 
 impl StageTimes {
     /// Closes the current stage and enters `stage` ("" to only close).
     fn enter(&mut self, stage: &'static str) {
-        if self.current.is_some_and(|(s, _)| s == stage) {
+        if self.current.is_some_and(|(s, _, _)| s == stage) {
             return;
         }
         let now = std::time::Instant::now();
-        if let Some((s, since)) = self.current.take() {
+        let cost = simgap::diag::cost::cost();
+        if let Some((s, since, before)) = self.current.take() {
             let dt = now.duration_since(since).as_secs_f64();
-            match self.totals.iter_mut().find(|(name, _)| *name == s) {
-                Some(t) => t.1 += dt,
-                None => self.totals.push((s, dt)),
+            let spent = cost - before;
+            match self.totals.iter_mut().find(|(name, _, _)| *name == s) {
+                Some(t) => {
+                    t.1 += dt;
+                    t.2.sets_scored += spent.sets_scored;
+                    t.2.steps += spent.steps;
+                }
+                None => self.totals.push((s, dt, spent)),
             }
         }
         if !stage.is_empty() {
-            self.current = Some((stage, now));
+            self.current = Some((stage, now, cost));
         }
     }
 }
@@ -383,10 +390,11 @@ impl StageTimes {
 impl std::fmt::Display for StageTimes {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let total: f64 = self.totals.iter().map(|t| t.1).sum();
-        writeln!(f, "wall time by stage [s]:")?;
-        for (stage, dt) in &self.totals {
-            writeln!(f, "  {stage:<40} {dt:8.2}  {:5.1} %", 100.0 * dt / total.max(1e-12))?;
+        let (sets, steps): (u64, u64) = self.totals.iter().fold((0, 0), |a, t| (a.0 + t.2.sets_scored, a.1 + t.2.steps));
+        writeln!(f, "wall time by stage [s], sets scored by prediction, RK4 steps of k-step predictions [millions]:")?;
+        for (stage, dt, c) in &self.totals {
+            writeln!(f, "  {stage:<40} {dt:8.2}  {:5.1} %  {:>6}  {:>9.2}", 100.0 * dt / total.max(1e-12), c.sets_scored, c.steps as f64 * 1e-6)?;
         }
-        writeln!(f, "  {:<40} {total:8.2}", "total")
+        writeln!(f, "  {:<40} {total:8.2}  {:>7}  {sets:>6}  {:>9.2}", "total", "", steps as f64 * 1e-6)
     }
 }

@@ -47,6 +47,7 @@
 
 #[cfg(feature = "check")]
 pub mod check;
+pub mod cost;
 mod error;
 pub mod export;
 mod locate;

@@ -3,7 +3,7 @@
 
 use simgap_core::{mass_matrix, Workspace};
 
-use crate::effects::{armature, friction_slope_bound, moving_friction_slope_bound};
+use crate::effects::{armature, friction_slope_bound, moving_friction_slope_bound, Effect};
 use crate::integrate::Integrator;
 use crate::params::SimParams;
 use crate::plant::Plant;
@@ -41,6 +41,32 @@ pub(crate) fn substeps_and_moving_rate(plant: &Plant, params: &SimParams) -> (us
     moving_friction_slope_bound(plant.effects(), &mut moving);
     add_load_friction_slope(plant, &mut moving);
     (substeps, Some(largest_rate(&inv, &moving)))
+}
+
+/// The effects of `plant` with the dry frictions too stiff for the sample period made exact:
+/// on a joint whose friction rate `s_i (H⁻¹)_ii` (its slope bound from
+/// [`friction_slope_bound`] over its inertia at `params.q0`) would ask RK4 for more than
+/// `max_substeps` steps per sample, every smoothed dry friction becomes the exact sign (`w = 0`),
+/// integrated as stick–slip. Such a band's time constant is below `period / (2 max_substeps)`:
+/// the motion inside it is over within a small part of one sample and no log sampled at
+/// `period` can tell it from the exact sign, while resolving it would cost that many RK4 steps
+/// per sample (hundreds for a narrow band on a light wrist joint). `None` when no joint is
+/// changed (no friction, the adaptive integrator, a singular H, or bands the steps resolve).
+pub fn unresolved_bands_exact(plant: &Plant, params: &SimParams, max_substeps: usize) -> Option<Vec<Effect>> {
+    let n = plant.dof();
+    let mut slope = vec![0.0; n];
+    friction_slope_bound(plant.effects(), &mut slope);
+    add_load_friction_slope(plant, &mut slope);
+    let inv = stiffness_inverse(plant, params, &slope)?;
+    let exact: Vec<bool> = (0..n).map(|i| substeps_for_rate(params.sample_period, slope[i] * inv[(i, i)], 1) > max_substeps).collect();
+    if !exact.contains(&true) {
+        return None;
+    }
+    let mut effects = plant.effects().to_vec();
+    for e in &mut effects {
+        e.make_sign_exact(&exact);
+    }
+    Some(effects)
 }
 
 /// The substeps of a sample interval of `period` seconds for friction rates `lambda` [1/s]

@@ -20,10 +20,14 @@
 
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
-use simgap_sim::{controller_from_experiment, ControllerKind, Effect, Plant, Run, SimParams, Stepper};
+use simgap_sim::{controller_from_experiment, unresolved_bands_exact, ControllerKind, Effect, Plant, Run, SimParams, Stepper};
 
 use crate::error::Result;
 pub(crate) use crate::prepare::windows::{PredictionRun, FOLDS_PER_RUN};
+
+/// Most RK4 steps per sample a smoothed dry friction may ask for in a prediction: a band that
+/// would need more is predicted as the exact sign ([`unresolved_bands_exact`]).
+pub(crate) const MAX_BAND_SUBSTEPS: usize = 16;
 
 /// Largest error counted per joint [rad]: half a turn.
 const ERROR_CAP: f64 = std::f64::consts::PI;
@@ -159,7 +163,10 @@ pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect
         ..SimParams::default()
     };
     let params = if params.q0.len() == n { params } else { SimParams { q0: Vec::new(), ..params } };
-    let mut stepper = Stepper::new(&plant, &params, run.len())?;
+    // a dry friction's band too narrow for the sample period is predicted as the exact sign
+    let exact = unresolved_bands_exact(&plant, &params, MAX_BAND_SUBSTEPS).and_then(|e| Plant::new(model, formulation, &e).ok());
+    let plant = exact.as_ref().unwrap_or(&plant);
+    let mut stepper = Stepper::new(plant, &params, run.len())?;
     let mut y = vec![0.0; 2 * n];
     let zeros = vec![0.0; n];
     for w in 0..pr.windows() {
@@ -216,6 +223,7 @@ pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect
             }
         }
     }
+    crate::cost::add_steps(stepper.steps_taken());
     Ok(out)
 }
 

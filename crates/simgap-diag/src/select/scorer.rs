@@ -58,6 +58,7 @@ impl Scorer<'_> {
     }
 
     pub(crate) fn cv_uncached(&self, terms: &[Term]) -> Option<kstep::Errors> {
+        crate::cost::add_set();
         let folds = self.prep.fit_runs.len() * FOLDS_PER_RUN;
         if terms.is_empty() {
             return kstep::predict_cv(self.model, self.formulation, &self.prep.fit_pred, &self.prep.horizons, folds, &|_| Vec::new()).ok();

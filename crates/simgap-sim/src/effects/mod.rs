@@ -424,6 +424,28 @@ impl Effect {
         self.simulated(|e| e.joints_acted())
     }
 
+    /// Makes the dry frictions of the joints where `exact[i]` holds the exact sign (`w = 0`,
+    /// integrated as stick–slip): Coulomb, Stribeck, directional, load and load–Stribeck
+    /// friction; any other effect is left as it is.
+    ///
+    /// # Panics
+    /// If `exact` is shorter than a friction's vector of widths.
+    pub fn make_sign_exact(&mut self, exact: &[bool]) {
+        let w = match self {
+            Effect::CoulombFriction { w, .. }
+            | Effect::StribeckFriction { w, .. }
+            | Effect::DirectionalFriction { w, .. }
+            | Effect::LoadFriction { w, .. }
+            | Effect::LoadStribeckFriction { w, .. } => w,
+            _ => return,
+        };
+        for (wi, e) in w.iter_mut().zip(exact) {
+            if *e {
+                *wi = 0.0;
+            }
+        }
+    }
+
     /// Checks lengths against `dof` and signs (friction levels, armature, limits, delay `>= 0`,
     /// numbers finite except saturation limits).
     ///
