@@ -125,6 +125,8 @@ impl PyRun {
             start_ns,
             experiment: experiment.map(self::experiment).transpose()?,
             source: source.to_owned(),
+            notes: Vec::new(),
+            left_out: Vec::new(),
             t,
             joints,
         };
