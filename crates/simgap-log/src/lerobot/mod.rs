@@ -231,9 +231,9 @@ fn conversion(layout: &Layout, experiment: Option<&Experiment>, calibration: Opt
     Ok(Conversion { kept, left_out, scale })
 }
 
-/// The experiment without the joints left out: `joints` and every value list with one entry
-/// per joint lose theirs.
-fn without_joints(e: &Experiment, dropped: &[String]) -> Experiment {
+/// The experiment without the joints `dropped` (a run's [`Run::left_out`]): `joints` and every
+/// value list with one entry per joint (`kp`, `kv`, `duty_gain`, …) lose theirs.
+pub fn without_joints(e: &Experiment, dropped: &[String]) -> Experiment {
     let n = e.joints.len();
     let keep: Vec<bool> = e.joints.iter().map(|j| !dropped.contains(j)).collect();
     if keep.iter().all(|k| *k) {
