@@ -250,12 +250,8 @@ mod tests {
             ("\"fps\": 50", "\"fps\": 1e300", "fps"),
             ("\"total_episodes\": 2", "\"total_episodes\": -1", "total_episodes"),
             ("\"chunks_size\": 1000", "\"chunks_size\": 0", "chunks_size"),
-            ("\"shape\": [2], \"names\": [\"a.pos\", \"gripper.pos\"]}, \"action\"", "\"shape\": [4000000000], \"names\": [\"a.pos\", \"gripper.pos\"]}, \"action\"", "shape"),
-            (
-                "\"dtype\": \"float32\", \"shape\": [2], \"names\": [\"a.pos\", \"gripper.pos\"]}, \"action\"",
-                "\"dtype\": \"string\", \"shape\": [2], \"names\": [\"a.pos\", \"gripper.pos\"]}, \"action\"",
-                "dtype",
-            ),
+            ("\"observation.state\": {\"dtype\": \"float32\", \"shape\": [2]", "\"observation.state\": {\"dtype\": \"float32\", \"shape\": [4000000000]", "shape"),
+            ("\"observation.state\": {\"dtype\": \"float32\"", "\"observation.state\": {\"dtype\": \"string\"", "dtype"),
             ("file-{file_index:03d}", "../../etc/{file_index}", "data_path"),
             ("file-{file_index:03d}", "file-{evil}", "placeholder"),
         ] {
