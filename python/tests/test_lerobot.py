@@ -419,3 +419,40 @@ def test_sage_so101_with_the_published_urdf_gets_past_its_gripper(sage: Path) ->
     with pytest.raises(simgap.LogError) as err:
         simgap.diagnose(model, f"{sage / 'lerobot'}#36", f"{sage / 'lerobot'}#29")
     assert "gripper" not in str(err.value) and "not in the log" not in str(err.value), err.value
+
+
+@pytest.mark.slow
+def test_a_simulated_servo_dataset_is_diagnosed_with_its_gripper_locked_and_its_timing_noted(tmp_path: Path) -> None:
+    # three servo runs of the arm, its gripper held: written as a v3.0 dataset in LeRobot's
+    # units (degrees, the gripper 0–100) with the experiment as its sidecar
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(arm_urdf())
+    model = simgap.Model.from_urdf(urdf)
+    exp = {"controller": "servo", "joints": ",".join(ARM + ["gripper"]), "duty_gain": 2, "supply_voltage": 12, "kt": 0.3, "R": 3.0, "sample_period": 0.005}
+    runs = [simgap.simulate(model, target, experiment=exp, duration=5.0, counts_per_rev=None) for target in ([0.4, -0.3, 0.5, 0.0], [-0.2, 0.5, -0.4, 0.0], [0.3, 0.2, -0.2, 0.0])]
+    ds = tmp_path / "ds"
+    (ds / "meta" / "episodes" / "chunk-000").mkdir(parents=True)
+    (ds / "data" / "chunk-000").mkdir(parents=True)
+    info = info_json("v3.0", {e: len(r) for e, r in enumerate(runs)})
+    info["fps"] = 200
+    (ds / "meta" / "info.json").write_text(json.dumps(info))
+    (ds / "meta" / "simgap.experiment.json").write_text(json.dumps({k: v for k, v in exp.items() if k != "sample_period"}))
+    vec = lambda a: pa.FixedSizeListArray.from_arrays(pa.array(a.astype(np.float32).ravel()), 4)  # noqa: E731
+    tables, rows, start = [], [], 0
+    for e, r in enumerate(runs):
+        n = len(r)
+        state, goal = np.degrees(r.q), np.degrees(r.q_ref)
+        state[:, 3] = goal[:, 3] = 50.0
+        tables.append(pa.table({"observation.state": vec(state), "action": vec(goal), "frame_index": pa.array(np.arange(n)), "episode_index": pa.array(np.full(n, e))}))
+        rows.append({"episode_index": e, "length": n, "data/chunk_index": 0, "data/file_index": 0, "dataset_from_index": start, "dataset_to_index": start + n})
+        start += n
+    with pq.ParquetWriter(ds / "data" / "chunk-000" / "file-000.parquet", tables[0].schema) as w:
+        for t in tables:
+            w.write_table(t)
+    pq.write_table(pa.Table.from_pylist(rows), ds / "meta" / "episodes" / "chunk-000" / "file-000.parquet")
+    report = simgap.diagnose(model, f"{ds}#0-1", f"{ds}#2")
+    assert report["joints"] == ARM
+    assert report["holdout_logs"] == [f"{ds}#2"]
+    notes = "\n".join(report.notes)
+    assert f"{ds}#0, {ds}#1, {ds}#2: LeRobot timestamps are nominal" in notes
+    assert "'gripper'" in notes and "locked" in notes
