@@ -95,6 +95,8 @@ impl LogFormat {
             Ok(LogFormat::Mcap)
         } else if name.ends_with(".csv") || name.ends_with(".csv.gz") {
             Ok(LogFormat::Csv)
+        } else if !path.exists() {
+            Err(read_error(path, "unknown log format and no such file or folder (a log is a .mcap, .csv or .csv.gz file, a rosbag2 bag folder or a LeRobot dataset folder, FOLDER or FOLDER#EPISODES)"))
         } else {
             Err(read_error(path, "unknown log format: expected a .mcap, .csv or .csv.gz file, a rosbag2 bag folder or a LeRobot dataset folder (FOLDER or FOLDER#EPISODES)"))
         }
