@@ -31,7 +31,9 @@ from simgap._simgap import (
     effect_vocabulary,
     l2,
     l2_tracking,
+    lerobot_episodes,
     read_log,
+    read_logs,
     simulate,
     write_log,
 )
@@ -56,7 +58,9 @@ __all__ = [
     "effect_vocabulary",
     "l2",
     "l2_tracking",
+    "lerobot_episodes",
     "read_log",
+    "read_logs",
     "simulate",
     "write_log",
 ]

@@ -54,6 +54,7 @@ def diagnose(
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: bool | ProgressCallback | None = None,
     urdf: str | PathLike[str] | None = None,
+    calibration: str | PathLike[str] | None = None,
     **switches: bool,
 ) -> _simgap.Report:
     """Diagnoses the gap between ``model`` and logged runs (the ``simgap diagnose`` pipeline):
@@ -62,7 +63,8 @@ def diagnose(
 
     ``fit``: runs used to fit and select effects; ``holdout``: runs used only to measure the gap
     before and after (never for fitting). Each is a sequence of :class:`Run` or paths to logs,
-    or a single one. ``formulation``: the C of the model under test ("euler_lagrange" or
+    or a single one; a LeRobot dataset path (``FOLDER`` or ``FOLDER#0,3-5``) gives one run per
+    episode, named ``FOLDER#N``. ``formulation``: the C of the model under test ("euler_lagrange" or
     "simplified").
 
     ``experiment``: the experiment (controller, gains, sample period) of runs that carry none,
@@ -74,6 +76,11 @@ def diagnose(
     thread whenever the diagnosis moves on; ``None`` or ``False`` shows nothing.
 
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
+
+    ``calibration``: LeRobot's calibration file of the robot, which makes a range-normalised
+    joint of a LeRobot dataset (the gripper's 0–100) an angle. Without it such a joint is left
+    out of the runs and the model joint of that name is locked at its zero position; the
+    report's notes say so.
 
     ``**switches``: the diagnosis' yes/no options by keyword, the same as ``simgap diagnose``'s
     flags (``directional_friction=True`` is ``--directional-friction``), listed with their
@@ -94,7 +101,7 @@ def diagnose(
     else:
         raise TypeError(f"progress: expected True, False, None or a callable (stage, done, total), got {type(progress).__name__}")
     try:
-        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, **switches)  # type: ignore[arg-type]
+        return _simgap.diagnose(model, fit, holdout, formulation=formulation, experiment=experiment, progress=callback, urdf=urdf, calibration=calibration, **switches)  # type: ignore[arg-type]
     finally:
         if close is not None:
             close()

@@ -289,6 +289,17 @@ class Run:
         """Where the run came from (file name, or "simulation")."""
 
     @property
+    def notes(self) -> list[str]:
+        """What the log's reader noted for a report (e.g. that a LeRobot dataset's timestamps
+        are nominal), one sentence each; a diagnosis puts them in its notes."""
+
+    @property
+    def left_out(self) -> list[str]:
+        """Joints the log records but not as positions a model can use (a LeRobot joint
+        range-normalised without its calibration file): not in ``joints``; a diagnosis locks a
+        model joint of that name at its zero position."""
+
+    @property
     def duration(self) -> float:
         """Duration [s]: last sample time minus first (0 for fewer than two samples)."""
 
@@ -328,19 +339,41 @@ def read_log(
     joints: list[str] | None = None,
     topics: dict[str, str] | None = None,
     experiment: dict[str, str] | None = None,
+    calibration: str | PathLike[str] | None = None,
 ) -> Run:
     """Reads a log: a ROS 2 MCAP file (``.mcap``), a rosbag2 bag folder (``metadata.yaml`` and
-    ``.mcap`` files), or CSV (``.csv`` / ``.csv.gz``).
+    ``.mcap`` files), CSV (``.csv`` / ``.csv.gz``), or one episode of a LeRobot dataset
+    (``FOLDER#N``; a folder or selection of several episodes is read with :func:`read_logs`).
 
     With ``joints`` (e.g. ``model.joint_names``), the columns are put in that order, matched by
-    name. ``topics`` maps roles to topics, e.g. ``{"states": "/arm/joint_states", "effort":
+    name (joints the log leaves out, ``Run.left_out``, are skipped). ``topics`` maps roles to
+    topics, e.g. ``{"states": "/arm/joint_states", "effort":
     "/effort_controller/commands[j1;j2]"}`` (roles ``states``, ``reference``, ``effort``,
     ``measured_effort``; joint names in brackets for messages without names). ``experiment``
     (the ``simgap.experiment`` map) applies only if the log carries none (no metadata record,
-    no sidecar ``NAME.experiment.json``). A file its recorder did not finish is read up to its
-    last complete record, with a UserWarning saying how much was recovered. Raises LogError
-    naming the file and the problem, for any content of the file.
+    no sidecar ``NAME.experiment.json``, for a dataset ``meta/simgap.experiment.json``).
+    ``calibration``: LeRobot's calibration file, which makes a dataset's range-normalised joint
+    (a gripper's 0–100) an angle; without it that joint is left out. A file its recorder did
+    not finish is read up to its last complete record, with a UserWarning saying how much was
+    recovered. Raises LogError naming the file and the problem, for any content of the file.
     """
+
+def read_logs(
+    path: str | PathLike[str],
+    joints: list[str] | None = None,
+    topics: dict[str, str] | None = None,
+    experiment: dict[str, str] | None = None,
+    calibration: str | PathLike[str] | None = None,
+) -> list[Run]:
+    """Reads every run a log holds: one per episode of a LeRobot dataset (a folder means every
+    episode, ``FOLDER#0,3-5`` those episodes, in that order; each run is named ``FOLDER#N``),
+    else the one run of an MCAP file, bag folder or CSV file. The arguments are
+    :func:`read_log`'s; a dataset's warnings are given once. Raises LogError naming the folder,
+    the file and the episode."""
+
+def lerobot_episodes(path: str | PathLike[str]) -> list[int]:
+    """The episode indices of a LeRobot dataset folder, in order (``FOLDER#N`` reads episode
+    ``N``). Raises LogError naming the folder and the metadata file at fault."""
 
 def write_log(run: Run, path: str | PathLike[str]) -> None:
     """Writes a run as a log, the format chosen by extension (``.mcap``, ``.csv``, ``.csv.gz``;
@@ -584,6 +617,7 @@ def diagnose(
     experiment: Mapping[str, object] | str | PathLike[str] | None = None,
     progress: Callable[[str, int, int], object] | None = None,
     urdf: str | PathLike[str] | None = None,
+    calibration: str | PathLike[str] | None = None,
     directional_friction: bool = False,
     load_stribeck_friction: bool = False,
     link_side_torque: bool = False,
@@ -594,11 +628,16 @@ def diagnose(
 
     ``fit``: runs used to fit and select effects; ``holdout``: runs used only to measure the
     gap before and after (never for fitting). Each is a sequence of :class:`Run` (from
-    ``read_log`` or ``simulate``) or paths to logs (read like ``read_log``), or a single one.
+    ``read_log``, ``read_logs`` or ``simulate``) or paths to logs (read like ``read_logs``: a
+    LeRobot dataset path, ``FOLDER`` or ``FOLDER#0,3-5``, gives one run per episode), or a
+    single one.
     Every run must carry its experiment (controller, gains, sample period) to be re-simulated
     in closed loop. ``formulation``: the C of the model under test.
 
     ``urdf``: the URDF file ``model`` was loaded from, kept for :meth:`Report.export_urdf`.
+    ``calibration``: LeRobot's calibration file, which makes a dataset's range-normalised joint
+    (a gripper's 0–100) an angle; a model joint the logs leave out without one
+    (``Run.left_out``) is locked at its zero position, and the report's notes say so.
     The keywords after it are the diagnosis' switches, one per entry of
     :data:`DIAGNOSE_SWITCHES` (the CLI's flags); another keyword raises TypeError.
     ``directional_friction``: also try friction that differs with the direction of motion in

@@ -54,11 +54,13 @@ impl Source {
         items.enumerate().map(|(i, item)| Source::from_item(&format!("{name}[{i}]"), &item?)).collect()
     }
 
-    /// The run (read from its file when a path); errors name the file.
-    fn load(&self) -> simgap_diag::Result<Run> {
+    /// The runs (read from the log when a path: one per episode of a LeRobot dataset); errors
+    /// name the file. `options` gives the experiment of logs that carry none and LeRobot's
+    /// calibration file.
+    fn load(&self, options: &simgap_log::LogOptions) -> simgap_diag::Result<Vec<Run>> {
         match self {
-            Source::Run(run) => Ok(Run::clone(run)),
-            Source::Path(path) => Ok(simgap_log::read_log(path, &simgap_log::LogOptions::default()).map_err(simgap_sim::Error::from)?),
+            Source::Run(run) => Ok(vec![Run::clone(run)]),
+            Source::Path(path) => Ok(simgap_log::read_logs(path, options).map_err(simgap_sim::Error::from)?),
         }
     }
 }
@@ -74,6 +76,8 @@ struct Job {
     holdout: Vec<Source>,
     /// Given to runs that carry none.
     experiment: Option<Experiment>,
+    /// LeRobot's calibration file, for range-normalised joints of LeRobot datasets.
+    calibration: Option<simgap_log::lerobot::Calibration>,
     /// The diagnosis' options, its switches set from the keywords given
     /// ([`simgap_diag::SWITCHES`]); the stop flag is added by the worker.
     options: DiagnoseOptions,
@@ -83,7 +87,7 @@ struct Job {
 
 /// How the worker ended.
 enum Outcome {
-    Done(Box<simgap_diag::Result<Diagnosis>>),
+    Done(Box<simgap_diag::Result<(Diagnosis, Arc<Model>)>>),
     Cancelled,
     Panicked(String),
 }
@@ -92,23 +96,35 @@ impl Job {
     /// Reads the logs and diagnoses; the diagnosis stops at its next step once `stop` is set
     /// (by Ctrl-C or an exception from the progress callback) with `Error::Interrupted`. Whether
     /// a held-out log repeats a fit log is the library's one rule (same samples).
-    fn run(&self, stop: &Arc<AtomicBool>) -> simgap_diag::Result<Diagnosis> {
-        let load = |s: &Source| -> simgap_diag::Result<Run> {
-            let mut run = s.load()?;
-            if run.experiment.is_none() {
-                run.experiment = self.experiment.clone();
+    fn run(&self, stop: &Arc<AtomicBool>) -> simgap_diag::Result<(Diagnosis, Arc<Model>)> {
+        let options = simgap_log::LogOptions { experiment: self.experiment.clone(), calibration: self.calibration.clone(), ..simgap_log::LogOptions::default() };
+        let load = |sources: &[Source]| -> simgap_diag::Result<Vec<Run>> {
+            let mut runs = Vec::new();
+            for s in sources {
+                for mut run in s.load(&options)? {
+                    if run.experiment.is_none() {
+                        run.experiment = self.experiment.as_ref().map(|e| simgap_log::lerobot::without_joints(e, &run.left_out));
+                    }
+                    runs.push(run);
+                }
             }
-            Ok(run)
+            Ok(runs)
         };
-        let fit = self.fit.iter().map(load).collect::<simgap_diag::Result<Vec<_>>>()?;
-        let holdout = self.holdout.iter().map(load).collect::<simgap_diag::Result<Vec<_>>>()?;
+        let fit = load(&self.fit)?;
+        let holdout = load(&self.holdout)?;
+        // joints the logs record but not as positions (a LeRobot gripper without calibration)
+        // are locked at their zero
+        let model = match simgap_diag::model_for_runs(&self.model, fit.iter().chain(&holdout))? {
+            Some(m) => Arc::new(m),
+            None => self.model.clone(),
+        };
         let mut progress = |p: Progress| {
             if let Ok(mut latest) = self.latest.lock() {
                 *latest = Some((p.stage.to_string(), p.done, p.total));
             }
         };
         let options = DiagnoseOptions { stop: Some(stop.clone()), ..self.options.clone() };
-        simgap_diag::diagnose(&self.model, self.formulation, &fit, &holdout, &options, &mut progress)
+        simgap_diag::diagnose(&model, self.formulation, &fit, &holdout, &options, &mut progress).map(|d| (d, model))
     }
 
     /// `run`, with a panic caught: never a panic out of the worker thread.
@@ -129,7 +145,7 @@ fn panic_message(payload: &(dyn Any + Send)) -> String {
 /// next progress report. `progress` is called on this thread, with the GIL, with each new
 /// progress report as `(stage, done, total)`; an exception from it stops the diagnosis and is
 /// raised.
-fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>>) -> PyResult<Diagnosis> {
+fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>>) -> PyResult<(Diagnosis, Arc<Model>)> {
     let latest = job.latest.clone();
     let mut last: Option<(String, usize, usize)> = None;
     let mut report = move |_py: Python<'_>| -> PyResult<()> {
@@ -166,11 +182,15 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// shrinks on held-out runs once that effect is added.
 ///
 /// `fit`: runs used to fit and select effects; `holdout`: runs used only to measure the gap
-/// before and after (never for fitting). Each is a sequence of `Run` (from `read_log` or
-/// `simulate`) or paths to logs (read like `read_log`), or a single one. Every run must carry
+/// before and after (never for fitting). Each is a sequence of `Run` (from `read_log`,
+/// `read_logs` or `simulate`) or paths to logs (read like `read_logs`: a LeRobot dataset path,
+/// `FOLDER` or `FOLDER#0,3-5`, gives one run per episode), or a single one. Every run must carry
 /// its experiment (controller, gains, sample period) to be re-simulated in closed loop.
 /// `formulation`: the C of the model under test, "euler_lagrange" or "simplified". `urdf`: the
-/// URDF file `model` was loaded from, kept for `Report.export_urdf`. `**switches`: the
+/// URDF file `model` was loaded from, kept for `Report.export_urdf`. `calibration`: LeRobot's
+/// calibration file, which makes a dataset's range-normalised joint (a gripper's 0–100) an
+/// angle; a model joint the logs leave out without one (`Run.left_out`) is locked at its zero
+/// position, and the report's notes say so. `**switches`: the
 /// diagnosis' yes/no options by keyword (`directional_friction=True`, …), one per entry of
 /// `DIAGNOSE_SWITCHES` (name, default, help), the same as the CLI's flags.
 ///
@@ -180,7 +200,7 @@ fn run_interruptible(py: Python<'_>, job: Job, progress: Option<Bound<'_, PyAny>
 /// TypeError for arguments that are neither runs nor paths, and for a keyword that is no switch
 /// or a switch that is not a bool.
 #[pyfunction]
-#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, **switches))]
+#[pyo3(signature = (model, fit, holdout, *, formulation = "euler_lagrange", experiment = None, progress = None, urdf = None, calibration = None, **switches))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -191,6 +211,7 @@ pub(crate) fn diagnose(
     experiment: Option<&Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
     urdf: Option<PathBuf>,
+    calibration: Option<PathBuf>,
     switches: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyReport> {
     let options = switch_options(switches)?;
@@ -201,17 +222,18 @@ pub(crate) fn diagnose(
         }
     }
     let experiment = experiment.filter(|e| !e.is_none()).map(experiment_arg).transpose()?;
-    let model = model.model();
+    let calibration = calibration.map(|c| simgap_log::lerobot::Calibration::read(&c)).transpose().map_err(crate::errors::from_log)?;
     let job = Job {
-        model: model.clone(),
+        model: model.model(),
         formulation: self::formulation(formulation)?,
         fit: Source::from_arg("fit", fit)?,
         holdout: Source::from_arg("holdout", holdout)?,
         experiment,
+        calibration,
         options,
         latest: Latest::default(),
     };
-    let diagnosis = run_interruptible(py, job, progress)?;
+    let (diagnosis, model) = run_interruptible(py, job, progress)?;
     let json = diagnosis.report.to_json();
     Ok(PyReport { diagnosis: Arc::new(diagnosis), model, json, urdf })
 }

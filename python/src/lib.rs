@@ -23,6 +23,8 @@ fn _simgap(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::PyL2Report>()?;
     m.add_function(wrap_pyfunction!(sim::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(sim::read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::read_logs, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::lerobot_episodes, m)?)?;
     m.add_function(wrap_pyfunction!(sim::write_log, m)?)?;
     m.add_function(wrap_pyfunction!(sim::l2, m)?)?;
     m.add_function(wrap_pyfunction!(sim::l2_tracking, m)?)?;

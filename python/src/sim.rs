@@ -125,6 +125,8 @@ impl PyRun {
             start_ns,
             experiment: experiment.map(self::experiment).transpose()?,
             source: source.to_owned(),
+            notes: Vec::new(),
+            left_out: Vec::new(),
             t,
             joints,
         };
@@ -237,6 +239,21 @@ impl PyRun {
         self.run.source.clone()
     }
 
+    /// What the log's reader noted for a report (e.g. that a LeRobot dataset's timestamps are
+    /// nominal), one sentence each; a diagnosis puts them in its notes.
+    #[getter]
+    fn notes(&self) -> Vec<String> {
+        self.run.notes.clone()
+    }
+
+    /// Joints the log records but not as positions a model can use (a LeRobot joint
+    /// range-normalised without its calibration file): not in `joints`; a diagnosis locks a
+    /// model joint of that name at its zero position.
+    #[getter]
+    fn left_out(&self) -> Vec<String> {
+        self.run.left_out.clone()
+    }
+
     /// Duration [s]: last sample time minus first (0 for fewer than two samples).
     #[getter]
     fn duration(&self) -> f64 {
@@ -301,27 +318,13 @@ impl PyL2Report {
     }
 }
 
-/// Reads a log: a ROS 2 MCAP file (`.mcap`), a rosbag2 bag folder (`metadata.yaml` and
-/// `.mcap` files), or CSV (`.csv` / `.csv.gz`).
-///
-/// With `joints` (e.g. `model.joint_names`), the columns are put in that order, matched by
-/// name. `topics` maps roles to topics, e.g. `{"states": "/arm/joint_states", "effort":
-/// "/effort_controller/commands[j1;j2]"}` (roles `states`, `reference`, `effort`,
-/// `measured_effort`; joint names in brackets for messages without names). `experiment` (the
-/// `simgap.experiment` map) applies only if the log carries none (no metadata record, no
-/// sidecar `NAME.experiment.json`). A file its recorder did not finish is read up to its last
-/// complete record, with a UserWarning saying how much was recovered. Raises LogError naming
-/// the file and the problem, for any content of the file.
-#[pyfunction]
-#[pyo3(signature = (path, joints = None, topics = None, experiment = None))]
-pub(crate) fn read_log(
-    py: Python<'_>,
-    path: PathBuf,
-    joints: Option<Vec<String>>,
-    topics: Option<BTreeMap<String, String>>,
-    experiment: Option<BTreeMap<String, String>>,
-) -> PyResult<PyRun> {
-    let mut options = LogOptions { experiment: experiment.map(self::experiment).transpose()?, ..LogOptions::default() };
+/// The options of a read: topic map, experiment, LeRobot calibration file.
+fn log_options(topics: Option<BTreeMap<String, String>>, experiment: Option<BTreeMap<String, String>>, calibration: Option<PathBuf>) -> PyResult<LogOptions> {
+    let mut options = LogOptions {
+        experiment: experiment.map(self::experiment).transpose()?,
+        calibration: calibration.map(|c| simgap_log::lerobot::Calibration::read(&c)).transpose().map_err(from_log)?,
+        ..LogOptions::default()
+    };
     if let Some(map) = topics {
         let mut t = TopicMap::default();
         for (role, spec) in map {
@@ -330,16 +333,88 @@ pub(crate) fn read_log(
         }
         options.topics = t;
     }
-    let read = py.detach(|| simgap_log::read_log_with_warnings(&path, &options)).map_err(from_log)?;
-    for w in &read.warnings {
+    Ok(options)
+}
+
+/// A read's warnings as UserWarnings naming the log.
+fn warn(py: Python<'_>, path: &std::path::Path, warnings: &[String]) -> PyResult<()> {
+    for w in warnings {
         let message = std::ffi::CString::new(format!("{}: {w}", path.display())).unwrap_or_default();
         PyErr::warn(py, &py.get_type::<pyo3::exceptions::PyUserWarning>(), &message, 1)?;
     }
-    let run = match joints {
-        None => read.run,
-        Some(j) => reorder_joints(&read.run, &j, false).map_err(from_sim)?,
-    };
-    Ok(PyRun::from_run(run))
+    Ok(())
+}
+
+/// The run with its columns in `joints` order (by name); joints the log left out
+/// (`Run.left_out`) are skipped, not an error.
+fn in_order(run: Run, joints: Option<&[String]>) -> PyResult<Run> {
+    match joints {
+        None => Ok(run),
+        Some(j) => {
+            let wanted: Vec<String> = j.iter().filter(|j| !run.left_out.contains(j)).cloned().collect();
+            reorder_joints(&run, &wanted, false).map_err(from_sim)
+        }
+    }
+}
+
+/// Reads a log: a ROS 2 MCAP file (`.mcap`), a rosbag2 bag folder (`metadata.yaml` and
+/// `.mcap` files), CSV (`.csv` / `.csv.gz`), or one episode of a LeRobot dataset
+/// (`FOLDER#N`; a folder or selection of several episodes is read with `read_logs`).
+///
+/// With `joints` (e.g. `model.joint_names`), the columns are put in that order, matched by
+/// name (joints the log leaves out, `Run.left_out`, are skipped). `topics` maps roles to
+/// topics, e.g. `{"states": "/arm/joint_states", "effort":
+/// "/effort_controller/commands[j1;j2]"}` (roles `states`, `reference`, `effort`,
+/// `measured_effort`; joint names in brackets for messages without names). `experiment` (the
+/// `simgap.experiment` map) applies only if the log carries none (no metadata record, no
+/// sidecar `NAME.experiment.json`, for a dataset `meta/simgap.experiment.json`).
+/// `calibration`: LeRobot's calibration file, which makes a dataset's range-normalised joint
+/// (a gripper's 0–100) an angle; without it that joint is left out. A file its recorder did
+/// not finish is read up to its last complete record, with a UserWarning saying how much was
+/// recovered. Raises LogError naming the file and the problem, for any content of the file.
+#[pyfunction]
+#[pyo3(signature = (path, joints = None, topics = None, experiment = None, calibration = None))]
+pub(crate) fn read_log(
+    py: Python<'_>,
+    path: PathBuf,
+    joints: Option<Vec<String>>,
+    topics: Option<BTreeMap<String, String>>,
+    experiment: Option<BTreeMap<String, String>>,
+    calibration: Option<PathBuf>,
+) -> PyResult<PyRun> {
+    let options = log_options(topics, experiment, calibration)?;
+    let read = py.detach(|| simgap_log::read_log_with_warnings(&path, &options)).map_err(from_log)?;
+    warn(py, &path, &read.warnings)?;
+    Ok(PyRun::from_run(in_order(read.run, joints.as_deref())?))
+}
+
+/// Reads every run a log holds, as a list: one per episode of a LeRobot dataset (a folder
+/// means every episode, `FOLDER#0,3-5` those episodes, in that order; each run is named
+/// `FOLDER#N`), else the one run of an MCAP file, bag folder or CSV file. The arguments are
+/// `read_log`'s; a dataset's warnings are given once. Raises LogError naming the folder, the
+/// file and the episode.
+#[pyfunction]
+#[pyo3(signature = (path, joints = None, topics = None, experiment = None, calibration = None))]
+pub(crate) fn read_logs(
+    py: Python<'_>,
+    path: PathBuf,
+    joints: Option<Vec<String>>,
+    topics: Option<BTreeMap<String, String>>,
+    experiment: Option<BTreeMap<String, String>>,
+    calibration: Option<PathBuf>,
+) -> PyResult<Vec<PyRun>> {
+    let options = log_options(topics, experiment, calibration)?;
+    let reads = py.detach(|| simgap_log::read_logs_with_warnings(&path, &options)).map_err(from_log)?;
+    warn(py, &path, reads.first().map(|r| r.warnings.as_slice()).unwrap_or_default())?;
+    reads.into_iter().map(|r| in_order(r.run, joints.as_deref()).map(PyRun::from_run)).collect()
+}
+
+/// The episode indices of a LeRobot dataset folder, in order (`FOLDER#N` reads episode `N`).
+/// Raises LogError naming the folder and the metadata file at fault.
+#[pyfunction]
+#[pyo3(signature = (path))]
+pub(crate) fn lerobot_episodes(py: Python<'_>, path: PathBuf) -> PyResult<Vec<i64>> {
+    py.detach(|| simgap_log::lerobot::episode_indices(&path)).map_err(from_log)
 }
 
 /// Writes a run as a log, the format chosen by extension (`.mcap`, `.csv`, `.csv.gz`; CSV logs

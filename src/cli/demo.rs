@@ -75,6 +75,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         logs: &logs,
         holdouts: &holdouts,
         experiment: None,
+        calibration: None,
         topics: Default::default(),
         json: Some(&json),
         html: Some(&html),

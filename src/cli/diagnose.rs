@@ -20,11 +20,11 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use simgap::core::{Formulation, Model};
 use simgap::diag::{diagnose, options_with, Diagnosis, Progress, SWITCHES};
-use simgap::log::{read_log_with_warnings, LogOptions, McapWriter, RunTopics, TopicMap};
-use simgap::sim::{experiment_to_map, Run};
+use simgap::log::{McapWriter, RunTopics, TopicMap};
+use simgap::sim::experiment_to_map;
 
 /// Arguments of `simgap diagnose`.
 #[derive(clap::Args)]
@@ -35,11 +35,13 @@ pub(crate) struct Args {
     /// Tip link of the chain when the tree branches.
     #[arg(long)]
     tip: Option<String>,
-    /// A log to fit and select effects on (MCAP or CSV), repeatable.
+    /// A log to fit and select effects on, repeatable: MCAP, CSV, a rosbag2 bag folder, or a
+    /// LeRobot dataset folder (every episode) or FOLDER#EPISODES (e.g. 'data#0,3-5').
     #[arg(long = "log", required = true)]
     logs: Vec<PathBuf>,
-    /// A held-out log, only used to measure how far the gap shrinks, repeatable. Without one,
-    /// each fit log is split in time: the first 60 % fits, the rest is held out.
+    /// A held-out log (of the same kinds), only used to measure how far the gap shrinks,
+    /// repeatable. Without one, each fit log is split in time: the first 60 % fits, the rest is
+    /// held out.
     #[arg(long = "holdout")]
     holdouts: Vec<PathBuf>,
     /// Formulation of C under test: euler-lagrange or simplified.
@@ -67,6 +69,11 @@ pub(crate) struct Args {
     /// (no `simgap.experiment` metadata, no sidecar `NAME.experiment.json`).
     #[arg(long)]
     experiment: Option<PathBuf>,
+    /// LeRobot's calibration file of the robot (per motor: id, drive_mode, homing_offset,
+    /// range_min, range_max), which makes a range-normalised joint of a LeRobot dataset (the
+    /// gripper's 0–100) an angle; without it such a joint is locked at its URDF zero.
+    #[arg(long)]
+    calibration: Option<PathBuf>,
     /// Topics of MCAP logs and bags, e.g.
     /// `states=/arm/joint_states,reference=/arm_controller/controller_state,effort=/effort_controller/commands[j1;j2],measured_effort=/arm/effort`
     /// (defaults /joint_states, /joint_reference, /joint_effort_measured).
@@ -119,6 +126,8 @@ pub(crate) struct Job<'a> {
     pub(crate) logs: &'a [PathBuf],
     pub(crate) holdouts: &'a [PathBuf],
     pub(crate) experiment: Option<&'a Path>,
+    /// LeRobot's calibration file, for range-normalised joints of LeRobot datasets.
+    pub(crate) calibration: Option<&'a Path>,
     pub(crate) topics: TopicMap,
     pub(crate) json: Option<&'a Path>,
     pub(crate) html: Option<&'a Path>,
@@ -142,6 +151,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         logs: &args.logs,
         holdouts: &args.holdouts,
         experiment: args.experiment.as_deref(),
+        calibration: args.calibration.as_deref(),
         topics: args.topics.unwrap_or_default(),
         json: args.json.as_deref(),
         html: args.html.as_deref(),
@@ -159,30 +169,16 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
 pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     super::interrupt::install();
     // read: every error names its file
-    let experiment = job.experiment.map(simgap::log::experiment::read_experiment_file).transpose()?;
-    let options = LogOptions { topics: job.topics.clone(), experiment, ..LogOptions::default() };
-    let read = |paths: &[PathBuf]| -> anyhow::Result<Vec<Run>> {
-        paths
-            .iter()
-            .map(|p| {
-                let read = read_log_with_warnings(p, &options)?;
-                for w in &read.warnings {
-                    eprintln!("warning: {}: {w}", p.display());
-                }
-                if read.run.experiment.is_none() {
-                    bail!(
-                        "{}: no simgap.experiment metadata (controller, joints, kp, kv, sample_period), needed to re-simulate the closed loop; \
-                         give it with --experiment EXP.json, or as a sidecar file {}",
-                        p.display(),
-                        simgap::log::experiment::sidecar_path(p).display()
-                    );
-                }
-                Ok(read.run)
-            })
-            .collect()
-    };
-    let fit = read(job.logs)?;
-    let holdout = read(job.holdouts)?;
+    let options = super::log_options(job.topics.clone(), job.experiment, job.calibration)?;
+    let fit = super::read_runs(job.logs, &options)?;
+    let holdout = super::read_runs(job.holdouts, &options)?;
+    // joints the logs record but not as positions (a LeRobot gripper without calibration) are
+    // locked at their zero
+    let locked = simgap::diag::model_for_runs(job.model, fit.iter().chain(&holdout))?;
+    if let Some(m) = &locked {
+        eprintln!("note: {}", m.warnings().last().map(String::as_str).unwrap_or_default());
+    }
+    let model = locked.as_ref().unwrap_or(job.model);
 
     // diagnose with a progress bar naming the stage (hidden when stderr is not a terminal)
     let bar = super::progress_bar(1, "{spinner} {msg:<24} [{bar:30}] {pos}/{len}  {elapsed}");
@@ -199,7 +195,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
     super::interrupt::cooperate();
     let mut options = options_with(&job.switches).map_err(anyhow::Error::msg)?;
     options.stop = Some(super::interrupt::STOP.clone());
-    let result = diagnose(job.model, job.formulation, &fit, &holdout, &options, &mut on_progress);
+    let result = diagnose(model, job.formulation, &fit, &holdout, &options, &mut on_progress);
     bar.finish_and_clear();
     if job.timings {
         stages.enter("");
@@ -219,7 +215,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
         write_atomically(path, |tmp| write_corrected_mcap(&diagnosis, tmp))?;
         println!("wrote {} (topics /holdout/<run>/{{joint_states,joint_reference,nominal/joint_states,measured/joint_states}})", path.display());
     }
-    let exported = write_exports(job, &diagnosis)?;
+    let exported = write_exports(job, model, &diagnosis)?;
     // the page links the exported files: by name beside it, else by their absolute path
     if let Some(path) = job.html {
         let here = path.parent().map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf()));
@@ -234,7 +230,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
                 simgap::diag::html::LinkedFile { what: what.clone(), href }
             })
             .collect();
-        write_atomically(path, |tmp| simgap::diag::html::write_html_linking(&diagnosis, Some(job.model), tmp, &links).map_err(Into::into))?;
+        write_atomically(path, |tmp| simgap::diag::html::write_html_linking(&diagnosis, Some(model), tmp, &links).map_err(Into::into))?;
         println!("wrote {}", path.display());
     }
     Ok(diagnosis)
@@ -243,7 +239,7 @@ pub(crate) fn execute(job: &Job<'_>) -> anyhow::Result<Diagnosis> {
 /// Writes `--export-urdf` and `--export-mjcf`, each with its sidecar `PATH.effects.json`, from
 /// the diagnosis alone (Python's `report.export_urdf` and `report.export_mjcf` write the same
 /// files); returns the files written, each with what it is.
-fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis) -> anyhow::Result<Vec<(String, PathBuf)>> {
+fn write_exports(job: &Job<'_>, model: &Model, diagnosis: &Diagnosis) -> anyhow::Result<Vec<(String, PathBuf)>> {
     use simgap::diag::export::{corrected_mjcf, corrected_urdf, sidecar_path, ExportedFile};
     let mut written: Vec<(String, PathBuf)> = Vec::new();
     let mut write = |path: &Path, file: &ExportedFile, what: &str| -> anyhow::Result<()> {
@@ -264,12 +260,12 @@ fn write_exports(job: &Job<'_>, diagnosis: &Diagnosis) -> anyhow::Result<Vec<(St
     if let Some(path) = job.export_urdf {
         let urdf = job.urdf.context("--export-urdf needs the URDF the model was loaded from")?;
         let text = std::fs::read_to_string(urdf).with_context(|| format!("{}: cannot read the URDF to export", urdf.display()))?;
-        let file = corrected_urdf(&text, &urdf.display().to_string(), job.model, diagnosis).with_context(|| format!("cannot export the corrected URDF to {}", path.display()))?;
+        let file = corrected_urdf(&text, &urdf.display().to_string(), model, diagnosis).with_context(|| format!("cannot export the corrected URDF to {}", path.display()))?;
         write(path, &file, "corrected URDF (Pinocchio, Gazebo, Isaac)")?;
     }
     // the MJCF of the corrected robot
     if let Some(path) = job.export_mjcf {
-        let file = corrected_mjcf(job.model, diagnosis).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
+        let file = corrected_mjcf(model, diagnosis).with_context(|| format!("cannot export the corrected MJCF to {}", path.display()))?;
         write(path, &file, "corrected MJCF (MuJoCo)")?;
     }
     Ok(written)

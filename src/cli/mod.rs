@@ -46,6 +46,46 @@ pub(crate) fn load_model(urdf: Option<&std::path::Path>, tip: Option<&str>) -> a
     Ok(model)
 }
 
+/// How the logs of a command are read: its topic map, its experiment file (for logs that carry
+/// none) and LeRobot's calibration file.
+pub(crate) fn log_options(topics: simgap::log::TopicMap, experiment: Option<&std::path::Path>, calibration: Option<&std::path::Path>) -> anyhow::Result<simgap::log::LogOptions> {
+    Ok(simgap::log::LogOptions {
+        topics,
+        experiment: experiment.map(simgap::log::experiment::read_experiment_file).transpose()?,
+        calibration: calibration.map(simgap::log::lerobot::Calibration::read).transpose()?,
+        ..simgap::log::LogOptions::default()
+    })
+}
+
+/// Reads every run of the logs `paths` (a LeRobot dataset path gives one run per episode it
+/// selects), printing each log's warnings once to stderr; every run must carry an experiment.
+pub(crate) fn read_runs(paths: &[PathBuf], options: &simgap::log::LogOptions) -> anyhow::Result<Vec<simgap::sim::Run>> {
+    let mut runs = Vec::new();
+    for p in paths {
+        let reads = simgap::log::read_logs_with_warnings(p, options)?;
+        // a dataset's episodes share their warnings: said once
+        for w in reads.first().map(|r| r.warnings.as_slice()).unwrap_or_default() {
+            eprintln!("warning: {}: {w}", p.display());
+        }
+        for read in reads {
+            if read.run.experiment.is_none() {
+                let sidecar = match simgap::log::lerobot::dataset_path(p) {
+                    Some(d) => d.folder.join(simgap::log::lerobot::SIDECAR),
+                    None => simgap::log::experiment::sidecar_path(p),
+                };
+                anyhow::bail!(
+                    "{}: no simgap.experiment metadata (controller, joints, kp, kv, sample_period), needed to re-simulate the closed loop; \
+                     give it with --experiment EXP.json, or as a sidecar file {}",
+                    read.run.source,
+                    sidecar.display()
+                );
+            }
+            runs.push(read.run);
+        }
+    }
+    Ok(runs)
+}
+
 /// The error a command returns after Ctrl-C: `main` exits with status 130 (128 + SIGINT), as a
 /// shell does for an interrupted program.
 #[derive(Debug)]

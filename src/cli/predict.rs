@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use simgap::core::Formulation;
-use simgap::log::{read_log_with_warnings, LogOptions, TopicMap};
+use simgap::log::TopicMap;
 use simgap::sim::Effect;
 
 /// Arguments of `simgap predict`.
@@ -20,7 +20,8 @@ pub(crate) struct Args {
     /// Tip link of the chain when the tree branches.
     #[arg(long)]
     tip: Option<String>,
-    /// A log to predict (MCAP or CSV), repeatable; windows of all logs are pooled.
+    /// A log to predict, repeatable (MCAP, CSV, a rosbag2 bag folder, or a LeRobot dataset
+    /// folder or FOLDER#EPISODES, one run per episode); windows of all logs are pooled.
     #[arg(long = "log", required = true)]
     logs: Vec<PathBuf>,
     /// An effect added to the model, repeatable, e.g. 'viscous_friction:b=0.01,0.02'.
@@ -37,6 +38,10 @@ pub(crate) struct Args {
     /// Experiment file for logs without `simgap.experiment` metadata or sidecar.
     #[arg(long)]
     experiment: Option<PathBuf>,
+    /// LeRobot's calibration file, which makes a range-normalised joint of a LeRobot dataset
+    /// (the gripper's 0–100) an angle; without it such a joint is locked at its URDF zero.
+    #[arg(long)]
+    calibration: Option<PathBuf>,
     /// Topic map of MCAP logs and bags, e.g. 'states=/arm/joint_states,reference=/arm/ref'.
     #[arg(long = "topic", value_parser = super::diagnose::parse_topic_map)]
     topics: Option<TopicMap>,
@@ -51,20 +56,15 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
         bail!("--horizon {h}: expected horizons in (0, 60] seconds");
     }
     let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse_for_model(s, &model).with_context(|| format!("--effect '{s}'"))).collect::<anyhow::Result<_>>()?;
-    let experiment = args.experiment.as_deref().map(simgap::log::experiment::read_experiment_file).transpose()?;
-    let options = LogOptions { topics: args.topics.clone().unwrap_or_default(), experiment, ..LogOptions::default() };
-    let mut runs = Vec::new();
-    for p in &args.logs {
-        let read = read_log_with_warnings(p, &options)?;
-        for w in &read.warnings {
-            eprintln!("warning: {}: {w}", p.display());
-        }
-        let run = read.run;
-        if run.experiment.is_none() {
-            bail!("{}: no experiment (controller, joints, kp, kv, sample_period); give it with --experiment EXP.json", p.display());
-        }
-        runs.push(run);
+    let options = super::log_options(args.topics.clone().unwrap_or_default(), args.experiment.as_deref(), args.calibration.as_deref())?;
+    let runs = super::read_runs(&args.logs, &options)?;
+    // joints the logs record but not as positions (a LeRobot gripper without calibration) are
+    // locked at their zero
+    let locked = simgap::diag::model_for_runs(&model, &runs)?;
+    if let Some(m) = &locked {
+        eprintln!("note: {}", m.warnings().last().map(String::as_str).unwrap_or_default());
     }
+    let model = locked.unwrap_or(model);
     let k = simgap::diag::predict(&model, args.formulation, &effects, &runs, &args.horizon, simgap::diag::PrepareOptions::default().window)?;
     println!(
         "k-step prediction of {} log(s) by '{}'{} ({} windows)",

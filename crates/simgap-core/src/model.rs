@@ -263,6 +263,46 @@ impl Model {
             Transform { rotation: j.placement.rotation, translation: j.placement.translation + c.placed_axis * qi }
         }
     }
+
+    /// The model with the joints `names` locked at `q = 0`: each one's link becomes part of
+    /// the link before it (its inertia added there through the joint's placement; the first
+    /// joint's link joins the fixed base), and the next joint's placement takes the locked
+    /// joint's in front of its own, as the URDF loader locks joints off the chain. The
+    /// dynamics of the result at `q` equal the full model's at `q` with zeros inserted for the
+    /// locked joints, for every quantity of the remaining joints. `reason` ends the warning
+    /// the new model adds (its other warnings are kept).
+    ///
+    /// # Errors
+    /// [`Error::InvalidModel`] when a name is no joint of the model or every joint would be
+    /// locked; [`Error::Massless`] when every remaining link is massless.
+    pub fn with_joints_locked(&self, names: &[&str], reason: &str) -> Result<Model> {
+        if let Some(n) = names.iter().find(|n| self.joint_index(n).is_none()) {
+            return Err(Error::InvalidModel(format!("cannot lock joint '{n}': the model's joints are {:?}", self.joint_names())));
+        }
+        let mut joints: Vec<Joint> = Vec::new();
+        // the placement a locked joint leaves to the next joint, from the last kept link
+        let mut carried = Transform::IDENTITY;
+        for j in &self.joints {
+            let placement = carried.compose(&j.placement);
+            if names.contains(&j.name.as_str()) {
+                if let Some(prev) = joints.last_mut() {
+                    prev.inertia += j.inertia.transformed(&placement);
+                }
+                carried = placement;
+            } else {
+                joints.push(Joint { placement, ..j.clone() });
+                carried = Transform::IDENTITY;
+            }
+        }
+        if joints.is_empty() {
+            return Err(Error::InvalidModel(format!("cannot lock every joint of '{}' ({names:?})", self.name)));
+        }
+        let mut model = Model::new(self.name.clone(), self.base_link.clone(), joints)?;
+        model.gravity = self.gravity;
+        model.warnings = self.warnings.clone();
+        model.warnings.push(format!("joints {names:?} are locked at their zero position: {reason}"));
+        Ok(model)
+    }
 }
 
 impl JointCache {

@@ -279,3 +279,39 @@ fn repeated_elements_urdfdom_would_refuse_are_still_refused() {
     let msg = Model::from_urdf_str(&read).unwrap_err().to_string();
     assert!(msg.contains("line 29") && msg.contains("<mass> of link 'upper_arm'") && msg.contains("expected a number"), "{msg}");
 }
+
+#[test]
+fn a_locked_joint_gives_the_full_models_dynamics_at_its_zero() {
+    // arm7 to the left finger has the finger on its chain (8 joints); locking it gives the
+    // model to the hand, whose fingers the loader locks
+    let to_finger = arm7_with_tip("panda_leftfinger");
+    assert_eq!(to_finger.dof(), 8);
+    let locked = to_finger.with_joints_locked(&["panda_finger_joint1"], "a test").unwrap();
+    let to_hand = arm7_with_tip("panda_hand");
+    assert_eq!(locked.joint_names(), to_hand.joint_names());
+    assert!(locked.warnings().last().unwrap().contains("panda_finger_joint1"));
+    let (mut ws_l, mut ws_h) = (Workspace::new(&locked), Workspace::new(&to_hand));
+    // a joint in the middle: the full model's H and g with a zero inserted for it
+    let middle = to_hand.with_joints_locked(&["panda_joint4"], "a test").unwrap();
+    let mut ws_m = Workspace::new(&middle);
+    for k in 0..20 {
+        let q: Vec<f64> = (0..7).map(|i| (0.37 * (k * 7 + i) as f64).sin()).collect();
+        let (h_l, h_h) = (mass_matrix(&locked, &mut ws_l, &q), mass_matrix(&to_hand, &mut ws_h, &q));
+        assert!((h_l - &h_h).abs().max() < 1e-12, "mass matrix at {q:?}");
+        let (g_l, g_h) = (gravity_torques(&locked, &mut ws_l, &q), gravity_torques(&to_hand, &mut ws_h, &q));
+        assert!((g_l - &g_h).abs().max() < 1e-12, "gravity at {q:?}");
+        let mut q0 = q.clone();
+        q0[3] = 0.0;
+        let (h_full, g_full) = (mass_matrix(&to_hand, &mut ws_h, &q0), gravity_torques(&to_hand, &mut ws_h, &q0));
+        let q_m: Vec<f64> = q.iter().enumerate().filter(|(i, _)| *i != 3).map(|(_, v)| *v).collect();
+        let (h_m, g_m) = (mass_matrix(&middle, &mut ws_m, &q_m), gravity_torques(&middle, &mut ws_m, &q_m));
+        let keep = [0, 1, 2, 4, 5, 6];
+        for (a, &i) in keep.iter().enumerate() {
+            assert!((g_m[a] - g_full[i]).abs() < 1e-12, "gravity of joint {i}");
+            for (b, &j) in keep.iter().enumerate() {
+                assert!((h_m[(a, b)] - h_full[(i, j)]).abs() < 1e-12, "H[{i}, {j}]");
+            }
+        }
+    }
+    assert!(to_hand.with_joints_locked(&["no_such_joint"], "x").is_err());
+}

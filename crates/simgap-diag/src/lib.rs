@@ -68,6 +68,7 @@ pub use locate::{JointGap, Segment, Where};
 pub use options::{DiagnoseOptions, Progress};
 pub use pipeline::{diagnose, predict};
 pub use prediction::resim::RunGap;
+pub use prepare::locked::model_for_runs;
 pub use prepare::sensors::InferredSensors;
 pub use prepare::{DryWidth, FitData, PrepareOptions};
 #[cfg(feature = "html")]

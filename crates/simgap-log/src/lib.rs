@@ -7,9 +7,12 @@
 //!   accepted.
 //! - **CSV** (`.csv`, `.csv.gz`) with a column mapping ([`csv::CsvMapping`]); the DFKI pendulum
 //!   files are recognised by their header.
+//! - **LeRobot datasets** (`LeRobotDataset` v2.0, v2.1, v3.0: `meta/info.json` and Parquet
+//!   under `data/`), one run per episode; `FOLDER#0,3-5` picks episodes ([`lerobot`]).
 //!
-//! The API is three things: [`read_log`] (with [`LogOptions`]), [`write_log`], and the
-//! [`McapSink`] a simulation writes into as it runs.
+//! The API is four things: [`read_log`] and [`read_logs`] (with [`LogOptions`]; a dataset
+//! folder holds many runs), [`write_log`], and the [`McapSink`] a simulation writes into as it
+//! runs.
 //!
 //! ```no_run
 //! use simgap_log::{read_log, write_log, LogOptions, TopicMap};
@@ -41,6 +44,7 @@ pub mod csv;
 pub mod csv_sink;
 pub mod error;
 pub mod experiment;
+pub mod lerobot;
 pub mod mcap;
 pub mod partial;
 pub mod topics;
@@ -69,15 +73,20 @@ pub enum LogFormat {
     Bag,
     /// CSV (`.csv`), gzip-compressed when the name ends in `.gz`.
     Csv,
+    /// A LeRobot dataset folder, or `FOLDER#SEL` (read only).
+    LeRobot,
 }
 
 impl LogFormat {
-    /// The format of a path: a folder is a bag, else by extension (`.mcap`, `.csv`, `.csv.gz`,
-    /// case-insensitive).
+    /// The format of a path: a LeRobot dataset ([`lerobot::dataset_path`]), else a folder is a
+    /// bag, else by extension (`.mcap`, `.csv`, `.csv.gz`, case-insensitive).
     ///
     /// # Errors
     /// [`Error::Read`] for any other extension.
     pub fn from_path(path: &Path) -> Result<LogFormat> {
+        if lerobot::dataset_path(path).is_some() {
+            return Ok(LogFormat::LeRobot);
+        }
         if path.is_dir() {
             return Ok(LogFormat::Bag);
         }
@@ -86,8 +95,10 @@ impl LogFormat {
             Ok(LogFormat::Mcap)
         } else if name.ends_with(".csv") || name.ends_with(".csv.gz") {
             Ok(LogFormat::Csv)
+        } else if !path.exists() {
+            Err(read_error(path, "unknown log format and no such file or folder (a log is a .mcap, .csv or .csv.gz file, a rosbag2 bag folder or a LeRobot dataset folder, FOLDER or FOLDER#EPISODES)"))
         } else {
-            Err(read_error(path, "unknown log format: expected a .mcap, .csv or .csv.gz file or a rosbag2 bag folder"))
+            Err(read_error(path, "unknown log format: expected a .mcap, .csv or .csv.gz file, a rosbag2 bag folder or a LeRobot dataset folder (FOLDER or FOLDER#EPISODES)"))
         }
     }
 }
@@ -102,6 +113,9 @@ pub struct LogOptions {
     pub experiment: Option<Experiment>,
     /// The column mapping of CSV logs (default: detected from the header).
     pub csv_mapping: Option<csv::CsvMapping>,
+    /// LeRobot's calibration file, which makes range-normalised joints (a gripper's 0–100)
+    /// angles; without it they are left out of the runs ([`lerobot`]).
+    pub calibration: Option<lerobot::Calibration>,
 }
 
 /// A run read from a log, and what the reader had to warn about (a recovered file, a run that
@@ -134,7 +148,46 @@ pub fn read_log(path: &Path, options: &LogOptions) -> Result<Run> {
 /// # Errors
 /// As [`read_log`].
 pub fn read_log_with_warnings(path: &Path, options: &LogOptions) -> Result<LogRead> {
-    guarded(path, || read_any(path, options))
+    guarded(path, || match lerobot::dataset_path(path) {
+        Some(dataset) => {
+            let mut reads = lerobot::read_dataset(&dataset, options)?;
+            match reads.len() {
+                1 => Ok(reads.remove(0)),
+                n => {
+                    Err(read_error(path, format!("selects {n} episodes of a LeRobot dataset, and one log is one run: pick one episode (FOLDER#N) or read them all with read_logs")))
+                }
+            }
+        }
+        None => read_any(path, options),
+    })
+}
+
+/// Reads every run a log holds: the episodes a LeRobot dataset path selects (one run each, in
+/// the order selected), else the one run of an MCAP file, bag folder or CSV file. Warnings go to
+/// the `log` crate, as [`read_log`]'s.
+///
+/// # Errors
+/// As [`read_log`]; for a dataset, [`Error::Read`] naming the folder, the file and the episode.
+pub fn read_logs(path: &Path, options: &LogOptions) -> Result<Vec<Run>> {
+    let reads = read_logs_with_warnings(path, options)?;
+    // a dataset's warnings are the same for every episode: said once
+    if let Some(first) = reads.first() {
+        for w in &first.warnings {
+            log::warn!("{}: {w}", path.display());
+        }
+    }
+    Ok(reads.into_iter().map(|r| r.run).collect())
+}
+
+/// [`read_logs`], returning each run with its warnings.
+///
+/// # Errors
+/// As [`read_logs`].
+pub fn read_logs_with_warnings(path: &Path, options: &LogOptions) -> Result<Vec<LogRead>> {
+    guarded(path, || match lerobot::dataset_path(path) {
+        Some(dataset) => lerobot::read_dataset(&dataset, options),
+        None => read_any(path, options).map(|r| vec![r]),
+    })
 }
 
 /// Reads a log and puts its joints in `joints` order (a model's order); joints of the log that
@@ -186,6 +239,7 @@ fn read_any(path: &Path, options: &LogOptions) -> Result<LogRead> {
             let sources = crate::bag::bag_files(path)?.iter().map(|f| open_source(f)).collect::<Result<Vec<_>>>()?;
             read_sources(path, sources, &options.topics, fallback)
         }
+        LogFormat::LeRobot => Err(read_error(path, "is a LeRobot dataset; read it with read_logs")),
         LogFormat::Csv => {
             let mut warnings = Vec::new();
             let mut run = match &options.csv_mapping {
@@ -217,6 +271,7 @@ pub fn write_log(run: &Run, path: &Path) -> Result<()> {
     let format = if path.is_dir() { Err(write_error(path, "is a folder; give a .mcap, .csv or .csv.gz file")) } else { Ok(()) }
         .and_then(|()| LogFormat::from_path(path).map_err(|_| write_error(path, "unknown log format: expected a .mcap, .csv or .csv.gz file")))?;
     match format {
+        LogFormat::LeRobot => Err(write_error(path, "names a LeRobot dataset, which simgap reads but does not write; give a .mcap, .csv or .csv.gz file")),
         LogFormat::Mcap | LogFormat::Bag => write_mcap(run, path),
         LogFormat::Csv => {
             crate::csv::write_csv(run, path)?;

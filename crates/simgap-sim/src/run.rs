@@ -41,6 +41,14 @@ pub struct Run {
     pub experiment: Option<Experiment>,
     /// Where the run came from (file name, or `simulation`).
     pub source: String,
+    /// What the reader noted about the log for a report (e.g. that its timestamps are
+    /// nominal), one sentence each, without the log's name.
+    pub notes: Vec<String>,
+    /// Joints of the robot the log records, but not as positions a model can use (a LeRobot
+    /// joint range-normalised without its calibration): they are not in `joints`, and a
+    /// diagnosis locks a model joint of that name at its zero position instead of refusing
+    /// the log.
+    pub left_out: Vec<String>,
 }
 
 /// What a position-controlled servo logs beside its states. Every vector may be empty (the
@@ -93,6 +101,8 @@ impl Run {
             start_ns: None,
             experiment: None,
             source: String::new(),
+            notes: Vec::new(),
+            left_out: Vec::new(),
         }
     }
 
@@ -155,6 +165,8 @@ impl Run {
             start_ns: self.start_ns,
             experiment: self.experiment.clone(),
             source: self.source.clone(),
+            notes: self.notes.clone(),
+            left_out: self.left_out.clone(),
         }
     }
 }
@@ -331,6 +343,8 @@ pub fn reorder_joints(run: &Run, joints: &[String], drop_extra: bool) -> Result<
         start_ns: run.start_ns,
         experiment: run.experiment.clone(),
         source: run.source.clone(),
+        notes: run.notes.clone(),
+        left_out: run.left_out.clone(),
     })
 }
 

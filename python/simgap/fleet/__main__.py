@@ -43,9 +43,10 @@ if TYPE_CHECKING:
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m simgap.fleet", description="Diagnose every robot of a fleet on every day, on a Dask cluster, and flag drifting and outlying robots.")
-    p.add_argument("folder", type=Path, help="fleet folder laid out as ROBOT/DAY/<logs> (.mcap, .csv, .csv.gz, bag folders)")
+    p.add_argument("folder", type=Path, help="fleet folder laid out as ROBOT/DAY/<logs> (.mcap, .csv, .csv.gz, bag folders, LeRobot datasets: one log per episode)")
     p.add_argument("--urdf", type=Path, required=True, help="the robots' URDF (a path every worker can read)")
     p.add_argument("--tip", default=None, help="tip link of the chain (default: the end of the unique chain)")
+    p.add_argument("--calibration", type=Path, default=None, help="LeRobot's calibration file (a path every worker can read): makes a dataset's range-normalised gripper an angle")
     p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://scheduler-host:8786 (default: a LocalCluster on this machine)")
     p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the number of cores)")
     p.add_argument("--out", type=Path, default=Path("fleet-out"), help="output folder (default: fleet-out)")
@@ -171,7 +172,16 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
         options = {name: getattr(args, name) for name, _default, _help in DIAGNOSE_SWITCHES}
         result = diagnose_fleet(
-            index, args.urdf, client, tip=args.tip, formulation=args.formulation, retries=args.retries, progress=not args.no_progress, n_workers=args.workers, diagnose_options=options
+            index,
+            args.urdf,
+            client,
+            tip=args.tip,
+            formulation=args.formulation,
+            retries=args.retries,
+            progress=not args.no_progress,
+            n_workers=args.workers,
+            diagnose_options=options,
+            read_options={"calibration": str(args.calibration)} if args.calibration else None,
         )
         check_interrupted()
         findings = find(result.table, result.reports, **_thresholds(args))

@@ -5,7 +5,8 @@ A fleet index is a pandas DataFrame with one row per log and the columns
 - ``robot``: the robot's name,
 - ``day``: the day the log was recorded, as text (``YYYY-MM-DD`` sorts and parses as a date;
   any other text sorts by name),
-- ``path``: the log (``.mcap``, ``.csv``, ``.csv.gz``, or a rosbag2 bag folder),
+- ``path``: the log (``.mcap``, ``.csv``, ``.csv.gz``, a rosbag2 bag folder, or one episode
+  ``FOLDER#N`` of a LeRobot dataset),
 - ``role``: ``"fit"`` or ``"holdout"``.
 
 The rule that assigns roles when none are given (:data:`HOLDOUT_RULE`): within each robot and
@@ -35,19 +36,35 @@ def _is_bag(path: Path) -> bool:
     return path.is_dir() and (path / "metadata.yaml").is_file()
 
 
+def _is_lerobot(path: Path) -> bool:
+    """A LeRobot dataset: a folder with ``meta/info.json``."""
+    return path.is_dir() and (path / "meta" / "info.json").is_file()
+
+
+def _episodes(path: Path) -> list[str]:
+    """One log per episode of a LeRobot dataset, ``FOLDER#N`` (sorted by path, the last
+    episode is the one held out)."""
+    import simgap
+
+    return [f"{path}#{e}" for e in simgap.lerobot_episodes(path)]
+
+
 def _is_log_file(path: Path) -> bool:
     name = path.name.lower()
     return path.is_file() and name.endswith(LOG_SUFFIXES)
 
 
-def _logs_below(folder: Path) -> list[Path]:
-    """Log files and bag folders below ``folder``, not descending into bags."""
-    found: list[Path] = []
+def _logs_below(folder: Path) -> list[Path | str]:
+    """Log files, bag folders and LeRobot dataset episodes below ``folder``, not descending
+    into bags or datasets."""
+    found: list[Path | str] = []
     for entry in sorted(folder.iterdir()):
         if entry.name.startswith("."):
             continue
         if _is_bag(entry):
             found.append(entry)
+        elif _is_lerobot(entry):
+            found.extend(_episodes(entry))
         elif entry.is_dir():
             found.extend(_logs_below(entry))
         elif _is_log_file(entry):
@@ -57,7 +74,8 @@ def _logs_below(folder: Path) -> list[Path]:
 
 def index_from_folder(root: str | os.PathLike[str]) -> pd.DataFrame:
     """The index of a folder laid out as ``ROOT/ROBOT/DAY/…``: every log file (``.mcap``,
-    ``.csv``, ``.csv.gz``) or bag folder (``metadata.yaml`` + ``.mcap``) found below a day
+    ``.csv``, ``.csv.gz``), bag folder (``metadata.yaml`` + ``.mcap``) and episode of a LeRobot
+    dataset folder (``meta/info.json``; one row ``FOLDER#N`` per episode) found below a day
     folder, at any depth. Per-log experiments (``NAME.experiment.json`` beside the log, or the
     MCAP's own metadata) stay with the log and are read by the workers.
 
@@ -70,11 +88,11 @@ def index_from_folder(root: str | os.PathLike[str]) -> pd.DataFrame:
         raise FileNotFoundError(f"fleet folder {root} does not exist or is not a folder")
     rows = []
     for robot in sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")):
-        for day in sorted(p for p in robot.iterdir() if p.is_dir() and not p.name.startswith(".") and not _is_bag(p)):
+        for day in sorted(p for p in robot.iterdir() if p.is_dir() and not p.name.startswith(".") and not _is_bag(p) and not _is_lerobot(p)):
             for log in _logs_below(day):
                 rows.append({"robot": robot.name, "day": day.name, "path": str(log)})
     if not rows:
-        raise ValueError(f"no log (.mcap, .csv, .csv.gz or bag folder) found in {root}/ROBOT/DAY/")
+        raise ValueError(f"no log (.mcap, .csv, .csv.gz, bag folder or LeRobot dataset) found in {root}/ROBOT/DAY/")
     return index_from_table(pd.DataFrame(rows))
 
 

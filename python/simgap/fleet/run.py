@@ -64,9 +64,17 @@ def _joint_types_cached(urdf: str, mtime: float) -> tuple[tuple[str, str], ...]:
 
 def _read(path: str, joints: list[str], read_options: dict[str, Any]) -> simgap.Run:
     """Reads one log on the worker with :func:`simgap.read_log`, which reads MCAP files,
-    rosbag2 bag folders and CSV (``.csv.gz`` too) with the log's experiment (its metadata or
-    its sidecar ``NAME.experiment.json``)."""
+    rosbag2 bag folders, CSV (``.csv.gz`` too) and one episode of a LeRobot dataset
+    (``FOLDER#N``) with the log's experiment (its metadata or its sidecar
+    ``NAME.experiment.json``, a dataset's ``meta/simgap.experiment.json``). ``read_options``
+    may hold ``calibration``, LeRobot's calibration file."""
     return simgap.read_log(Path(path), joints=joints, **read_options)
+
+
+def _read_all(path: str, joints: list[str], read_options: dict[str, Any]) -> list[simgap.Run]:
+    """Every run of one log, as :func:`_read` reads them: one per episode a LeRobot dataset
+    path selects (a bare ``FOLDER`` or ``FOLDER#0-3`` in a table index), else the log's run."""
+    return simgap.read_logs(Path(path), joints=joints, **read_options)
 
 
 def _reset_peak_rss() -> bool:
@@ -123,8 +131,8 @@ def diagnose_task(
         mtime = os.path.getmtime(urdf)
         model = _model(str(urdf), tip, mtime)
         out["joint_types"] = _joint_types(str(urdf), mtime)
-        fit = [_read(p, model.joint_names, read_options or {}) for p in task["fit"]]
-        holdout = [_read(p, model.joint_names, read_options or {}) for p in task["holdout"]]
+        fit = [run for p in task["fit"] for run in _read_all(p, model.joint_names, read_options or {})]
+        holdout = [run for p in task["holdout"] for run in _read_all(p, model.joint_names, read_options or {})]
         report = simgap.diagnose(model, fit, holdout, formulation=formulation, **(diagnose_options or {}))  # type: ignore[arg-type]
         out["report"] = json.loads(report.to_json())
         # each interval method on its own, for the check's coverage comparison

@@ -4,6 +4,7 @@
 
 pub(crate) mod dataset;
 pub(crate) mod differentiate;
+pub(crate) mod locked;
 pub(crate) mod lowpass;
 pub(crate) mod robust;
 pub(crate) mod sensors;
@@ -63,7 +64,8 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
     if fit.is_empty() {
         return Err(Error::Input("no fit log given; expected at least one".into()));
     }
-    let mut notes = Vec::new();
+    // what the readers noted about the logs (a LeRobot dataset's nominal timing), once per note
+    let mut notes = reader_notes(fit.iter().chain(holdout));
     // one recording is the common case: without held-out logs each fit log is split in time
     let (split_fit, split_hold);
     let (fit, holdout) = if holdout.is_empty() {
@@ -189,6 +191,28 @@ pub(crate) fn prepare(model: &Model, formulation: Formulation, fit: &[Run], hold
     let joints = model.joint_names().iter().map(|s| s.to_string()).collect();
     let moving = data.iter().any(|d| d.qd.iter().any(|v| v.abs() > 1e-3));
     Ok(Prepared { joints, fit_runs, hold_runs, data, fit_pred, hold_pred, horizons, notes, sensors, passive, moving, servo })
+}
+
+/// The notes the log readers left on the runs ([`Run::notes`]), each once, after the runs it
+/// concerns (the first three named, then how many more).
+fn reader_notes<'a>(runs: impl Iterator<Item = &'a Run>) -> Vec<String> {
+    let mut by_note: Vec<(&str, Vec<&str>)> = Vec::new();
+    for r in runs {
+        for n in &r.notes {
+            match by_note.iter_mut().find(|(m, _)| m == n) {
+                Some((_, logs)) => logs.push(&r.source),
+                None => by_note.push((n, vec![&r.source])),
+            }
+        }
+    }
+    by_note
+        .into_iter()
+        .map(|(note, logs)| {
+            let named = logs.iter().take(3).copied().collect::<Vec<_>>().join(", ");
+            let more = if logs.len() > 3 { format!(" and {} more", logs.len() - 3) } else { String::new() };
+            format!("{named}{more}: {note}")
+        })
+        .collect()
 }
 
 /// Writes every servo run's drive command `en (kt/R) V duty` as its effort (see

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 /// A file path `name` in a fresh temporary folder (`tempfile`), which is removed when this is
 /// dropped. Derefs to the path.
+#[allow(dead_code)] // not every test file that includes this module makes one
 pub(crate) struct Scratch {
     _dir: tempfile::TempDir,
     path: PathBuf,
@@ -32,6 +33,7 @@ pub(crate) fn folder() -> tempfile::TempDir {
 }
 
 /// A path for a file `name` in a temporary folder of its own, `<temp>/simgap-log-<random>/`.
+#[allow(dead_code)] // not every test file that includes this module makes one
 pub(crate) fn tmp(name: &str) -> Scratch {
     let dir = folder();
     let path = dir.path().join(name);
