@@ -35,7 +35,7 @@ use crate::integrate::{Dopri5, Integrator, Rk4};
 use crate::params::SimParams;
 use crate::plant::{Plant, PlantWorkspace};
 use crate::sensor::Sensor;
-use crate::substeps::{substeps_and_moving_rate, substeps_for_rate};
+use crate::substeps::{drive_substeps, substeps_and_moving_rate, substeps_for_rate};
 
 /// The per-sample step of the closed loop (see the [module docs](self)): sensors, delay ring,
 /// held torque and integrator workspace of one run of `plant`.
@@ -63,6 +63,12 @@ pub struct Stepper<'p> {
     /// The drives of the current sample ([`Controller::drive`]): enable and back-EMF.
     enabled: Vec<f64>,
     emf: Vec<f64>,
+    /// The back-EMF coefficients [`Stepper::drive_substeps`] was computed for.
+    emf_seen: Vec<f64>,
+    /// RK4 steps per sample period with the controller's back-EMF: `substeps`, raised so that
+    /// the motor's damping `kt²/R` against the link's inertia keeps RK4 stable (a servo's light
+    /// wrist link: hundreds of steps per 20 ms sample).
+    drive_substeps: usize,
     /// The plant has back-EMF or load friction; it has dry friction of width 0.
     drive_effects: bool,
     exact_dry: bool,
@@ -122,6 +128,8 @@ impl<'p> Stepper<'p> {
             limits: params.torque_limits_from_model.then(|| plant.effort_limits().to_vec()),
             enabled: vec![1.0; n],
             emf: vec![0.0; n],
+            emf_seen: vec![0.0; n],
+            drive_substeps: substeps,
             drive_effects: has_drive_effects(plant.effects()),
             exact_dry: has_exact_dry_friction(plant.effects()),
             scratch: std::array::from_fn(|_| vec![0.0; n]),
@@ -193,6 +201,11 @@ impl<'p> Stepper<'p> {
         self.sensor.measure(q, qd, &mut self.q_meas, &mut self.qd_meas);
         controller.torque(t, &self.q_meas, &self.qd_meas, q_ref, qd_ref, &mut self.cmd);
         controller.drive(&mut self.enabled, &mut self.emf);
+        if self.emf != self.emf_seen {
+            // the motor's damping is stiff against a light link: the steps resolve its rate
+            self.emf_seen.copy_from_slice(&self.emf);
+            self.drive_substeps = drive_substeps(self.plant, q, &self.emf, self.period, self.substeps);
+        }
         self.adds_ff = controller.adds_feed_forward();
         if self.adds_ff && !tau_ff.is_empty() {
             for i in 0..n {
@@ -304,7 +317,8 @@ impl<'p> Stepper<'p> {
             return;
         }
         // drives evaluated at every stage (back-EMF, load friction, enable), dry frictions of
-        // width 0 as stick–slip held over each RK4 step
+        // width 0 as stick–slip held over each RK4 step; the steps also resolve the back-EMF
+        let steps = if self.emf.iter().any(|e| *e != 0.0) { steps_over(self.period, dt, self.drive_substeps.max(self.substeps)) } else { steps };
         let (plant, limits) = (self.plant, self.limits.as_deref());
         let (delayed, emf, enabled) = (&self.delayed, &self.emf, &self.enabled);
         let [minus_emf, tau_drive, stick, pos, neg, m_diag, acc] = &mut self.scratch;

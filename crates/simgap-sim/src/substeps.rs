@@ -69,6 +69,44 @@ pub fn unresolved_bands_exact(plant: &Plant, params: &SimParams, max_substeps: u
     Some(effects)
 }
 
+/// `effects` as [`unresolved_bands_exact`] leaves them for the plant of `model` under
+/// `formulation` sampled as `params` says: the same effects, with the dry frictions too stiff for
+/// the sample period made exact (unchanged when the plant cannot be built: the simulation then
+/// reports why).
+pub fn resolvable_effects(model: &simgap_core::Model, formulation: simgap_core::Formulation, effects: &[Effect], params: &SimParams, max_substeps: usize) -> Vec<Effect> {
+    match Plant::new(model, formulation, effects) {
+        Ok(plant) => unresolved_bands_exact(&plant, params, max_substeps).unwrap_or_else(|| effects.to_vec()),
+        Err(_) => effects.to_vec(),
+    }
+}
+
+/// The RK4 steps per sample `period` with a drive's back-EMF coefficients `emf` [N·m·s/rad or
+/// N·s/m] (a servo's `kt²/R` while enabled): at least `base`, raised so that `h · λ ≤ 2` for
+/// the largest rate `λ` of the friction slopes plus `emf` against `(H + diag(ia))⁻¹` at `q`
+/// (as [`effective_substeps`] does for friction alone). At most 10,000.
+pub(crate) fn drive_substeps(plant: &Plant, q: &[f64], emf: &[f64], period: f64, base: usize) -> usize {
+    let n = plant.dof();
+    let mut slope = vec![0.0; n];
+    friction_slope_bound(plant.effects(), &mut slope);
+    add_load_friction_slope(plant, &mut slope);
+    for (s, e) in slope.iter_mut().zip(emf) {
+        *s += e.max(0.0);
+    }
+    if slope.iter().all(|s| *s == 0.0) || q.len() != n || q.iter().any(|v| !v.is_finite()) {
+        return base;
+    }
+    let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), q);
+    let mut ia = vec![0.0; n];
+    armature(plant.effects(), &mut ia);
+    for i in 0..n {
+        h[(i, i)] += ia[i];
+    }
+    match h.try_inverse() {
+        Some(inv) => substeps_for_rate(period, largest_rate(&inv, &slope), base),
+        None => base,
+    }
+}
+
 /// The substeps of a sample interval of `period` seconds for friction rates `lambda` [1/s]
 /// (`h · λ ≤ 2`, see [`effective_substeps`]): at least `base`, at most 10,000.
 pub(crate) fn substeps_for_rate(period: f64, lambda: f64, base: usize) -> usize {

@@ -184,3 +184,23 @@ fn a_servo_experiment_without_its_keys_is_refused_naming_them() {
     assert!(refuse(exp(&[("duty_gain", "2"), ("supply_voltage", "12")])).contains("motor constants"));
     assert!(refuse(exp(&[("duty_gain", "2"), ("max_duty", "1.5"), ("supply_voltage", "12"), ("kt", "0.5"), ("R", "2")])).contains("max_duty"));
 }
+
+#[test]
+fn a_servo_on_a_light_link_logged_at_50_hz_runs_at_its_back_emf_speed_without_diverging() {
+    // a wrist-like link of 1e-4 kg·m² about a vertical axis: the back-EMF kt²/R = 0.125
+    // N·m·s/rad relaxes its speed within 1 ms, 20 times faster than the 20 ms sample; one RK4
+    // step per sample diverges, so the stepper takes the steps that rate asks for
+    let light = PENDULUM_URDF
+        .replace(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="0 0 1"/>"#)
+        .replace(r#"<mass value="2.0"/>"#, r#"<mass value="0.0002"/>"#)
+        .replace(r#"izz="0.02""#, r#"izz="0.00005""#);
+    let model = Model::from_urdf_str(&light).unwrap();
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &[]).unwrap();
+    let p =
+        SimParams { duration: 2.0, sample_period: 0.02, sensor: SensorParams::exact(), q0: vec![0.0], qd0: vec![0.0], substeps: 1, divergence_bound: 1e3, ..SimParams::default() };
+    let mut sink = MemorySink::new();
+    let end = simulate(&plant, &mut servo(1.0, 1.0), &Step { target: vec![1e4] }, &p, &mut sink, None).unwrap();
+    assert_eq!(end, RunEnd::Completed);
+    let (_, qd) = last(&sink.into_run());
+    assert!((qd - 24.0).abs() < 1e-3, "no-load speed {qd}, expected V/kt = 24 rad/s");
+}

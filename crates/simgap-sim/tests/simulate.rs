@@ -417,7 +417,11 @@ fn a_friction_band_faster_than_the_samples_is_the_exact_sign_at_the_samples() {
     // Coulomb friction of width 1e-4 rad/s: on the light wrist joints its band's time constant
     // is microseconds, and RK4 would need hundreds of steps per 5 ms sample
     let model = arm7();
-    let narrow = vec![Effect::Armature { ia: vec![0.2, 0.2, 0.15, 0.15, 0.02, 0.02, 0.005] }, Effect::CoulombFriction { fc: vec![1.5, 2.0, 1.2, 1.0, 0.2, 0.2, 0.05], w: vec![1e-4; 7] }, Effect::ViscousFriction { b: vec![1.2, 1.5, 0.9, 0.8, 0.08, 0.08, 0.02] }];
+    let narrow = vec![
+        Effect::Armature { ia: vec![0.2, 0.2, 0.15, 0.15, 0.02, 0.02, 0.005] },
+        Effect::CoulombFriction { fc: vec![1.5, 2.0, 1.2, 1.0, 0.2, 0.2, 0.05], w: vec![1e-4; 7] },
+        Effect::ViscousFriction { b: vec![1.2, 1.5, 0.9, 0.8, 0.08, 0.08, 0.02] },
+    ];
     let plant = Plant::new(&model, Formulation::EulerLagrange, &narrow).unwrap();
     let params = SimParams { sample_period: 0.005, substeps: 1, q0: vec![0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0], ..SimParams::default() };
     let full = simgap_sim::effective_substeps(&plant, &params);

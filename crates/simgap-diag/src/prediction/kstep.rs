@@ -23,11 +23,8 @@ use simgap_core::{Formulation, Model};
 use simgap_sim::{controller_from_experiment, unresolved_bands_exact, ControllerKind, Effect, Plant, Run, SimParams, Stepper};
 
 use crate::error::Result;
+use crate::prediction::MAX_BAND_SUBSTEPS;
 pub(crate) use crate::prepare::windows::{PredictionRun, FOLDS_PER_RUN};
-
-/// Most RK4 steps per sample a smoothed dry friction may ask for in a prediction: a band that
-/// would need more is predicted as the exact sign ([`unresolved_bands_exact`]).
-pub(crate) const MAX_BAND_SUBSTEPS: usize = 16;
 
 /// Largest error counted per joint [rad]: half a turn.
 const ERROR_CAP: f64 = std::f64::consts::PI;

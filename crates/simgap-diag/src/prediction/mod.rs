@@ -3,3 +3,8 @@
 
 pub(crate) mod kstep;
 pub(crate) mod resim;
+
+/// Most RK4 steps per sample a smoothed dry friction may ask for in a prediction or a
+/// re-simulation: a band that would need more is integrated as the exact sign
+/// ([`simgap_sim::unresolved_bands_exact`]).
+pub(crate) const MAX_BAND_SUBSTEPS: usize = 16;

@@ -1,9 +1,10 @@
 //! How far: closed-loop re-simulation of logged runs with and without effects.
 
 use simgap_core::{Formulation, Model};
-use simgap_sim::{l2_between, reference_from_run_for, simulate_experiment_with_end, Effect, Run, RunEnd, SensorParams, SimParams};
+use simgap_sim::{l2_between, reference_from_run_for, resolvable_effects, simulate_experiment_with_end, Effect, Run, RunEnd, SensorParams, SimParams};
 
 use crate::error::{Error, Result};
+use crate::prediction::MAX_BAND_SUBSTEPS;
 use crate::prepare::sensors::infer_sensors;
 
 /// The sensors the re-simulation gives the controller ([`infer_sensors`]).
@@ -40,7 +41,10 @@ pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Eff
     let params = sim_params(run, exp.sample_period);
     // a replay applies the run's efforts; a servo reads its logged voltage and torque enable
     let replay = if matches!(exp.controller, simgap_sim::ControllerKind::Replay | simgap_sim::ControllerKind::Servo) { Some(run) } else { None };
-    Ok(simulate_experiment_with_end(model, formulation, effects, exp, reference.as_ref(), &params, replay)?)
+    // a dry friction's band too narrow for the sample period as the exact sign, as k-step
+    // predictions integrate it
+    let effects = resolvable_effects(model, formulation, effects, &params, MAX_BAND_SUBSTEPS);
+    Ok(simulate_experiment_with_end(model, formulation, &effects, exp, reference.as_ref(), &params, replay)?)
 }
 
 /// PD gains [N·m/rad, N·m·s/rad] giving each joint a natural frequency `hz` and damping 0.7 on
@@ -85,7 +89,8 @@ pub(crate) fn resimulate_tracked(model: &Model, formulation: Formulation, effect
     let tracking = simgap_sim::Experiment { controller: simgap_sim::ControllerKind::Pd, kp, kv, ..exp.clone() };
     let reference = simgap_sim::Sampled { t: run.t.clone(), q: run.q.clone(), qd: if run.qd.len() == rows * n { run.qd.clone() } else { Vec::new() }, tau_ff: run.tau.clone() };
     let params = sim_params(run, exp.sample_period);
-    let (mut sim, end) = simulate_experiment_with_end(model, formulation, effects, &tracking, &reference, &params, None)?;
+    let effects = resolvable_effects(model, formulation, effects, &params, MAX_BAND_SUBSTEPS);
+    let (mut sim, end) = simulate_experiment_with_end(model, formulation, &effects, &tracking, &reference, &params, None)?;
     sim.experiment = Some(exp.clone());
     Ok((sim, end))
 }

@@ -425,18 +425,15 @@ impl Effect {
     }
 
     /// Makes the dry frictions of the joints where `exact[i]` holds the exact sign (`w = 0`,
-    /// integrated as stick–slip): Coulomb, Stribeck, directional, load and load–Stribeck
-    /// friction; any other effect is left as it is.
+    /// integrated as stick–slip): Coulomb, Stribeck and directional friction. The load
+    /// frictions, whose level follows the drive's torque within the sample, and any other
+    /// effect are left as they are.
     ///
     /// # Panics
     /// If `exact` is shorter than a friction's vector of widths.
     pub fn make_sign_exact(&mut self, exact: &[bool]) {
         let w = match self {
-            Effect::CoulombFriction { w, .. }
-            | Effect::StribeckFriction { w, .. }
-            | Effect::DirectionalFriction { w, .. }
-            | Effect::LoadFriction { w, .. }
-            | Effect::LoadStribeckFriction { w, .. } => w,
+            Effect::CoulombFriction { w, .. } | Effect::StribeckFriction { w, .. } | Effect::DirectionalFriction { w, .. } => w,
             _ => return,
         };
         for (wi, e) in w.iter_mut().zip(exact) {
