@@ -4,6 +4,8 @@
 //! (`simgap.diagnose(..., directional_friction=True)`), the type stub and the fleet's options
 //! are all built from, or checked against, [`SWITCHES`]: a new switch is one entry here.
 
+use simgap_sim::EffectKind;
+
 use crate::options::DiagnoseOptions;
 
 /// A yes/no option of [`crate::diagnose`], as every front end spells it.
@@ -26,7 +28,7 @@ pub struct Switch {
 /// Every switch of a diagnosis, in the order front ends list them.
 pub const SWITCHES: &[Switch] = &[
     Switch {
-        name: "directional_friction",
+        name: EffectKind::DirectionalFriction.as_str(),
         flag: "directional-friction",
         help: "Also try friction that differs with the direction of motion (levels and slopes per direction) in place of each \
                joint's Coulomb and viscous friction: for ball screws and worn gearboxes",
@@ -35,7 +37,7 @@ pub const SWITCHES: &[Switch] = &[
         get: |o| o.directional_friction,
     },
     Switch {
-        name: "load_stribeck_friction",
+        name: EffectKind::LoadStribeckFriction.as_str(),
         flag: "load-stribeck-friction",
         help: "On servo logs, also try the load friction rising at rest (a breakaway level above the moving one, both growing \
                with the drive's torque): for a servo that stops short of its goal and stays there while its duty rises",
@@ -98,7 +100,7 @@ mod tests {
     #[test]
     fn an_unknown_switch_is_refused_by_name() {
         let e = options_with(&[("directional_frictoin", true)]).unwrap_err();
-        assert!(e.contains("directional_frictoin") && e.contains("directional_friction"), "{e}");
+        assert!(e.contains("directional_frictoin") && e.contains(EffectKind::DirectionalFriction.as_str()), "{e}");
         assert!(options_with(&[("link_side_torque", true)]).unwrap().prepare.link_side_torque);
     }
 }

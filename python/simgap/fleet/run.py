@@ -277,7 +277,7 @@ def diagnose_fleet(
     longest wait for the next result (``TimeoutError`` past it; None waits as long as it takes).
     ``diagnose_options``: keyword arguments of :func:`simgap.diagnose` for every robot-day, e.g.
     ``{"link_side_torque": True}`` for arms whose logged effort is a joint-torque sensor's, or
-    ``{"directional_friction": True}`` for ball-screw axes.
+    one of ``simgap.DIAGNOSE_SWITCHES`` set to True (friction that differs with the direction, for ball-screw axes).
 
     Returns a :class:`FleetResult`; failed robot-days are in it with their errors.
     """

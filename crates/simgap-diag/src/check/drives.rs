@@ -12,14 +12,18 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use simgap_core::{Formulation, Model, UrdfOptions};
-use simgap_sim::{ControllerKind, Effect, Fourier, Run};
+use simgap_sim::{ControllerKind, Effect, EffectKind, Fourier, Run};
 
 use super::bench::{gains_for, generate, random_fourier, random_setpoints, zero_phase_lowpass, RefSpec, RunSpec};
 use super::selfcheck::scenarios::{as_replay, double_pendulum, draw_effects, rms, Scenario};
 use super::selfcheck::servo::servo_scenario;
 
 /// The real-drive families, in the order [`drive_scenario`] cycles through them.
-pub const DRIVE_FAMILIES: [&str; 7] = ["servo", "joint_spring", "coulomb_trap", "directional_friction", "load_friction", "link_side", "filtered"];
+pub const DRIVE_FAMILIES: [&str; 7] = ["servo", "joint_spring", "coulomb_trap", DIRECTIONAL, "load_friction", "link_side", "filtered"];
+
+/// The family of a linear axis whose friction differs with the direction of motion, named after
+/// its effect.
+pub(crate) const DIRECTIONAL: &str = EffectKind::DirectionalFriction.as_str();
 
 /// The family of real-drive scenario `index`.
 pub fn drive_family_of(index: usize) -> &'static str {
@@ -119,12 +123,12 @@ fn draw(family: &'static str, index: usize, rng: &mut ChaCha8Rng) -> crate::Resu
                 pendulum()?
             }
         }
-        "directional_friction" => Model::from_urdf_str(SLIDER_URDF)?,
+        DIRECTIONAL => Model::from_urdf_str(SLIDER_URDF)?,
         _ => Model::from_urdf_str_with(simgap_core::ARM7_URDF, "arm7.urdf", &UrdfOptions { tip: Some("panda_hand".into()) })?,
     };
     let n = model.dof();
     match family {
-        "directional_friction" => return directional(model, index, rng),
+        DIRECTIONAL => return directional(model, index, rng),
         "link_side" => return link_side(model, index, rng),
         _ => {}
     }
@@ -219,7 +223,7 @@ fn directional(model: Model, index: usize, rng: &mut ChaCha8Rng) -> crate::Resul
     let hold = spec(format!("d{index}-holdout"), 6.0, rng);
     let gen = |s: &RunSpec| generate(&model, Formulation::EulerLagrange, &effects, s, period, counts);
     let (Ok(fit), Ok(hold)) = (specs.iter().map(gen).collect::<crate::Result<Vec<Run>>>(), gen(&hold)) else { return Ok(None) };
-    Ok(Some(Scenario { directional_friction: true, ..Scenario::simulated(index, model, effects, fit, vec![hold], "directional_friction") }))
+    Ok(Some(Scenario { directional_friction: true, ..Scenario::simulated(index, model, effects, fit, vec![hold], DIRECTIONAL) }))
 }
 
 /// A `link_side` draw on the 7-DOF arm `model`.

@@ -283,7 +283,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
             let richer = found.iter().any(|(e, _)| e == EffectKind::StribeckFriction.as_str());
             (exact, format!("exactly the hidden set, not even among alternatives (a Stribeck friction selected: {richer})"))
         }
-        "directional_friction" => {
+        crate::check::drives::DIRECTIONAL => {
             // the axis is linear: its forces in N, its speeds in m/s
             let units_ok = d.report.selected_effects.iter().all(|e| e.units.values().all(|u| !u.contains("N·m") && !u.contains("rad")));
             (exact && units_ok, format!("exactly the hidden set (directional or the symmetric pair); units of a linear axis: {units_ok}"))
