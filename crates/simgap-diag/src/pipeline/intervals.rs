@@ -13,7 +13,7 @@ use crate::options::DiagnoseOptions;
 use crate::pipeline::chosen::Chosen;
 use crate::pipeline::runner::Stages;
 use crate::prepare::Prepared;
-use crate::select::plausible::Replacement;
+use crate::select::plausible::{Replacement, Rule};
 use crate::select::prediction::rank_selected;
 use crate::select::refine::{refit, shooting_score, Refined};
 use crate::select::scorer::Scorer;
@@ -35,6 +35,22 @@ pub(crate) struct Intervals {
     /// The same effects with each interval method's half-widths alone (see
     /// [`crate::Diagnosis::interval_variants`]).
     pub(crate) variants: Vec<(&'static str, Vec<EffectReport>)>,
+    /// The terms that left as no finding, as they were judged.
+    pub(crate) dropped: Vec<DroppedTerm>,
+}
+
+/// A term that left the set as no finding (the report's `dropped_effects`, completed by the
+/// notes stage with what it would have done on the held-out runs).
+pub(crate) struct DroppedTerm {
+    /// The term with its fitted values and the standard deviations it was judged by.
+    pub(crate) fitted: FittedTerm,
+    /// The rule it left by.
+    pub(crate) rule: Rule,
+    /// Why, in words.
+    pub(crate) why: String,
+    /// The fit runs' cross-validated k-step score of the set it was judged in, with it and
+    /// without it, where the rule measured them.
+    pub(crate) scores: Option<(f64, f64)>,
 }
 
 /// The intervals of one round's set.
@@ -59,6 +75,8 @@ struct Judged<'a> {
     replacements: &'a mut Vec<Replacement>,
     /// Terms kept because the fit runs are predicted worse without them.
     kept_needed: &'a mut Vec<Term>,
+    /// The terms that left, as they were judged.
+    dropped: &'a mut Vec<DroppedTerm>,
     /// The options of the diagnosis (its stop flag).
     options: &'a DiagnoseOptions,
 }
@@ -105,6 +123,7 @@ pub(crate) fn intervals(scorer: &Scorer<'_>, prep: &Prepared, chosen: Chosen, st
     // which the next round's tests compare with
     let mut unchanged_score: Option<f64> = None;
     let mut kept_needed: Vec<Term> = Vec::new();
+    let mut dropped: Vec<DroppedTerm> = Vec::new();
     let (fitted, variants) = loop {
         let (designs, sel_grams, sel_fit) = fit_terms(p, data, &selection.terms);
         selection.designs = designs;
@@ -116,7 +135,7 @@ pub(crate) fn intervals(scorer: &Scorer<'_>, prep: &Prepared, chosen: Chosen, st
             break (spread.fitted, spread.variants);
         }
         // the set judged: which terms stay
-        let judged = Judged { selection: &mut selection, replacements: &mut replacements, kept_needed: &mut kept_needed, options };
+        let judged = Judged { selection: &mut selection, replacements: &mut replacements, kept_needed: &mut kept_needed, dropped: &mut dropped, options };
         let Round { next, kept, changed, deferred, partner_left, edge_left, with_score } =
             judge_round(scorer, prep, refined.as_ref(), &spread, rounds + 1 < JUDGED_ROUNDS, unchanged_score.take(), judged)?;
         // a round that changes nothing ends the rounds
@@ -164,7 +183,7 @@ pub(crate) fn intervals(scorer: &Scorer<'_>, prep: &Prepared, chosen: Chosen, st
     };
     let chosen = Chosen { selection, replacements, score: final_score, cv: final_cv, refined, shooting_notes };
     let (effects, selected) = report_effects(model, scorer, prep, &chosen.selection.terms, &fitted, &kept_needed);
-    Ok(Intervals { chosen, effects, selected, variants })
+    Ok(Intervals { chosen, effects, selected, variants, dropped })
 }
 
 /// One round of judgments of the set (`refined`'s answer when the set was fitted by multiple
@@ -185,7 +204,7 @@ fn judge_round(
     with_score: Option<f64>,
     judged: Judged<'_>,
 ) -> Result<Round> {
-    let Judged { selection, replacements, kept_needed, options } = judged;
+    let Judged { selection, replacements, kept_needed, dropped, options } = judged;
     let (data, joints, moving, log) = (&prep.data[..], &prep.joints, prep.moving, &mut selection.log);
     let (raw_std, resampling_std) = (&spread.raw_std, &spread.resampling_std);
     // the set as fitted: shooting's answer, or the torque-residual fit
@@ -264,6 +283,8 @@ fn judge_round(
         } else {
             sd
         };
+        // the scores a test by prediction measured (with, without)
+        let mut scores: Option<(f64, f64)> = None;
         let judgment = if moving && sd.len() == k { plausible::judge(t, d, th, judged_sd, shape_sd, data, joints) } else { plausible::Judgment::Finding };
         // on a servo, a correction of the motor constants whose own interval holds no
         // effect is tested by prediction as below: it trades with a mechanical term (a
@@ -300,9 +321,10 @@ fn judge_round(
                     None => scorer.score(&without),
                 };
                 let name = t.describe(joints);
+                scores = Some((with_score, without_score));
                 if without_score.is_finite() && !(without_score > with_score) {
                     partner_left = true;
-                    plausible::Judgment::NoFinding(format!(
+                    plausible::Judgment::NoFinding(Rule::NotEstablished, format!(
                         "not a finding: the 95 % interval of {name} holds its neutral value (no effect) in every parameter, and the fit runs are predicted at least as well without it (cross-validated k-step score {without_score:.4} against {with_score:.4})"
                     ))
                 } else {
@@ -323,9 +345,12 @@ fn judge_round(
         };
         match judgment {
             plausible::Judgment::Finding => keep(t.clone(), d.clone(), &(0..k).collect::<Vec<_>>(), &mut next),
-            plausible::Judgment::NoFinding(why) => {
+            plausible::Judgment::NoFinding(rule, why) => {
                 changed = true;
                 edge_left |= plausible::at_edge(d, th).is_some();
+                let sd_all = DVector::from_fn(k, |i, _| sd.get(i).copied().unwrap_or(f64::NAN));
+                let fitted = fitted_terms(std::slice::from_ref(t), std::slice::from_ref(d), &DVector::from_column_slice(th), Some(&sd_all));
+                dropped.extend(fitted.into_iter().map(|f| DroppedTerm { fitted: f, rule, why: why.clone(), scores }));
                 log.push(select::Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: why });
             }
             plausible::Judgment::Simpler { terms: simpler, extra, why } => {

@@ -39,15 +39,37 @@ pub(crate) enum Judgment {
         /// Why, in words.
         why: String,
     },
-    /// No finding: it leaves the set.
-    NoFinding(String),
+    /// No finding by `rule`: it leaves the set (`why` in words).
+    NoFinding(Rule, String),
 }
 
 impl Judgment {
     /// Whether this is no finding because every interval, by the data's own spread, holds its
     /// neutral value (not because the term is too small to matter or at the edge of its range).
     pub(crate) fn holds_no_effect(&self) -> bool {
-        matches!(self, Judgment::NoFinding(why) if why.ends_with(HOLDS_NO_EFFECT))
+        matches!(self, Judgment::NoFinding(Rule::NotEstablished, _))
+    }
+}
+
+/// The rule by which a fitted term is no finding (the report's `dropped_effects[].rule`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Rule {
+    /// It explains less than 1 % of its joint's commanded torque (RMS).
+    TooSmall,
+    /// A coefficient sits on a bound of its physical range other than the neutral 0.
+    AtEdge,
+    /// Its 95 % interval holds its neutral value.
+    NotEstablished,
+}
+
+impl Rule {
+    /// The rule's name in the report.
+    pub(crate) fn as_str(self) -> &'static str {
+        match self {
+            Rule::TooSmall => "too_small",
+            Rule::AtEdge => "at_edge_of_range",
+            Rule::NotEstablished => "not_established",
+        }
     }
 }
 
@@ -128,19 +150,25 @@ pub(crate) fn judge(term: &Term, design: &TermDesign, theta: &[f64], std: &[f64]
     // set brought in was never asked)
     let all: Vec<usize> = (0..theta.len()).collect();
     if let Some(share) = torque_share(term, design, theta, &all, data).filter(|s| *s < MIN_TORQUE_SHARE) {
-        return Judgment::NoFinding(format!("not a finding: {name} explains {:.2} % of the commanded torque on its joint (RMS): too small to matter", 100.0 * share));
+        return Judgment::NoFinding(
+            Rule::TooSmall,
+            format!("not a finding: {name} explains {:.2} % of the commanded torque on its joint (RMS): too small to matter", 100.0 * share),
+        );
     }
     // at the edge of its physical range (a bound other than the neutral 0)
     if let Some((th, b)) = at_edge(design, theta) {
-        return Judgment::NoFinding(format!(
-            "not a finding: {name} is fitted at the edge of its physical range (coefficient {} at its bound {}): the data push it beyond what the robot can have",
-            crate::vocabulary::effects::sig3(th),
-            crate::vocabulary::effects::sig3(b)
-        ));
+        return Judgment::NoFinding(
+            Rule::AtEdge,
+            format!(
+                "not a finding: {name} is fitted at the edge of its physical range (coefficient {} at its bound {}): the data push it beyond what the robot can have",
+                crate::vocabulary::effects::sig3(th),
+                crate::vocabulary::effects::sig3(b)
+            ),
+        );
     }
     // every parameter consistent with its neutral value
     if theta.iter().zip(std).all(|(t, s)| holds_zero(*t, *s)) && std.iter().any(|s| s.is_finite()) {
-        return Judgment::NoFinding(format!("not a finding: the 95 % interval of {name} {HOLDS_NO_EFFECT}"));
+        return Judgment::NoFinding(Rule::NotEstablished, format!("not a finding: the 95 % interval of {name} {HOLDS_NO_EFFECT}"));
     }
     // a richer shape whose extra parameters are consistent with the simpler one
     if let Some(nested) = simpler(term, data) {
@@ -414,7 +442,7 @@ mod tests {
     #[test]
     fn an_armature_at_the_edge_of_its_range_is_no_finding() {
         let j = judge(&Term::Armature(0), &design(0.0, 2.0), &[2.0], &[0.1], &[0.1], &[], &["a".into()]);
-        assert!(matches!(j, Judgment::NoFinding(ref w) if w.contains("edge")), "{j:?}");
+        assert!(matches!(j, Judgment::NoFinding(Rule::AtEdge, ref w) if w.contains("edge")), "{j:?}");
         let j = judge(&Term::Armature(0), &design(0.0, 2.0), &[1.0], &[0.1], &[0.1], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
@@ -422,7 +450,7 @@ mod tests {
     #[test]
     fn an_interval_that_holds_the_neutral_value_is_no_finding() {
         let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.3], &[0.2], &[0.2], &[], &["a".into()]);
-        assert!(matches!(j, Judgment::NoFinding(ref w) if w.contains("neutral")), "{j:?}");
+        assert!(matches!(j, Judgment::NoFinding(Rule::NotEstablished, ref w) if w.contains("neutral")), "{j:?}");
         let j = judge(&Term::Offset(0), &design(-5.0, 5.0), &[0.5], &[0.2], &[0.2], &[], &["a".into()]);
         assert!(matches!(j, Judgment::Finding), "{j:?}");
     }
