@@ -19,8 +19,9 @@
 //!   intervals hold their neutral values is its simpler nested term ([`judge`], on the final
 //!   fit and its intervals).
 
+use crate::prediction::kstep;
 use crate::report::Alternative;
-use crate::select::prediction::TIE_TOLERANCE;
+use crate::select::prediction::{ADD_GAIN, PRUNE_TOLERANCE, TIE_TOLERANCE};
 use crate::select::scorer::Scorer;
 use crate::select::{self, Step};
 use crate::vocabulary::{simpler, Term, TermDesign};
@@ -44,8 +45,9 @@ pub(crate) enum Judgment {
 }
 
 impl Judgment {
-    /// Whether this is no finding because every interval, by the data's own spread, holds its
-    /// neutral value (not because the term is too small to matter or at the edge of its range).
+    /// Whether this is no finding because every 95 % interval of the term holds its neutral
+    /// value (not because the term is too small to matter or at the edge of its range): the
+    /// fit runs' cross-validated prediction then decides ([`needed_by_prediction`]).
     pub(crate) fn holds_no_effect(&self) -> bool {
         matches!(self, Judgment::NoFinding(Rule::NotEstablished, _))
     }
@@ -58,8 +60,12 @@ pub(crate) enum Rule {
     TooSmall,
     /// A coefficient sits on a bound of its physical range other than the neutral 0.
     AtEdge,
-    /// Its 95 % interval holds its neutral value.
+    /// Its 95 % interval holds its neutral value, and the fit runs are not predicted clearly
+    /// worse without it.
     NotEstablished,
+    /// The others left, and the set it was part of no longer predicts the fit runs clearly
+    /// better than the nominal model.
+    SetNoBetter,
 }
 
 impl Rule {
@@ -69,8 +75,20 @@ impl Rule {
             Rule::TooSmall => "too_small",
             Rule::AtEdge => "at_edge_of_range",
             Rule::NotEstablished => "not_established",
+            Rule::SetNoBetter => "set_no_better_than_nominal",
         }
     }
+}
+
+/// The fit runs' verdict on a term whose 95 % interval holds its neutral value: the set
+/// without it (`without_score`, its cross-validated k-step score) predicts them worse than the
+/// set with it (`with_score`) by more than the prune tolerance, in every part of them (`test`,
+/// the fold test of with against without, [`kstep::FoldTest::holds`]): the standard the prune
+/// stage holds every term of the stepwise selection to, so that a term is judged the same
+/// whichever stage brought it in. A set that cannot do without it (no prediction without it)
+/// needs it.
+pub(crate) fn needed_by_prediction(with_score: f64, without_score: f64, test: &kstep::FoldTest) -> bool {
+    !without_score.is_finite() || (without_score > with_score * (1.0 + PRUNE_TOLERANCE) && test.holds(PRUNE_TOLERANCE, ADD_GAIN))
 }
 
 /// A richer term replaced by the simpler terms nested in it, and why.
@@ -546,6 +564,19 @@ mod tests {
         let d = crate::vocabulary::design(&narrow, &data);
         let j = judge(&narrow, &d, &[1.0, 0.25, 0.5, 0.3], &[0.01; 4], &[0.01; 4], &data, &names);
         assert!(matches!(j, Judgment::Simpler { .. }), "{j:?}");
+    }
+
+    #[test]
+    fn a_term_is_needed_when_the_fit_runs_are_predicted_clearly_worse_without_it_in_every_part() {
+        let folds = |r: &[f64]| kstep::FoldTest::of(r);
+        // 10 % worse without it, in every fold
+        assert!(needed_by_prediction(0.90, 0.99, &folds(&[0.90, 0.92, 0.91, 0.89, 0.93])));
+        // better on average, worse in a fold beyond the tolerance: the luck of a few windows
+        assert!(!needed_by_prediction(0.90, 0.99, &folds(&[0.70, 0.75, 1.10, 0.95, 0.97])));
+        // consistent but within the prune tolerance of 2 %
+        assert!(!needed_by_prediction(0.90, 0.915, &folds(&[0.985, 0.984, 0.986, 0.983, 0.985])));
+        // a set that cannot predict without it
+        assert!(needed_by_prediction(0.90, f64::INFINITY, &folds(&[])));
     }
 
     #[test]
