@@ -2,13 +2,16 @@
 """Are the diagnosis's findings true? Each effect the establishment rule kept or dropped on the
 DFKI records, checked afterwards on the held-out run it never saw (docs/results/findings.md).
 
-Run after run.py, from the repository root, on the same --out:
+Run after run.py, from the repository root, on the same --out (and, for the XL330 servo, after
+examples/case-study-servo/run.py, on its --out given as --servo):
 
     python3 examples/case-study-dfki/run.py --data ../shared/data --bin target/release/simgap --out /tmp/cs
-    python3 examples/case-study-dfki/findings.py --data ../shared/data --bin target/release/simgap --out /tmp/cs
+    python3 examples/case-study-servo/run.py --data ../shared/data/rhoban-bam-xl330 --bin target/release/simgap --out /tmp/servo-cs
+    python3 examples/case-study-dfki/findings.py --data ../shared/data --bin target/release/simgap --out /tmp/cs --servo /tmp/servo-cs
 
 Python 3 standard library only. For every diagnosis report run.py wrote (`c0_hold0..4.json`,
-`a0.json`, `sp_hold_*.json`):
+`a0.json`, `sp_hold_*.json`; the servo's `fold-*/report.json`, whose held-out logs are predicted
+from the copies that run.py gives the report's servo constants, `fold-*/heldout/`):
 
   * every **kept** term (a selected effect on one joint; an inertial correction as a whole) is
     taken out of the corrected model, and `simgap predict` scores the rest on the held-out run:
@@ -35,6 +38,19 @@ HORIZONS = (0.1, 0.5)
 SAME = 0.01
 
 
+def servo_cases(out):
+    """(report, URDF, held-out logs, label) of every fold the servo case study's run.py writes."""
+    if not out:
+        return []
+    folds = sorted(d for d in os.listdir(out) if d.startswith("fold-") and os.path.exists(os.path.join(out, d, "report.json")))
+    urdf = os.path.join(out, "logs", "pendulum.urdf")
+    return [
+        (os.path.join(out, d, "report.json"), urdf, sorted(os.path.join(out, d, "heldout", f) for f in os.listdir(os.path.join(out, d, "heldout")) if f.endswith(".csv")),
+         f"XL330 servo, {d[len('fold-'):]} held out")
+        for d in folds
+    ]
+
+
 def cases(data, out):
     """(report, URDF, experiment or None, label) of every diagnosis run.py writes."""
     dp = os.path.join(data, "dfki-double-pendulum/system_identification/identified_parameters")
@@ -53,6 +69,10 @@ def terms(entry):
     if entry["effect"] == "inertial_error" or not entry.get("joints"):
         return [(entry["effect"], None)]
     return [(entry["effect"], j) for j in entry["joints"]]
+
+
+# the value of no effect of a parameter, where it is not 0
+NEUTRAL = {("torque_gain", "k"): 1.0, ("torque_saturation", "limit"): float("inf"), ("cogging", "periods_per_rev"): 1.0}
 
 
 def specs(entries, joints, without=None):
@@ -80,7 +100,7 @@ def specs(entries, joints, without=None):
             continue
         parts = []
         for k, v in p.items():
-            full = [0.0] * len(joints)
+            full = [NEUTRAL.get((name, k), 0.0)] * len(joints)
             for jn, x in zip(e["joints"], v):
                 if jn in acting:
                     full[joints.index(jn)] = x
@@ -91,9 +111,11 @@ def specs(entries, joints, without=None):
     return out
 
 
-def predict(binary, urdf, log, experiment, effects, tmp):
-    """Held-out k-step RMS at HORIZONS of the URDF plus `effects`."""
-    cmd = [binary, "predict", "--urdf", urdf, "--log", log, "--horizon", ",".join(str(h) for h in HORIZONS), "--json", tmp]
+def predict(binary, urdf, logs, experiment, effects, tmp):
+    """Held-out k-step RMS at HORIZONS of the URDF plus `effects`, over the windows of `logs`."""
+    cmd = [binary, "predict", "--urdf", urdf, "--horizon", ",".join(str(h) for h in HORIZONS), "--json", tmp]
+    for log in logs:
+        cmd += ["--log", log]
     if experiment:
         cmd += ["--experiment", experiment]
     for e in effects:
@@ -153,9 +175,10 @@ def evidence(rep, effect, joint, kept):
         return s
     e = next(e for e in rep["selected_effects"] if e["effect"] == effect and (joint is None or joint in e["joints"]))
     description = e.get("description", "")
-    if "established by prediction" in description or "not established" in description:
+    on = f" on {joint}" if joint else ""
+    if f"established by prediction{on}" in description or f"not established{on}" in description:
         return "kept by prediction, its interval holding no effect"
-    return "interval excludes no effect" if effect != "inertial_error" else "physically consistent; kept by the fit runs' prediction"
+    return "its interval excludes no effect" if effect != "inertial_error" else "physically consistent (judged by its own solver, not an interval)"
 
 
 def main():
@@ -163,18 +186,21 @@ def main():
     ap.add_argument("--data", default="../shared/data")
     ap.add_argument("--bin", default="target/release/simgap")
     ap.add_argument("--out", default="/tmp/cs")
+    ap.add_argument("--servo", default=None, help="the --out of examples/case-study-servo/run.py (optional)")
     args = ap.parse_args()
     tmp = os.path.join(args.out, "findings_predict.json")
     rows = []
-    for path, urdf, experiment, label in cases(args.data, args.out):
+    every = [(p, u, [], e, l) for p, u, e, l in cases(args.data, args.out)] + [(p, u, logs, None, l) for p, u, logs, l in servo_cases(args.servo)]
+    for path, urdf, logs, experiment, label in every:
         with open(path) as f:
             rep = json.load(f)
-        joints, log, k = rep["joints"], rep["holdout_logs"][0], rep["gap"]["kstep"]
+        joints, k = rep["joints"], rep["gap"]["kstep"]
+        logs = logs or rep["holdout_logs"]
         selected = rep["selected_effects"]
         with_all = [at(k, k["after"], h) for h in HORIZONS]
         for e in selected:
             for t in terms(e):
-                without = predict(args.bin, urdf, log, experiment, specs(selected, joints, without=t), tmp)
+                without = predict(args.bin, urdf, logs, experiment, specs(selected, joints, without=t), tmp)
                 ratio = score(without) / score(with_all)
                 rows.append((label, t, "kept", interval(e, t[1]), evidence(rep, *t, True), with_all, without, verdict(True, ratio)))
         for d in rep.get("dropped_effects", []):
