@@ -431,10 +431,10 @@ impl Report {
 }
 
 impl DroppedEffect {
-    /// One line of the terminal summary: the effect with its values and 95 % intervals, the
-    /// rule and why, and what it would have done at the longest held-out horizon (`kstep`, the
-    /// report's held-out figures), e.g. `coulomb_friction on shoulder: fc = 0.127 N·m [-0.05,
-    /// 0.30]; not established: …; held-out k-step at 0.5 s with it 0.405 rad (selected 0.446)`.
+    /// One line of the terminal summary: the effect with its values and 95 % intervals, why it
+    /// left, and what it would have done at the longest held-out horizon (`kstep`, the report's
+    /// held-out figures), e.g. `coulomb_friction on shoulder: fc = 0.1270 [-0.05300, 0.3070]
+    /// N·m; not a finding: …; held-out k-step at 0.5 s with it 4.0500e-1 (selected 4.4600e-1)`.
     pub fn summary_line(&self, kstep: &KStep) -> String {
         let e = &self.fitted;
         let on = if e.joints.is_empty() { String::new() } else { format!(" on {}", e.joints.join(", ")) };
@@ -577,10 +577,11 @@ mod tests {
         };
         let kstep = KStep { horizons_s: vec![0.1, 0.5], after: vec![0.0246, 0.446], ..Default::default() };
         let line = d.summary_line(&kstep);
-        assert!(line.starts_with("coulomb_friction on shoulder: fc = 0.1270 [-0.05300, 0.3070] N·m; not a finding"), "{line}");
+        let name = EffectKind::CoulombFriction.as_str();
+        assert!(line.starts_with(&format!("{name} on shoulder: fc = 0.1270 [-0.05300, 0.3070] N·m; not a finding")), "{line}");
         assert!(line.ends_with("held-out k-step at 0.5 s with it 4.0500e-1 (selected 4.4600e-1)"), "{line}");
         let json = serde_json::to_value(&d).unwrap();
-        assert_eq!(json["effect"], "coulomb_friction", "the entry's fields are flattened: {json}");
+        assert_eq!(json["effect"], name, "the entry's fields are flattened: {json}");
         assert_eq!(json["rule"], "not_established");
         assert_eq!(json["parameters"]["fc"][0], 0.127);
     }
