@@ -19,9 +19,8 @@
 //!   intervals hold their neutral values is its simpler nested term ([`judge`], on the final
 //!   fit and its intervals).
 
-use crate::prediction::kstep;
 use crate::report::Alternative;
-use crate::select::prediction::{ADD_GAIN, PRUNE_TOLERANCE, TIE_TOLERANCE};
+use crate::select::prediction::{PRUNE_TOLERANCE, TIE_TOLERANCE};
 use crate::select::scorer::Scorer;
 use crate::select::{self, Step};
 use crate::vocabulary::{simpler, Term, TermDesign};
@@ -82,13 +81,20 @@ impl Rule {
 
 /// The fit runs' verdict on a term whose 95 % interval holds its neutral value: the set
 /// without it (`without_score`, its cross-validated k-step score) predicts them worse than the
-/// set with it (`with_score`) by more than the prune tolerance, in every part of them (`test`,
-/// the fold test of with against without, [`kstep::FoldTest::holds`]): the standard the prune
-/// stage holds every term of the stepwise selection to, so that a term is judged the same
-/// whichever stage brought it in. A set that cannot do without it (no prediction without it)
+/// set with it (`with_score`) by more than the prune tolerance, the margin by which the prune
+/// stage calls a stepwise term weak. A set that cannot do without it (no prediction without it)
 /// needs it.
-pub(crate) fn needed_by_prediction(with_score: f64, without_score: f64, test: &kstep::FoldTest) -> bool {
-    !without_score.is_finite() || (without_score > with_score * (1.0 + PRUNE_TOLERANCE) && test.holds(PRUNE_TOLERANCE, ADD_GAIN))
+///
+/// The fold test of with against without ([`crate::prediction::kstep::FoldTest`]) is evidence
+/// the report states, not a condition: the term's set passed its own fold test against the
+/// nominal model when it was selected, and a member's fold ratios, each fold fitted again by
+/// multiple shooting, are heavy-tailed. (On the Rhoban XL330 logs, `lift_and_drop` held out, the servo's
+/// set predicts the fit runs at 0.265 of the nominal model's error and at 0.551 without its
+/// torque gain, whose interval holds 1; one fold of ten was 60 times worse with it, so the fold
+/// test failed, and the gain dropped by it took the held-out 0.5 s error from 46.9 to 105.8
+/// mrad.)
+pub(crate) fn needed_by_prediction(with_score: f64, without_score: f64) -> bool {
+    !without_score.is_finite() || without_score > with_score * (1.0 + PRUNE_TOLERANCE)
 }
 
 /// A richer term replaced by the simpler terms nested in it, and why.
@@ -567,16 +573,17 @@ mod tests {
     }
 
     #[test]
-    fn a_term_is_needed_when_the_fit_runs_are_predicted_clearly_worse_without_it_in_every_part() {
-        let folds = |r: &[f64]| kstep::FoldTest::of(r);
-        // 10 % worse without it, in every fold
-        assert!(needed_by_prediction(0.90, 0.99, &folds(&[0.90, 0.92, 0.91, 0.89, 0.93])));
-        // better on average, worse in a fold beyond the tolerance: the luck of a few windows
-        assert!(!needed_by_prediction(0.90, 0.99, &folds(&[0.70, 0.75, 1.10, 0.95, 0.97])));
-        // consistent but within the prune tolerance of 2 %
-        assert!(!needed_by_prediction(0.90, 0.915, &folds(&[0.985, 0.984, 0.986, 0.983, 0.985])));
+    fn a_term_is_needed_when_the_fit_runs_are_predicted_worse_without_it_by_the_prune_tolerance() {
+        // 10 % worse without it
+        assert!(needed_by_prediction(0.90, 0.99));
+        // twice as bad without it (whatever one fold of a noisy shooting refit says)
+        assert!(needed_by_prediction(0.265, 0.551));
+        // within the prune tolerance of 2 %
+        assert!(!needed_by_prediction(0.90, 0.915));
+        // predicted better without it
+        assert!(!needed_by_prediction(0.171, 0.161));
         // a set that cannot predict without it
-        assert!(needed_by_prediction(0.90, f64::INFINITY, &folds(&[])));
+        assert!(needed_by_prediction(0.90, f64::INFINITY));
     }
 
     #[test]
