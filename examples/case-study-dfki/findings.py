@@ -178,7 +178,10 @@ def evidence(rep, effect, joint, kept):
     on = f" on {joint}" if joint else ""
     if f"established by prediction{on}" in description or f"not established{on}" in description:
         return "kept by prediction, its interval holding no effect"
-    return "its interval excludes no effect" if effect != "inertial_error" else "physically consistent (judged by its own solver, not an interval)"
+    if effect == "inertial_error":
+        return "physically consistent (judged by its own solver, not an interval)"
+    finite = [x for v in (e.get("uncertainty") or {}).values() for x in (v if isinstance(v, list) else [v]) if isinstance(x, (int, float)) and math.isfinite(x)]
+    return "its interval excludes the value of no effect" if finite else "searched on a grid (no interval)"
 
 
 def main():
