@@ -156,8 +156,8 @@ fn the_rhoban_servo_logs_are_diagnosed_and_the_held_out_trajectory_predicted_bet
     let notes = r["notes"].to_string();
     assert!(notes.contains("delete-one-log jackknife"), "{notes}");
     // a selected effect whose 95 % intervals all hold its neutral value (k = 1 for a gain, 0
-    // otherwise) says it is not established, in its description and so in the summary; no
-    // other does
+    // otherwise) says it is established by prediction and not by its interval, in its
+    // description and so in the summary; no other does
     for e in r["selected_effects"].as_array().unwrap() {
         let neutral = |name: &str| if e["effect"] == "torque_gain" && name == "k" { 1.0 } else { 0.0 };
         let mut finite = 0;
@@ -172,10 +172,10 @@ fn the_rhoban_servo_logs_are_diagnosed_and_the_held_out_trajectory_predicted_bet
         }
         if finite > 0 && holds {
             let description = e["description"].as_str().unwrap();
-            assert!(description.contains("not established"), "{}: {description}", e["effect"]);
+            assert!(description.contains("established by prediction"), "{}: {description}", e["effect"]);
             assert!(text(&o).contains(description), "the summary states it:\n{}", text(&o));
         } else {
-            assert!(!e["description"].as_str().unwrap().contains("not established"), "{}: {}", e["effect"], e["description"]);
+            assert!(!e["description"].as_str().unwrap().contains("established by prediction"), "{}: {}", e["effect"], e["description"]);
         }
     }
 }

@@ -1,27 +1,33 @@
 //! The notes stage: the alternatives to the selected set ([`crate::select::alternatives`],
-//! [`crate::select::plausible::richer_alternatives`]) and the report's notes: the logs', multiple
+//! [`crate::select::plausible::richer_alternatives`]), the effects dropped as no finding with
+//! what each would have done on the held-out runs, and the report's notes: the logs', multiple
 //! shooting's, a servo's by phase and temperature, the URDF's pitfalls
 //! ([`crate::report::pitfalls`]), the actuator and mechanics parts of the gap, and what the
 //! held-out prediction leaves ([`crate::report::verdict::residual_notes`]).
 
+use rayon::prelude::*;
 use simgap_sim::EffectKind;
 
 use crate::pipeline::candidates::Candidates;
 use crate::pipeline::how_far::HowFar;
 use crate::pipeline::intervals::Intervals;
 use crate::pipeline::locate::Located;
+use crate::prediction::kstep;
 use crate::prepare::Prepared;
 use crate::report::residual::ResidualTest;
 use crate::report::units::Units;
 use crate::report::verdict::residual_notes;
-use crate::report::{pitfalls, Alternative};
+use crate::report::{pitfalls, Alternative, DroppedEffect};
 use crate::select::alternatives::alternatives;
 use crate::select::plausible;
 use crate::select::prediction::{fits_in, ADD_GAIN};
 use crate::select::scorer::Scorer;
+use crate::vocabulary::effects;
 
-/// The alternatives and notes of the report.
+/// The alternatives, dropped effects and notes of the report.
 pub(crate) struct Notes {
+    /// The effects that left as no finding, with what each would have done on the held-out runs.
+    pub(crate) dropped: Vec<DroppedEffect>,
     /// Sets that predict the fit runs about as well as the selected one.
     pub(crate) alternatives: Vec<Alternative>,
     /// The report's notes, in the order they are stated.
@@ -99,5 +105,32 @@ pub(crate) fn notes(scorer: &Scorer<'_>, prep: &Prepared, located: &Located, can
     }
     // what the held-out prediction leaves
     notes.extend(residual_notes(&how_far.kstep, &intervals.chosen.cv, &scorer.nominal, horizons, &units.position));
-    Notes { alternatives, notes, residual: Vec::new() }
+    let dropped = dropped_effects(scorer, prep, intervals);
+    Notes { alternatives, dropped, notes, residual: Vec::new() }
+}
+
+/// The effects that left as no finding, each as it was judged, with the held-out k-step error of
+/// the selected effects with it added: what it would have done, measured after every decision
+/// (as the screen stage measures every candidate alone), so that a user sees what was dropped
+/// and why, not "nothing significant".
+fn dropped_effects(scorer: &Scorer<'_>, prep: &Prepared, intervals: &Intervals) -> Vec<DroppedEffect> {
+    let (model, formulation, horizons) = (scorer.model, scorer.formulation, &prep.horizons);
+    intervals
+        .dropped
+        .par_iter()
+        .filter_map(|d| {
+            let fitted = effects::to_reports(model, std::slice::from_ref(&d.fitted)).into_iter().next()?;
+            let mut with = intervals.effects.clone();
+            with.extend(effects::to_effects(model, std::slice::from_ref(&d.fitted)));
+            let holdout_kstep_with = kstep::predict_all(model, formulation, &with, &prep.hold_pred, horizons).map(|e| e.0.rms()).unwrap_or_else(|_| vec![f64::NAN; horizons.len()]);
+            Some(DroppedEffect {
+                fitted,
+                rule: d.rule.as_str().to_string(),
+                why: d.why.clone(),
+                fit_score_with: d.scores.map(|s| s.0),
+                fit_score_without: d.scores.map(|s| s.1),
+                holdout_kstep_with,
+            })
+        })
+        .collect()
 }

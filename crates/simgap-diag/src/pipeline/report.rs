@@ -23,7 +23,7 @@ pub(crate) fn report(scorer: &Scorer<'_>, prep: &Prepared, located: Located, can
     let units = Units::of(&kinds);
     // headline: the held-out figure that holds for these runs
     let (headline, headline_reason) = headline(&prep.hold_runs, &h.before_runs, &h.after_runs, h.before, &units.position);
-    let Notes { alternatives, notes, residual } = notes;
+    let Notes { alternatives, dropped, notes, residual } = notes;
     // one verdict
     let verdict = verdict(prep.moving, &intervals.selected, &headline, &h.kstep, (h.before, h.after), &h.before_runs, &units);
     // the selection log in words
@@ -43,6 +43,7 @@ pub(crate) fn report(scorer: &Scorer<'_>, prep: &Prepared, located: Located, can
         holdout_logs: prep.hold_runs.iter().map(|r| r.source.clone()).collect(),
         verdict,
         selected_effects: intervals.selected.clone(),
+        dropped_effects: dropped,
         candidates,
         alternatives,
         notes,

@@ -121,6 +121,35 @@ pub struct Alternative {
     pub why: String,
 }
 
+/// An effect the diagnosis fitted and then dropped as no finding (the report's
+/// `dropped_effects`): what it was, by which rule it left, the fit runs' evidence, and what it
+/// would have done on the held-out runs, measured after every decision.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DroppedEffect {
+    /// The effect as fitted when it was judged: `effect`, `joints`, `parameters`, `uncertainty`
+    /// (the 95 % half-widths it was judged by), `units`, `description`.
+    #[serde(flatten)]
+    pub fitted: EffectReport,
+    /// The rule: `too_small` (less than 1 % of its joint's commanded torque), `at_edge_of_range`,
+    /// `not_established` (its 95 % interval holds its neutral value and the fit runs are not
+    /// predicted worse without it by more than 2 %), `set_no_better_than_nominal` (the others
+    /// left, and the set no longer predicts the fit runs better than the nominal model by 2 %,
+    /// in every part of them).
+    pub rule: String,
+    /// Why, in words, with the figures.
+    pub why: String,
+    /// The fit runs' cross-validated k-step score (error relative to the nominal model's,
+    /// geometric mean over horizons) of the set it was judged in, with it; `null` where the rule
+    /// did not need it.
+    pub fit_score_with: Option<f64>,
+    /// The same without it.
+    pub fit_score_without: Option<f64>,
+    /// Held-out k-step error of the selected effects with this one added [rad or m], aligned
+    /// with `gap.kstep.horizons_s`: what it would have done, measured after the decision (the
+    /// held-out runs decide nothing).
+    pub holdout_kstep_with: Vec<f64>,
+}
+
 /// The gap before and after (the report's `gap`).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Gap {
@@ -193,6 +222,9 @@ pub struct Report {
     pub verdict: String,
     /// Effects the tool concludes explain the gap (empty when nothing significant remains).
     pub selected_effects: Vec<EffectReport>,
+    /// Effects fitted and then dropped as no finding, with the rule, the fit runs' evidence and
+    /// what each would have done on the held-out runs.
+    pub dropped_effects: Vec<DroppedEffect>,
     /// Every effect tried, ranked.
     pub candidates: Vec<Candidate>,
     /// Effect sets the data cannot tell apart from the selected set (empty when they decide).
@@ -343,6 +375,12 @@ impl Report {
                 let _ = writeln!(s, "  {:<20} {}", "", e.description);
             }
         }
+        if !self.dropped_effects.is_empty() {
+            let _ = writeln!(s, "\nDROPPED (fitted, then not a finding; held-out figures measured after the decision)");
+            for d in &self.dropped_effects {
+                let _ = writeln!(s, "  {}", d.summary_line(&self.gap.kstep));
+            }
+        }
         if !self.alternatives.is_empty() {
             let _ = writeln!(s, "\nALTERNATIVES (explain the fit runs as well; these data cannot tell them apart)");
             for a in &self.alternatives {
@@ -391,6 +429,71 @@ impl Report {
         let _ = writeln!(s, "\n{}", a.text);
         s
     }
+}
+
+impl DroppedEffect {
+    /// One line of the terminal summary: the effect with its values and 95 % intervals, why it
+    /// left, and what it would have done at the longest held-out horizon (`kstep`, the report's
+    /// held-out figures), e.g. `coulomb_friction on shoulder: fc = 0.1270 [-0.05300, 0.3070]
+    /// N·m; not a finding: …; held-out k-step at 0.5 s with it 4.0500e-1 (selected 4.4600e-1)`.
+    pub fn summary_line(&self, kstep: &KStep) -> String {
+        let e = &self.fitted;
+        let on = if e.joints.is_empty() { String::new() } else { format!(" on {}", e.joints.join(", ")) };
+        let params: Vec<String> = e
+            .parameters
+            .iter()
+            .filter(|(_, v)| !matches!(v, Param::PerLink(_)))
+            .map(|(k, v)| {
+                let unit = e.units.get(k).map(String::as_str).filter(|u| *u != "-" && !u.is_empty()).map_or(String::new(), |u| format!(" {u}"));
+                format!("{k} = {}{unit}", fmt_interval(v, e.uncertainty.get(k)))
+            })
+            .collect();
+        let last = kstep.horizons_s.len().checked_sub(1);
+        let held = match last.and_then(|i| Some((kstep.horizons_s[i], *self.holdout_kstep_with.get(i)?, *kstep.after.get(i)?))) {
+            Some((h, with, after)) if with.is_finite() => format!("; held-out k-step at {h} s with it {with:.4e} (selected {after:.4e})"),
+            _ => String::new(),
+        };
+        format!("{}{on}: {}; {}{held}", e.effect.as_str(), params.join(", "), self.why)
+    }
+}
+
+/// A parameter, each value with its 95 % interval `[lo, hi]` where `half_width` gives a finite
+/// half-width of the same layout: `0.127 [-0.052, 0.306]`, per joint `[0.0176 [..], 0.0100]`.
+fn fmt_interval(p: &Param, half_width: Option<&Param>) -> String {
+    let halves: &[f64] = match (p, half_width) {
+        (Param::Number(_), Some(Param::Number(u))) => std::slice::from_ref(u),
+        (Param::PerJoint(v), Some(Param::PerJoint(u))) | (Param::Vector(v), Some(Param::Vector(u))) if u.len() == v.len() => u,
+        _ => &[],
+    };
+    let one = |i: usize, x: f64| match halves.get(i).filter(|u| u.is_finite()) {
+        Some(u) => format!("{} [{}, {}]", sig4(x), sig4(x - u), sig4(x + u)),
+        None => sig4(x),
+    };
+    match p {
+        Param::Number(x) => one(0, *x),
+        Param::PerJoint(v) | Param::Vector(v) => {
+            let all: Vec<String> = v.iter().enumerate().map(|(i, x)| one(i, *x)).collect();
+            if all.len() == 1 {
+                all.into_iter().next().unwrap_or_default()
+            } else {
+                format!("[{}]", all.join(", "))
+            }
+        }
+        Param::PerLink(v) => format!("{} links", v.len()),
+    }
+}
+
+/// `x` with four significant digits.
+fn sig4(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let a = x.abs();
+    if !(1e-3..1e4).contains(&a) {
+        return format!("{x:.3e}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+    format!("{x:.decimals$}")
 }
 
 /// A parameter, each value with its 95 % half-width where `half_width` gives a finite one of
@@ -451,5 +554,36 @@ impl Diagnosis {
         let map: serde_json::Map<String, serde_json::Value> =
             self.interval_variants.iter().map(|(name, reports)| (name.to_string(), serde_json::to_value(reports).unwrap_or(serde_json::Value::Null))).collect();
         serde_json::Value::Object(map).to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_dropped_effect_says_its_values_intervals_rule_and_what_it_would_have_done() {
+        let mut fitted = EffectReport::new(EffectKind::CoulombFriction);
+        fitted.joints = vec!["shoulder".into()];
+        fitted.parameters.insert("fc".into(), Param::PerJoint(vec![0.127]));
+        fitted.uncertainty.insert("fc".into(), Param::PerJoint(vec![0.18]));
+        fitted.units.insert("fc".into(), "N·m".into());
+        let d = DroppedEffect {
+            fitted,
+            rule: "not_established".into(),
+            why: "not a finding: the 95 % interval holds its neutral value".into(),
+            fit_score_with: Some(0.94),
+            fit_score_without: Some(0.95),
+            holdout_kstep_with: vec![0.0238, 0.405],
+        };
+        let kstep = KStep { horizons_s: vec![0.1, 0.5], after: vec![0.0246, 0.446], ..Default::default() };
+        let line = d.summary_line(&kstep);
+        let name = EffectKind::CoulombFriction.as_str();
+        assert!(line.starts_with(&format!("{name} on shoulder: fc = 0.1270 [-0.05300, 0.3070] N·m; not a finding")), "{line}");
+        assert!(line.ends_with("held-out k-step at 0.5 s with it 4.0500e-1 (selected 4.4600e-1)"), "{line}");
+        let json = serde_json::to_value(&d).unwrap();
+        assert_eq!(json["effect"], name, "the entry's fields are flattened: {json}");
+        assert_eq!(json["rule"], "not_established");
+        assert_eq!(json["parameters"]["fc"][0], 0.127);
     }
 }

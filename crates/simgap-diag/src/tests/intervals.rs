@@ -2,7 +2,7 @@
 
 use crate::lsq::t_quantile_975;
 use crate::select::refine::jackknife_variance;
-use crate::select::uncertainty::{interval_std, spread_or_bias_std, PipelineMeasure};
+use crate::select::uncertainty::{interval_std, method_disagreement, spread_or_bias_std, PipelineMeasure};
 use nalgebra::DVector;
 
 #[test]
@@ -56,6 +56,20 @@ fn the_rule_before_took_the_larger_of_the_spread_and_the_pipeline_error() {
     let jack = DVector::from_vec(vec![2.0, 1.0, f64::NAN, 0.5]);
     let bias = DVector::from_vec(vec![0.0, 4.0, f64::NAN, -1.5]);
     assert_eq!(spread_or_bias_std(&boot, &jack, Some(&bias)).as_slice(), &[2.0, 4.0, 2.0, 1.5]);
+}
+
+#[test]
+fn two_methods_disagree_by_at_most_the_torque_residual_fits_own_error_and_the_scatter() {
+    // runs that follow the fitted model: the torque-residual fit's error explains the
+    // disagreement, which counts whole
+    assert_eq!(method_disagreement(-0.03, Some(0.025), 0.01), 0.03);
+    // a real robot: the excess over that error and 1.96 σ is model mismatch, not counted
+    // (C.0's Coulomb friction on its second joint: d ≈ 0.07, own σ 0.007)
+    let counted = method_disagreement(0.07, Some(0.01), 0.007);
+    assert!((counted - (0.01 + crate::lsq::Z95 * 0.007)).abs() < 1e-12, "{counted}");
+    // unmeasured: the whole disagreement counts (wide, not understated)
+    assert_eq!(method_disagreement(0.07, None, 0.007), 0.07);
+    assert_eq!(method_disagreement(0.07, Some(f64::NAN), 0.007), 0.07);
 }
 
 #[test]

@@ -204,7 +204,7 @@ fn a_stalled_servo_s_intervals_come_from_the_jackknife_over_its_fit_logs_and_hol
     let viscous = r.selected_effects.iter().find(|e| e.effect.as_str() == "viscous_friction").unwrap_or_else(|| panic!("no viscous friction\n{}", r.summary()));
     let (Param::PerJoint(b), Param::PerJoint(u)) = (&viscous.parameters["b"], &viscous.uncertainty["b"]) else { panic!("{viscous:?}") };
     assert!((b[0] - 0.3).abs() <= u[0], "b = {} ± {}, truth 0.3\n{}", b[0], u[0], r.summary());
-    assert!(!viscous.description.contains("not established"), "{}\n{}", viscous.description, r.summary());
+    assert!(!viscous.description.contains("established by prediction"), "{}\n{}", viscous.description, r.summary());
     assert_most_torque(r, 6.0);
 }
 

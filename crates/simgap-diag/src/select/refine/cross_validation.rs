@@ -25,6 +25,9 @@ pub(crate) struct Tried {
     pub(crate) score: f64,
     /// Whether its gain over the nominal model holds fold by fold.
     pub(crate) test: kstep::FoldTest,
+    /// The cross-validated errors of every fit window (empty where not kept), for fold tests
+    /// against other sets.
+    pub(crate) errors: kstep::Errors,
 }
 
 /// Levenberg–Marquardt iterations at most of a shooting fit on servo logs (10 elsewhere,
@@ -142,5 +145,5 @@ pub(super) fn try_set(
     let score = kstep::score(&cv, &scorer.nominal);
     let test = scorer.against_nominal(&all);
     let cv_per_run = merged.iter().map(kstep::Errors::rms).collect();
-    Ok(Tried { name: name.to_string(), terms: terms.to_vec(), designs, halves, cv, cv_per_run, score, test })
+    Ok(Tried { name: name.to_string(), terms: terms.to_vec(), designs, halves, cv, cv_per_run, score, test, errors: all })
 }

@@ -94,7 +94,7 @@ pub(crate) fn drive_in_place_of_inertia(scorer: &Scorer<'_>, r: &Refined, option
     }
     let what =
         "the drive's torque gain and rotor inertia in place of the inertial correction (the motor constants were fitted, the URDF's inertia is as published), the parameters";
-    let (refined, mut notes) = finish(scorer, &r.runs, &sopts, tried, what, options.stop.as_deref())?;
+    let (refined, mut notes) = finish(scorer, &r.runs, &sopts, tried, what, options)?;
     notes.insert(0, format!("{head}: within {:.0} %, so the drive's terms are selected", 100.0 * PRUNE_TOLERANCE));
     Ok((Some(refined), notes))
 }

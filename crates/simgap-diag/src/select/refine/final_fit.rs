@@ -3,6 +3,7 @@
 //! delete-one-log jackknife's ([`jackknife_variance`]).
 
 use crate::error::Result;
+use crate::options::DiagnoseOptions;
 use crate::prediction::kstep::{self, FOLDS_PER_RUN};
 use crate::select::scorer::Scorer;
 use crate::select::shooting;
@@ -29,6 +30,8 @@ pub(crate) struct Refined {
     /// Whether `score` is still the score of `terms` (false once a term left or was replaced
     /// without a refit).
     pub(crate) scored_as_is: bool,
+    /// The cross-validated errors of every fit window behind `score`.
+    pub(crate) errors: kstep::Errors,
     /// The set as its two-fold cross-validation fitted it (terms, designs, each half's answer):
     /// the leak-free starts of a set with a term more or less.
     pub(crate) halves: (Vec<Term>, Vec<TermDesign>, Vec<nalgebra::DVector<f64>>),
@@ -45,8 +48,9 @@ pub(super) fn finish(
     sopts: &shooting::Options,
     best: Tried,
     what: &str,
-    stop: Option<&std::sync::atomic::AtomicBool>,
+    options: &DiagnoseOptions,
 ) -> Result<(Refined, Vec<String>)> {
+    let stop = options.stop.as_deref();
     let (model, formulation, ctx) = (scorer.model, scorer.formulation, scorer.ctx);
     let mut notes = Vec::new();
     let keep = |_: usize, _: usize| true;
@@ -103,7 +107,7 @@ pub(super) fn finish(
             j.len()
         )
     } else {
-        ", and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes)".to_string()
+        ", and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes), up to what that fit's own error on the fit runs re-simulated with the answer and 1.96 times the spread above explain (the rest is model mismatch the two methods read differently)".to_string()
     };
     notes.push(format!(
         "{what} by multiple shooting on all fit runs {moved} (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals and a quarter of the squared difference of the two halves' answers (each half fitted again from its answer and from the answer on all fit runs, the lower cost on it kept){method_term}",
@@ -138,9 +142,21 @@ pub(super) fn finish(
         _ => None,
     };
     let jack_var = jackknife.as_deref().map(jackknife_variance);
+    // the torque-residual fit's own error on runs that follow the shooting answer: what of its
+    // disagreement with that answer the data can make (`uncertainty::method_disagreement`)
+    let method_error = if jack_var.is_none() && !filtered {
+        crate::select::uncertainty::torque_residual_error(model, formulation, &scorer.prep.fit_runs, &best.terms, &best.designs, &shot.theta, &options.prepare)
+    } else {
+        None
+    };
     for i in 0..shot.theta.len() {
         let half = halves.map_or(0.0, |(a, b)| 0.5 * (a[i] - b[i]));
-        let disagreement = || f.theta.get(i).map_or(0.0, |t| (shot.theta[i] - t).powi(2));
+        let scatter = shot.std[i].hypot(half);
+        let disagreement = || {
+            f.theta
+                .get(i)
+                .map_or(0.0, |t| crate::select::uncertainty::method_disagreement(shot.theta[i] - t, method_error.as_ref().and_then(|b| b.get(i).copied()), scatter).powi(2))
+        };
         let other = match &jack_var {
             Some(v) => v.get(i).copied().filter(|x| x.is_finite()).unwrap_or_else(disagreement),
             None if filtered => 0.0,
@@ -182,6 +198,7 @@ pub(super) fn finish(
             cv: best.cv,
             score: best.score,
             scored_as_is: true,
+            errors: best.errors,
             halves,
             runs: shoot_runs.clone(),
         },

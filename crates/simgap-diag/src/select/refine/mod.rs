@@ -26,7 +26,7 @@ use cross_validation::{shooting_options, transfer, try_set, Tried};
 pub(crate) use drive_in_place_of_inertia::drive_in_place_of_inertia;
 use final_fit::finish;
 pub(crate) use final_fit::Refined;
-pub(crate) use refit::{refit, shooting_score};
+pub(crate) use refit::{refit, shooting_errors};
 use servo_sets::{load_friction_at_rest, servo_limit};
 // (the scorer caches the stalled joints and names them by this path)
 pub(super) use servo_sets::stalled_joints;
@@ -196,7 +196,7 @@ pub(crate) fn refine_by_shooting(
     // the chosen set on all fit runs
     progress(Progress { stage: "refining by multiple shooting", done: total - 1, total });
     let best = tried.swap_remove(bi);
-    let (refined, more) = finish(scorer, &shoot_runs, &sopts, best, "the parameters of the selected effects are fitted", stop)?;
+    let (refined, more) = finish(scorer, &shoot_runs, &sopts, best, "the parameters of the selected effects are fitted", options)?;
     notes.extend(more);
     Ok((Some(refined), notes))
 }

@@ -1,5 +1,5 @@
 //! A shooting-refined set fitted again ([`refit`]) or scored with a term more or less
-//! ([`shooting_score`]), each half started from the set's own answer on that half.
+//! ([`shooting_errors`]), each half started from the set's own answer on that half.
 
 use crate::error::Result;
 use crate::options::DiagnoseOptions;
@@ -26,23 +26,23 @@ pub(crate) fn refit(scorer: &Scorer<'_>, r: &Refined, options: &DiagnoseOptions)
     let sopts = shooting_options(scorer);
     let tried = try_from(scorer, &sopts, r, &r.terms, options)?;
     let what = "after a term that is no finding left the set, the parameters of the others are fitted again";
-    finish(scorer, &r.runs, &sopts, tried, what, options.stop.as_deref()).map(Some)
+    finish(scorer, &r.runs, &sopts, tried, what, options).map(Some)
 }
 
-/// The two-fold cross-validated k-step score ([`kstep::score`]) of `terms` fitted by multiple
-/// shooting as the shooting stage scores its sets, each half started from the torque-residual
-/// fit and from `r`'s answer on the same half (shared terms; never from an answer that saw the
-/// held half): what the fit runs say of `r`'s set with a term more or less, on the same footing
-/// as the model the report states.
+/// The two-fold cross-validated errors of every fit window of `terms` fitted by multiple
+/// shooting as the shooting stage fits its sets, each half started from the torque-residual fit
+/// and from `r`'s answer on the same half (shared terms; never from an answer that saw the held
+/// half): what the fit runs say of `r`'s set with a term more or less, on the same footing as
+/// the model the report states (its score is [`kstep::score`] of their RMS). The nominal
+/// model's for no terms; `None` when that prediction failed.
 ///
 /// # Errors
 /// As [`refine_by_shooting`](super::refine_by_shooting).
-pub(crate) fn shooting_score(scorer: &Scorer<'_>, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<f64> {
+pub(crate) fn shooting_errors(scorer: &Scorer<'_>, r: &Refined, terms: &[Term], options: &DiagnoseOptions) -> Result<Option<std::sync::Arc<kstep::Errors>>> {
     if terms.is_empty() {
-        // the nominal model, whose score is 1 by definition
-        return Ok(scorer.score(terms));
+        return Ok(scorer.cv_errors(terms));
     }
-    Ok(try_from(scorer, &shooting_options(scorer), r, terms, options)?.score)
+    Ok(Some(std::sync::Arc::new(try_from(scorer, &shooting_options(scorer), r, terms, options)?.errors)))
 }
 
 /// [`try_set`] of `terms`, each half started also from `r`'s answer on that half where they
@@ -66,5 +66,6 @@ pub(super) fn as_tried(r: &Refined) -> Tried {
         cv_per_run: Vec::new(),
         score: r.score,
         test: kstep::FoldTest::of(&[]),
+        errors: r.errors.clone(),
     }
 }
