@@ -116,7 +116,8 @@ struct Spread {
 }
 
 /// What one round of judgments changes beside the set: the selection log, the replacements, the
-/// terms kept although their interval holds no effect (tested once: later rounds keep them).
+/// terms kept although their interval holds no effect, the terms that left, and the terms asked
+/// of prediction (each once: later rounds keep a term that passed).
 struct Judged<'a> {
     /// The selection (its log grows; its terms and fit are the set judged without shooting).
     selection: &'a mut Selection,

@@ -59,11 +59,11 @@ pub(crate) enum Rule {
     TooSmall,
     /// A coefficient sits on a bound of its physical range other than the neutral 0.
     AtEdge,
-    /// Its 95 % interval holds its neutral value, and the fit runs are not predicted clearly
-    /// worse without it.
+    /// Its 95 % interval holds its neutral value, and the fit runs are not predicted worse
+    /// without it by more than the prune tolerance ([`needed_by_prediction`]).
     NotEstablished,
-    /// The others left, and the set it was part of no longer predicts the fit runs clearly
-    /// better than the nominal model.
+    /// The others left, and the set it was part of no longer predicts the fit runs better than
+    /// the nominal model by 2 %, in every part of them (the prune stage's test of its set).
     SetNoBetter,
 }
 
