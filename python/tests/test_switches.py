@@ -32,10 +32,12 @@ def test_the_table_names_each_switch_once_with_a_bool_default_and_help() -> None
 def test_the_stub_lists_every_switch_as_a_keyword_with_its_default() -> None:
     tree = ast.parse(STUB.read_text())
     fn = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "diagnose")
-    after_urdf = [a.arg for a in fn.args.kwonlyargs]
-    after_urdf = after_urdf[after_urdf.index("urdf") + 1 :]
+    keywords = [a.arg for a in fn.args.kwonlyargs]
+    names = [name for name, _, _ in simgap.DIAGNOSE_SWITCHES]
     defaults = {a.arg: d for a, d in zip(fn.args.kwonlyargs, fn.args.kw_defaults)}
-    assert after_urdf == [name for name, _, _ in simgap.DIAGNOSE_SWITCHES], "the stub's diagnose keywords after urdf are the switches, in the table's order"
+    # the switches close the keywords (the inputs' own keywords, urdf, calibration, come first)
+    assert keywords[-len(names) :] == names, "the stub's last diagnose keywords are the switches, in the table's order"
+    assert not set(names) & set(keywords[: -len(names)]), "a switch listed twice"
     for name, default, _ in simgap.DIAGNOSE_SWITCHES:
         assert isinstance(defaults[name], ast.Constant) and defaults[name].value is default, name
 
