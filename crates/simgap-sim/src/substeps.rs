@@ -95,13 +95,7 @@ pub(crate) fn drive_substeps(plant: &Plant, q: &[f64], emf: &[f64], period: f64,
     if slope.iter().all(|s| *s == 0.0) || q.len() != n || q.iter().any(|v| !v.is_finite()) {
         return base;
     }
-    let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), q);
-    let mut ia = vec![0.0; n];
-    armature(plant.effects(), &mut ia);
-    for i in 0..n {
-        h[(i, i)] += ia[i];
-    }
-    match h.try_inverse() {
+    match inverse_inertia(plant, q) {
         Some(inv) => substeps_for_rate(period, largest_rate(&inv, &slope), base),
         None => base,
     }
@@ -151,7 +145,13 @@ fn stiffness_inverse(plant: &Plant, params: &SimParams, slope: &[f64]) -> Option
         return None;
     }
     let q0 = if params.q0.len() == n { params.q0.clone() } else { vec![0.0; n] };
-    let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), &q0);
+    inverse_inertia(plant, &q0)
+}
+
+/// `(H(q) + diag(ia))⁻¹` of `plant` (`None` for a singular H).
+fn inverse_inertia(plant: &Plant, q: &[f64]) -> Option<nalgebra::DMatrix<f64>> {
+    let n = plant.dof();
+    let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), q);
     let mut ia = vec![0.0; n];
     armature(plant.effects(), &mut ia);
     for i in 0..n {
