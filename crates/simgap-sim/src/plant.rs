@@ -136,6 +136,17 @@ impl Plant {
         }
     }
 
+    /// `H(q) + diag(ia)` [kg·m² or kg] into `out` (`dof × dof`). Never allocates.
+    ///
+    /// # Panics
+    /// If a size does not match the model.
+    pub fn inertia_matrix(&self, pws: &mut PlantWorkspace, q: &[f64], out: &mut DMatrix<f64>) {
+        mass_matrix_into(&self.model, &mut pws.ws, q, out);
+        for i in 0..self.dof() {
+            out[(i, i)] += self.armature[i];
+        }
+    }
+
     fn acceleration_parts(&self, pws: &mut PlantWorkspace, q: &[f64], qd: &[f64], tau_applied: &[f64], exact: bool, out: &mut [f64]) {
         let friction = if exact { friction_torque } else { friction_torque_smooth };
         let n = self.dof();

@@ -24,6 +24,15 @@
 //! clipped to the friction level and held over the step, so a joint whose driving torque is
 //! below the level stays at rest (the scheme of Rhoban BAM's servo simulator).
 //!
+//! A drive whose damping is too stiff for RK4 within [`STIFF_DRIVE_SUBSTEPS`] steps per sample
+//! (a servo's back-EMF `kt²/R` against a light wrist link relaxes its speed in a tenth of a
+//! millisecond) is integrated by the linearly implicit ROS2 instead ([`Ros2`]), with the
+//! Jacobian of that damping alone: `J = [[0, I], [0, −(H + diag(ia))⁻¹ D]]`, `D` the drive
+//! torque's slope `−∂τ_drive,i/∂q̇_i` at the start of each step (a forward difference, so a
+//! saturated drive has none). The step count is then the one the rest of the plant asks for;
+//! the stick–slip friction's stopping torque counts the damping implicitly
+//! (`τ_stop = M_ii (q̇_i / h + q̈_i) + D_i q̇_i`).
+//!
 //! A state diverged when it is not finite or `|q̇|` exceeds [`SimParams::divergence_bound`]
 //! ([`Stepper::diverged`]). The step never allocates.
 
@@ -31,11 +40,15 @@ use crate::controller::Controller;
 use crate::delay::DelayLine;
 use crate::effects::{applied_torque, drive_torque, exact_dry_levels, has_drive_effects, has_exact_dry_friction, stiff_band};
 use crate::error::Result;
-use crate::integrate::{Dopri5, Integrator, Rk4};
+use crate::integrate::{Dopri5, Integrator, Rk4, Ros2, ROS2_GAMMA};
 use crate::params::SimParams;
 use crate::plant::{Plant, PlantWorkspace};
 use crate::sensor::Sensor;
 use crate::substeps::{drive_substeps, substeps_and_moving_rate, substeps_for_rate};
+
+/// The RK4 steps per sample above which a drive's damping is integrated implicitly (see the
+/// [module docs](self)): resolving it explicitly would cost more.
+pub const STIFF_DRIVE_SUBSTEPS: usize = 16;
 
 /// The per-sample step of the closed loop (see the [module docs](self)): sensors, delay ring,
 /// held torque and integrator workspace of one run of `plant`.
@@ -75,6 +88,12 @@ pub struct Stepper<'p> {
     /// Scratch of the drive path: command less back-EMF, drive torque, stick–slip friction,
     /// levels, inertia diagonal, acceleration.
     scratch: [Vec<f64>; 7],
+    /// The implicit drive step: its integrator, `H + diag(ia)`, `W = H + γh diag(D)` and its
+    /// factor; scratch of the damping's difference (perturbed speed, two drive torques, `D`)
+    /// and of the solve.
+    ros2: Ros2,
+    inertia: [nalgebra::DMatrix<f64>; 3],
+    implicit_scratch: [Vec<f64>; 5],
     adds_ff: bool,
     period: f64,
     substeps: usize,
@@ -133,6 +152,9 @@ impl<'p> Stepper<'p> {
             drive_effects: has_drive_effects(plant.effects()),
             exact_dry: has_exact_dry_friction(plant.effects()),
             scratch: std::array::from_fn(|_| vec![0.0; n]),
+            ros2: Ros2::new(2 * n),
+            inertia: std::array::from_fn(|_| nalgebra::DMatrix::zeros(n, n)),
+            implicit_scratch: std::array::from_fn(|_| vec![0.0; n]),
             adds_ff: true,
             period: params.sample_period,
             substeps,
@@ -317,8 +339,11 @@ impl<'p> Stepper<'p> {
             return;
         }
         // drives evaluated at every stage (back-EMF, load friction, enable), dry frictions of
-        // width 0 as stick–slip held over each RK4 step; the steps also resolve the back-EMF
-        let steps = if self.emf.iter().any(|e| *e != 0.0) { steps_over(self.period, dt, self.drive_substeps.max(self.substeps)) } else { steps };
+        // width 0 as stick–slip held over each step; the RK4 steps also resolve the back-EMF,
+        // or ROS2 takes its damping implicitly where that would cost too many
+        let emf = self.emf.iter().any(|e| *e != 0.0);
+        let stiff_drive = emf && self.drive_substeps > STIFF_DRIVE_SUBSTEPS.max(self.substeps);
+        let steps = if emf && !stiff_drive { steps_over(self.period, dt, self.drive_substeps.max(self.substeps)) } else { steps };
         let (plant, limits) = (self.plant, self.limits.as_deref());
         let (delayed, emf, enabled) = (&self.delayed, &self.emf, &self.enabled);
         let [minus_emf, tau_drive, stick, pos, neg, m_diag, acc] = &mut self.scratch;
@@ -344,16 +369,40 @@ impl<'p> Stepper<'p> {
                 let h = dt / steps as f64;
                 let exact = self.exact_dry;
                 stick.fill(0.0);
+                let [qd_step, drive_at, drive_step, damping, solved] = &mut self.implicit_scratch;
+                let [inertia, w, factor] = &mut self.inertia;
+                damping.fill(0.0);
                 for s in 0..steps {
+                    if stiff_drive {
+                        // the drive's damping D_i = −∂τ_drive,i/∂q̇_i (a forward difference, per
+                        // joint: the drive torque of a joint depends on its own speed only), and
+                        // W = H + γh D, with which ROS2 solves
+                        let (q, qd) = y.split_at(n);
+                        for i in 0..n {
+                            qd_step[i] = qd[i] + 1e-6 * qd[i].abs().max(1.0);
+                        }
+                        torque(qd, minus_emf, tau_drive, drive_at);
+                        torque(qd_step, minus_emf, tau_drive, drive_step);
+                        for i in 0..n {
+                            let d = (drive_at[i] - drive_step[i]) / (qd_step[i] - qd[i]);
+                            damping[i] = if d.is_finite() { d.max(0.0) } else { 0.0 };
+                        }
+                        plant.inertia_matrix(pws, q, inertia);
+                        w.copy_from(inertia);
+                        for i in 0..n {
+                            w[(i, i)] += ROS2_GAMMA * h * damping[i];
+                        }
+                    }
                     if exact {
                         // the friction that stops each joint within the step, clipped to its level
+                        // (with the implicit damping's share where ROS2 steps)
                         let (q, qd) = y.split_at(n);
                         torque(qd, minus_emf, tau_drive, &mut self.applied);
                         plant.acceleration_smooth(pws, q, qd, &self.applied, acc);
                         plant.inertia_diagonal(pws, q, m_diag);
                         exact_dry_levels(plant.effects(), qd, tau_drive, pos, neg);
                         for i in 0..n {
-                            let stop = m_diag[i] * (qd[i] / h + acc[i]);
+                            let stop = m_diag[i] * (qd[i] / h + acc[i]) + damping[i] * qd[i];
                             let level = if stop > 0.0 { pos[i] } else { neg[i] };
                             stick[i] = if stop.is_finite() { -stop.signum() * stop.abs().min(level) } else { 0.0 };
                         }
@@ -374,7 +423,27 @@ impl<'p> Stepper<'p> {
                             plant.acceleration(pws, q, qd, applied, ddq);
                         }
                     };
-                    self.rk4.step(&mut f, t + s as f64 * h, h, y);
+                    if stiff_drive {
+                        // (I − γhJ)⁻¹ [r₁; r₂] = [r₁ + γh b; b] with b = W⁻¹ H r₂
+                        let (inertia, w) = (&*inertia, &*w);
+                        let mut solve = |r: &mut [f64]| {
+                            let (r1, r2) = r.split_at_mut(n);
+                            for i in 0..n {
+                                solved[i] = (0..n).map(|j| inertia[(i, j)] * r2[j]).sum();
+                            }
+                            factor.copy_from(w);
+                            if !simgap_core::try_solve_spd_in_place(factor, solved) {
+                                solved.fill(f64::NAN);
+                            }
+                            for i in 0..n {
+                                r2[i] = solved[i];
+                                r1[i] += ROS2_GAMMA * h * solved[i];
+                            }
+                        };
+                        self.ros2.step(&mut f, &mut solve, t + s as f64 * h, h, y);
+                    } else {
+                        self.rk4.step(&mut f, t + s as f64 * h, h, y);
+                    }
                 }
             }
         }
