@@ -49,6 +49,17 @@ fn predict_reads_episodes_and_locks_the_gripper_the_dataset_leaves_out() {
     assert!(t.contains("k-step prediction of 2 log(s)"), "{t}");
     assert!(t.contains("[\"gripper\"] are locked at their zero position"), "{t}");
     assert_eq!(t.matches("is range-normalised 0–100").count(), 1, "the dataset's warning once: {t}");
+    // an effect is given per joint simulated: a neutral one predicts as the model does, and one
+    // value per URDF joint (the locked gripper's too) is refused naming the joints simulated
+    let neutral = simgap(&["predict", "--urdf", urdf.to_str().unwrap(), "--log", &log, "--experiment", exp.to_str().unwrap(), "--effect", "viscous_friction:b=0,0,0,0,0"]);
+    let n = text(&neutral);
+    assert!(neutral.status.success(), "{n}");
+    let row = n.lines().find(|l| l.trim_start().starts_with("0.500s")).expect("a 0.5 s row");
+    let cols: Vec<&str> = row.split_whitespace().collect();
+    assert_eq!(cols[1], cols[2], "a neutral effect predicts as the model: {row}");
+    let six = simgap(&["predict", "--urdf", urdf.to_str().unwrap(), "--log", &log, "--experiment", exp.to_str().unwrap(), "--effect", "viscous_friction:b=0,0,0,0,0,0"]);
+    let s6 = text(&six);
+    assert!(!six.status.success() && s6.contains("wrist_roll; locked joints take none") && s6.contains("expected 5"), "{s6}");
 }
 
 #[test]

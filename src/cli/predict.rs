@@ -55,7 +55,6 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     if let Some(h) = args.horizon.iter().find(|h| !(h.is_finite() && **h > 0.0 && **h <= 60.0)) {
         bail!("--horizon {h}: expected horizons in (0, 60] seconds");
     }
-    let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse_for_model(s, &model).with_context(|| format!("--effect '{s}'"))).collect::<anyhow::Result<_>>()?;
     let options = super::log_options(args.topics.clone().unwrap_or_default(), args.experiment.as_deref(), args.calibration.as_deref())?;
     let runs = super::read_runs(&args.logs, &options)?;
     // joints the logs record but not as positions (a LeRobot gripper without calibration) are
@@ -64,7 +63,14 @@ pub(crate) fn run(args: Args) -> anyhow::Result<()> {
     if let Some(m) = &locked {
         eprintln!("note: {}", m.warnings().last().map(String::as_str).unwrap_or_default());
     }
+    // effects are given for the joints simulated (without the locked ones)
+    let joints = if locked.is_some() {
+        format!(" (one value per joint simulated: {}; locked joints take none)", locked.as_ref().map(|m| m.joint_names().join(", ")).unwrap_or_default())
+    } else {
+        String::new()
+    };
     let model = locked.unwrap_or(model);
+    let effects: Vec<Effect> = args.effect.iter().map(|s| Effect::parse_for_model(s, &model).with_context(|| format!("--effect '{s}'{joints}"))).collect::<anyhow::Result<_>>()?;
     let k = simgap::diag::predict(&model, args.formulation, &effects, &runs, &args.horizon, simgap::diag::PrepareOptions::default().window)?;
     println!(
         "k-step prediction of {} log(s) by '{}'{} ({} windows)",

@@ -88,9 +88,12 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
 ///
 /// # Errors
 /// [`Error::Log`] for runs that do not match the model, have no experiment or are too short
-/// for a window; [`Error::Input`] for a horizon that is not a positive number.
+/// for a window; [`Error::Input`] for a horizon that is not a positive number;
+/// [`Error::Sim`] for an effect that does not fit the model (a vector of the wrong length, a
+/// negative friction).
 pub fn predict(model: &Model, formulation: Formulation, effects: &[Effect], runs: &[Run], horizons: &[f64], window: f64) -> Result<KStep> {
     let horizons = crate::prepare::horizons(horizons)?;
+    simgap_sim::effects::validate_effects(effects, model.dof())?;
     let prepared = crate::prepare::prediction_runs(model, runs, &horizons, window)?;
     let (floor_all, floor_runs) = kstep::floor_all(&prepared, &horizons, model.dof());
     let (before, before_runs) = kstep::predict_all(model, formulation, &[], &prepared, &horizons)?;

@@ -399,6 +399,8 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
             let cols: Vec<Result<Vec<f64>>> = idx
                 .par_iter()
                 .map(|&a| {
+                    // (a column costs a prediction of every window: a stop is seen within one)
+                    stopped(stop)?;
                     // forward differences, a step away from a bound
                     let mut x2 = x.clone();
                     let mut h = 1e-6 * x[a].abs().max(1.0);
