@@ -85,10 +85,18 @@ pub fn resolvable_effects(model: &simgap_core::Model, formulation: simgap_core::
 /// the largest rate `λ` of the friction slopes plus `emf` against `(H + diag(ia))⁻¹` at `q`
 /// (as [`effective_substeps`] does for friction alone). At most 10,000.
 pub(crate) fn drive_substeps(plant: &Plant, q: &[f64], emf: &[f64], period: f64, base: usize) -> usize {
+    drive_substeps_with(plant, q, emf, period, base, true)
+}
+
+/// [`drive_substeps`] for the back-EMF alone (`with_friction` false: without the frictions'
+/// slopes): whether the drive itself is stiff against the link.
+pub(crate) fn drive_substeps_with(plant: &Plant, q: &[f64], emf: &[f64], period: f64, base: usize, with_friction: bool) -> usize {
     let n = plant.dof();
     let mut slope = vec![0.0; n];
-    friction_slope_bound(plant.effects(), &mut slope);
-    add_load_friction_slope(plant, &mut slope);
+    if with_friction {
+        friction_slope_bound(plant.effects(), &mut slope);
+        add_load_friction_slope(plant, &mut slope);
+    }
     for (s, e) in slope.iter_mut().zip(emf) {
         *s += e.max(0.0);
     }
