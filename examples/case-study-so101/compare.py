@@ -72,12 +72,13 @@ CAP = math.pi
 PARAMS = ["kp", "kv", "damping", "frictionloss", "armature"]
 # log10 bounds of the optimiser per parameter
 BOUNDS = {"kp": (0.0, 3.5), "kv": (-3.0, 1.5), "damping": (-3.0, 1.0), "frictionloss": (-3.0, 0.3), "armature": (-3.0, -0.3)}
-ROWS = ["a", "b", "c", "nominal", "d", "e"]
+ROWS = ["a", "b", "c", "nominal", "s", "d", "e"]
 LABELS = {
     "a": "(a) MJCF as published",
     "b": "(b) MJCF, optimiser-fitted",
     "c": "(c) simgap corrected",
     "nominal": "simgap nominal",
+    "s": "MuJoCo, simgap's nominal servo law",
     "d": "(d) constant velocity",
     "e": "(e) goal as prediction",
 }
@@ -235,6 +236,16 @@ def figures(errors: list[np.ndarray]) -> dict:
     return {"kstep": pooled, "per_joint": [list(x) for x in zip(*per_joint)], "windows": int(e.shape[0])}
 
 
+def row(errors: list[np.ndarray], whole: list[float]) -> dict:
+    """A table row: pooled figures, and per held-out run its k-step figures and whole-episode
+    error."""
+    r = figures(errors)
+    r["per_run"] = [figures([e])["kstep"] for e in errors]
+    r["whole_per_run"] = [float(w) for w in whole]
+    r["whole"] = float(np.mean(whole))
+    return r
+
+
 def floor_errors(ep: Episode, wins) -> np.ndarray:
     out = np.full((len(wins), len(HORIZONS), len(ARM)), np.nan)
     for w, (k0, ends) in enumerate(wins):
@@ -332,7 +343,7 @@ class MjWindows:
     goals per step (zero-order hold, ten 2 ms steps per 20 ms sample) and where each horizon
     ends."""
 
-    def __init__(self, m, episodes: list[Episode], max_windows: int):
+    def __init__(self, m, episodes: list[Episode], max_windows: int, rate_limit: float | None = None):
         import mujoco
 
         self.runs = []
@@ -352,7 +363,7 @@ class MjWindows:
                 mujoco.mj_getState(m, d, s, spec)
                 states.append(s)
                 k = np.minimum(np.arange(k0, k0 + longest), len(ep.t) - 1)
-                ctrls.append(np.repeat(ep.goal[k], sub, axis=0))
+                ctrls.append(np.repeat(rate_limited(ep.goal[k], ep.t[k], rate_limit), sub, axis=0))
                 ends.append([None if e is None else (e - k0) * sub - 1 for e in ends_])
             self.runs.append((ep, wins, len(wins)))
         self.states = np.array(states)
@@ -380,6 +391,40 @@ class MjWindows:
         return out
 
 
+def rate_limited(goal: np.ndarray, t: np.ndarray, rate: float | None) -> np.ndarray:
+    """The goals moved at most `rate`·Δt per sample from the first (no limit: as logged)."""
+    if rate is None:
+        return goal
+    out = goal.copy()
+    for i in range(1, len(goal)):
+        step = rate * (t[i] - t[i - 1])
+        out[i] = out[i - 1] + np.clip(goal[i] - out[i - 1], -step, step)
+    return out
+
+
+def servo_law(experiment: Path) -> tuple[dict, np.ndarray, float | None]:
+    """simgap's servo law of the experiment file in MuJoCo: position actuators with kp = kt/R·V·
+    duty_gain and forcerange ±kt/R·V·max_duty (the clipped duty), the back-EMF kt²/R as joint
+    damping (outside the clip, as in simgap's law, and integrated implicitly by MuJoCo's Euler
+    step: as actuator kv it diverges on the light wrist links at 2 ms), no friction loss or
+    armature (the URDF has none). Returns the parameters, the force range and the goal rate
+    limit."""
+    e = json.loads(experiment.read_text())
+
+    def per_joint(key, default=None):
+        v = e.get(key, default)
+        v = [float(x) for x in v.split(",")] if isinstance(v, str) else ([float(x) for x in v] if isinstance(v, list) else [float(v)])
+        joints = [j.strip() for j in e["joints"].split(",")] if isinstance(e["joints"], str) else e["joints"]
+        return np.array([v[joints.index(j)] if len(v) == len(joints) else v[0] for j in ARM])
+
+    kt, r, gain, dmax = per_joint("kt"), per_joint("R"), per_joint("duty_gain"), per_joint("max_duty", 1.0)
+    v = float(e["supply_voltage"])
+    zero = np.zeros(len(ARM))
+    params = {"kp": kt / r * v * gain, "kv": zero, "damping": kt * kt / r, "frictionloss": zero, "armature": zero}
+    rate = e.get("goal_rate_limit")
+    return params, kt / r * v * dmax, None if rate is None else float(rate)
+
+
 def steps_per_sample(m, ep: Episode) -> int:
     sub = int(round(ep.period / m.opt.timestep))
     dt = np.diff(ep.t)
@@ -388,7 +433,7 @@ def steps_per_sample(m, ep: Episode) -> int:
     return sub
 
 
-def mujoco_whole(m, ep: Episode) -> float:
+def mujoco_whole(m, ep: Episode, rate_limit: float | None = None) -> float:
     """Mean |q_sim − q| over every sample and joint of the episode simulated from its first
     sample with its goals held per sample."""
     import mujoco
@@ -401,7 +446,7 @@ def mujoco_whole(m, ep: Episode) -> float:
     d.qvel[:] = (ep.q[1] - ep.q[0]) / (ep.t[1] - ep.t[0])
     mujoco.mj_getState(m, d, s, spec)
     sub = steps_per_sample(m, ep)
-    ctrl = np.repeat(ep.goal[:-1], sub, axis=0)[None]
+    ctrl = np.repeat(rate_limited(ep.goal, ep.t, rate_limit)[:-1], sub, axis=0)[None]
     state, _ = rollout.rollout(m, d, s[None], ctrl)
     q = np.vstack([ep.q[0][None], state[0, sub - 1::sub, 1:1 + m.nq]])
     return float(np.mean(capped(q - ep.q)))
@@ -551,8 +596,15 @@ def check_windows(episodes: list[Episode], pred: dict) -> str:
 def simgap_row(pred: dict, after: bool) -> dict:
     key = "after" if after else "before"
     pj = pred[f"per_joint_{key}"]  # [joint][horizon]
-    maes = [r["whole_run_mae"][1 if after else 0] for r in pred["runs"] if r.get("whole_run_mae") is not None]
-    return {"kstep": list(pred[key]), "per_joint": pj, "whole": float(np.mean(maes)) if maes else float("nan"), "windows": int(sum(r["windows"] for r in pred["runs"]))}
+    maes = [r["whole_run_mae"][1 if after else 0] if r.get("whole_run_mae") is not None else float("nan") for r in pred["runs"]]
+    return {
+        "kstep": list(pred[key]),
+        "per_joint": pj,
+        "windows": int(sum(r["windows"] for r in pred["runs"])),
+        "per_run": [list(r[key]) for r in pred["runs"]],
+        "whole_per_run": maes,
+        "whole": float(np.mean(maes)),
+    }
 
 
 # ---------------------------------------------------------------------------------------------
@@ -577,6 +629,17 @@ def table(rows: dict, horizons=HORIZONS) -> str:
     return "\n".join(lines)
 
 
+def table_per_run(rows: dict, hold: list[Episode]) -> str:
+    """Per held-out episode: k-step 0.5 s and whole-episode error of every row."""
+    i = HORIZONS.index(0.5)
+    lines = ["| model | " + " | ".join(f"#{e.index} {e.name}" for e in hold) + " |", "|---|" + "---|" * len(hold)]
+    for key in ROWS:
+        if key in rows and "per_run" in rows[key]:
+            r = rows[key]
+            lines.append(f"| {LABELS[key]} | " + " | ".join(f"{fmt(k[i])} / {fmt(w)}" for k, w in zip(r["per_run"], r["whole_per_run"])) + " |")
+    return "\n".join(lines)
+
+
 def parse_episodes(s: str) -> list[int]:
     out = []
     for part in s.split(","):
@@ -594,7 +657,7 @@ def main(argv=None) -> int:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the sage-so101 folder (default: ../shared/data/sage-so101 next to the repository)")
     ap.add_argument("--fit", type=parse_episodes, default=None, help="fit episodes (LeRobot indices, e.g. 4 or 4,17,21); needed for row b")
     ap.add_argument("--holdout", type=parse_episodes, required=True, help="held-out episodes, e.g. 14,24,31,37")
-    ap.add_argument("--rows", default="a,b,c,nominal,d,e", help="rows to compute, of a,b,c,nominal,d,e (default all)")
+    ap.add_argument("--rows", default="a,b,c,nominal,s,d,e", help="rows to compute, of a,b,c,nominal,s,d,e (default all)")
     ap.add_argument("--max-seconds", type=float, default=None, help="use only the first S seconds of every episode (MuJoCo rows and d, e only: simgap reads whole episodes)")
     ap.add_argument("--budget", type=int, default=800, help="largest number of residual evaluations of the optimiser, Jacobian columns included (row b)")
     ap.add_argument("--params", type=Path, default=None, help="row b from these fitted parameters (a JSON this script wrote) instead of fitting")
@@ -644,14 +707,12 @@ def main(argv=None) -> int:
     # (d), (e): no model
     wins = [e.windows(MAX_WINDOWS) for e in hold]
     if "d" in rows_wanted:
-        rows["d"] = figures([floor_errors(e, w) for e, w in zip(hold, wins)])
-        rows["d"]["whole"] = float(np.mean([np.mean(np.abs(e.q[0] + np.outer(e.t - e.t[0], (e.q[1] - e.q[0]) / (e.t[1] - e.t[0])) - e.q)) for e in hold]))
+        rows["d"] = row([floor_errors(e, w) for e, w in zip(hold, wins)], [np.mean(np.abs(e.q[0] + np.outer(e.t - e.t[0], (e.q[1] - e.q[0]) / (e.t[1] - e.t[0])) - e.q)) for e in hold])
     if "e" in rows_wanted:
-        rows["e"] = figures([goal_errors(e, w) for e, w in zip(hold, wins)])
-        rows["e"]["whole"] = float(np.mean([np.mean(np.abs(e.goal - e.q)) for e in hold]))
+        rows["e"] = row([goal_errors(e, w) for e, w in zip(hold, wins)], [np.mean(np.abs(e.goal - e.q)) for e in hold])
 
     # (a), (b): MuJoCo
-    if "a" in rows_wanted or "b" in rows_wanted:
+    if any(r in rows_wanted for r in ("a", "b", "s")):
         m, inertials = load_mjcf(args.data / "so101_new_calib.xml")
         worst = check_inertials(m, inertials)
         out["checks"].append(f"MuJoCo's body masses, principal inertias and centres of mass match the MJCF's <inertial> elements within {worst:.2g} (relative; m for the centres)")
@@ -662,8 +723,7 @@ def main(argv=None) -> int:
         out["published"]["forcerange"] = [float(v) for v in m.actuator_forcerange[:, 1]]
         batch = MjWindows(m, hold, MAX_WINDOWS)
         if "a" in rows_wanted:
-            rows["a"] = figures(batch.errors(m))
-            rows["a"]["whole"] = float(np.mean([mujoco_whole(m, e) for e in hold]))
+            rows["a"] = row(batch.errors(m), [mujoco_whole(m, e) for e in hold])
             if fit:
                 fb = MjWindows(m, fit, MAX_WINDOWS)
                 rows["a"]["fit_kstep"] = figures(fb.errors(m))["kstep"]
@@ -679,8 +739,7 @@ def main(argv=None) -> int:
                 log(f"  done ({record['message']}): {record['evaluations']} evaluations, {record['cpu_s']:.0f} s CPU, sum of squares {record['sum_squares_start']:.4g} -> {record['sum_squares_end']:.4g}; at a bound: {', '.join(record['at_bounds']) or 'none'}")
             out["fitted"] = params
             set_params(m, {p: np.asarray(v) for p, v in params.items()})
-            rows["b"] = figures(batch.errors(m))
-            rows["b"]["whole"] = float(np.mean([mujoco_whole(m, e) for e in hold]))
+            rows["b"] = row(batch.errors(m), [mujoco_whole(m, e) for e in hold])
             if fit:
                 rows["b"]["fit_kstep"] = figures(MjWindows(m, fit, MAX_WINDOWS).errors(m))["kstep"]
             # what each fitted group is worth: the held-out figures with it back at the published values
@@ -690,6 +749,17 @@ def main(argv=None) -> int:
                 set_params(m, trial)
                 out["ablation_b"][p] = figures(batch.errors(m))
             set_params(m, published)
+        if "s" in rows_wanted:
+            # the MJCF's bodies with simgap's nominal servo law: how far apart the two simulators
+            # are on one model (the rate limit restarts from the logged goal at every window)
+            law, force, rate = servo_law(args.experiment)
+            saved = m.actuator_forcerange.copy()
+            set_params(m, law)
+            m.actuator_forcerange[:] = np.stack([-force, force], axis=1)
+            rows["s"] = row(MjWindows(m, hold, MAX_WINDOWS, rate).errors(m), [mujoco_whole(m, e, rate) for e in hold])
+            out["servo_law_as_mujoco"] = {p: [float(x) for x in law[p]] for p in PARAMS} | {"forcerange": [float(x) for x in force], "goal_rate_limit": rate}
+            set_params(m, published)
+            m.actuator_forcerange[:] = saved
 
     # (c), nominal: simgap predict
     if simgap_rows:
@@ -772,9 +842,14 @@ def main(argv=None) -> int:
     print(f"windows: {next(iter(rows.values()))['windows'] if rows else 0} held-out; figures in rad")
     print()
     print(text)
+    print()
+    print("per held-out episode, k-step 0.5 s / whole-episode MAE [rad]:")
+    print()
+    print(table_per_run(rows, hold))
     if "fitted" in out:
         print()
-        print("(b) fitted parameters per joint (published: kp 998.22, kv 2.731, damping 0.60, frictionloss 0.052, armature 0.028):")
+        pub = out.get("published")
+        print("(b) fitted parameters per joint" + (" (published: " + ", ".join(f"{p} {pub[p][0]:.4g}" for p in PARAMS) + ", every joint)" if pub else "") + ":")
         print()
         print("| joint | " + " | ".join(PARAMS) + " |")
         print("|---|" + "---|" * len(PARAMS))
