@@ -72,13 +72,14 @@ CAP = math.pi
 PARAMS = ["kp", "kv", "damping", "frictionloss", "armature"]
 # log10 bounds of the optimiser per parameter
 BOUNDS = {"kp": (0.0, 3.5), "kv": (-3.0, 1.5), "damping": (-3.0, 1.0), "frictionloss": (-3.0, 0.3), "armature": (-3.0, -0.3)}
-ROWS = ["a", "b", "c", "nominal", "s", "d", "e"]
+ROWS = ["a", "b", "c", "nominal", "s", "z", "d", "e"]
 LABELS = {
     "a": "(a) MJCF as published",
     "b": "(b) MJCF, optimiser-fitted",
     "c": "(c) simgap corrected",
     "nominal": "simgap nominal",
     "s": "MuJoCo, simgap's nominal servo law",
+    "z": "MuJoCo, same, duty held per sample",
     "d": "(d) constant velocity",
     "e": "(e) goal as prediction",
 }
@@ -425,6 +426,55 @@ def servo_law(experiment: Path) -> tuple[dict, np.ndarray, float | None]:
     return params, kt / r * v * dmax, None if rate is None else float(rate)
 
 
+def held_duty_errors(m, hold: list[Episode], experiment: Path) -> tuple[list[np.ndarray], list[float]]:
+    """simgap's servo law as simgap simulates it, in MuJoCo: the duty computed from the state at
+    each logged sample and held over the sample (motors with the clipped torque kt/R·V·duty as
+    ctrl), the back-EMF as joint damping, the goal rate-limited from the logged goal at each
+    restart. k-step errors of the held-out windows and whole-episode errors. `m` is changed."""
+    import mujoco
+
+    law, force, rate = servo_law(experiment)
+    set_params(m, law)
+    m.actuator_gainprm[:, 0] = 1.0
+    m.actuator_biasprm[:, :3] = 0.0
+    m.actuator_ctrlrange[:] = np.stack([-force, force], axis=1)
+    m.actuator_forcerange[:] = np.stack([-2 * force, 2 * force], axis=1)
+    d = mujoco.MjData(m)
+
+    def run(ep, k0, q0, qd0, last, at):
+        mujoco.mj_resetData(m, d)
+        d.qpos[:], d.qvel[:] = q0, qd0
+        sub = steps_per_sample(m, ep)
+        g = ep.goal[k0].copy()
+        for k in range(k0, last):
+            if k > k0 and rate is not None:
+                step = rate * (ep.t[k] - ep.t[k - 1])
+                g = g + np.clip(ep.goal[k] - g, -step, step)
+            elif k > k0:
+                g = ep.goal[k]
+            d.ctrl[:] = np.clip(law["kp"] * (g - d.qpos), -force, force)
+            for _ in range(sub):
+                mujoco.mj_step(m, d)
+            at(k + 1, d.qpos)
+
+    errors, whole = [], []
+    for ep in hold:
+        wins = ep.windows(MAX_WINDOWS)
+        e = np.full((len(wins), len(HORIZONS), len(ARM)), np.nan)
+        for w, (k0, ends) in enumerate(wins):
+            def at(k1, q, w=w, ends=ends):
+                for h, kh in enumerate(ends):
+                    if kh == k1:
+                        e[w, h] = capped(q - ep.q[kh])
+            run(ep, k0, ep.q_hat[k0], ep.qd_hat[k0], max(x for x in ends if x is not None), at)
+        errors.append(e)
+        sim = np.empty_like(ep.q)
+        sim[0] = ep.q[0]
+        run(ep, 0, ep.q[0], (ep.q[1] - ep.q[0]) / (ep.t[1] - ep.t[0]), len(ep.t) - 1, lambda k1, q: sim.__setitem__(k1, q))
+        whole.append(float(np.mean(capped(sim - ep.q))))
+    return errors, whole
+
+
 def steps_per_sample(m, ep: Episode) -> int:
     sub = int(round(ep.period / m.opt.timestep))
     dt = np.diff(ep.t)
@@ -657,7 +707,7 @@ def main(argv=None) -> int:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the sage-so101 folder (default: ../shared/data/sage-so101 next to the repository)")
     ap.add_argument("--fit", type=parse_episodes, default=None, help="fit episodes (LeRobot indices, e.g. 4 or 4,17,21); needed for row b")
     ap.add_argument("--holdout", type=parse_episodes, required=True, help="held-out episodes, e.g. 14,24,31,37")
-    ap.add_argument("--rows", default="a,b,c,nominal,s,d,e", help="rows to compute, of a,b,c,nominal,s,d,e (default all)")
+    ap.add_argument("--rows", default="a,b,c,nominal,s,z,d,e", help="rows to compute, of a,b,c,nominal,s,z,d,e (default all)")
     ap.add_argument("--max-seconds", type=float, default=None, help="use only the first S seconds of every episode (MuJoCo rows and d, e only: simgap reads whole episodes)")
     ap.add_argument("--budget", type=int, default=800, help="largest number of residual evaluations of the optimiser, Jacobian columns included (row b)")
     ap.add_argument("--params", type=Path, default=None, help="row b from these fitted parameters (a JSON this script wrote) instead of fitting")
@@ -712,7 +762,7 @@ def main(argv=None) -> int:
         rows["e"] = row([goal_errors(e, w) for e, w in zip(hold, wins)], [np.mean(np.abs(e.goal - e.q)) for e in hold])
 
     # (a), (b): MuJoCo
-    if any(r in rows_wanted for r in ("a", "b", "s")):
+    if any(r in rows_wanted for r in ("a", "b", "s", "z")):
         m, inertials = load_mjcf(args.data / "so101_new_calib.xml")
         worst = check_inertials(m, inertials)
         out["checks"].append(f"MuJoCo's body masses, principal inertias and centres of mass match the MJCF's <inertial> elements within {worst:.2g} (relative; m for the centres)")
@@ -760,6 +810,9 @@ def main(argv=None) -> int:
             out["servo_law_as_mujoco"] = {p: [float(x) for x in law[p]] for p in PARAMS} | {"forcerange": [float(x) for x in force], "goal_rate_limit": rate}
             set_params(m, published)
             m.actuator_forcerange[:] = saved
+        if "z" in rows_wanted:
+            errors, whole = held_duty_errors(load_mjcf(args.data / "so101_new_calib.xml")[0], hold, args.experiment)
+            rows["z"] = row(errors, whole)
 
     # (c), nominal: simgap predict
     if simgap_rows:
