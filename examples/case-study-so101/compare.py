@@ -242,6 +242,7 @@ def row(errors: list[np.ndarray], whole: list[float]) -> dict:
     error."""
     r = figures(errors)
     r["per_run"] = [figures([e])["kstep"] for e in errors]
+    r["per_run_per_joint"] = [figures([e])["per_joint"] for e in errors]
     r["whole_per_run"] = [float(w) for w in whole]
     r["whole"] = float(np.mean(whole))
     return r
