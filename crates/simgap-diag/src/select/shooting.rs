@@ -7,7 +7,8 @@
 //! bias shows when the fitted model predicts. Here the same parameters are fitted to what the
 //! diagnosis is judged on:
 //!
-//! 1. every fit run is cut into consecutive windows of [`Options::window`] seconds; each window
+//! 1. every fit run is cut into consecutive windows of [`Options::window`] seconds (spread
+//!    evenly instead beyond [`MAX_WINDOWS`] in all); each window
 //!    restarts the model (with the terms at parameters θ) from the measured (smoothed) state and
 //!    drives it as [`kstep::predict`] does (logged torque, or the logged controller);
 //! 2. the residuals are the position errors at [`Options::points`] evenly spaced instants of
@@ -78,17 +79,28 @@ impl Options {
 /// The fit runs cut into consecutive shooting windows; window folds numbered as the fit runs'
 /// k-step folds (run `i` from `i ·` [`FOLDS_PER_RUN`]), so that a cross-validation can leave a
 /// fold out of both.
+///
+/// At most [`MAX_WINDOWS`] windows in all: longer fit runs get theirs spread evenly, in
+/// proportion to their durations, so that a fit's cost stops growing with the logs' length.
 pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Options) -> Vec<PredictionRun> {
     let horizons = options.horizons();
+    let total: f64 = fit_pred.iter().map(|pr| pr.run.duration()).sum();
     fit_pred
         .iter()
         .enumerate()
         .map(|(i, pr)| {
-            let windows = ((pr.run.duration() / options.window).floor() as usize).max(1);
+            let consecutive = ((pr.run.duration() / options.window).floor() as usize).max(1);
+            let share = (MAX_WINDOWS as f64 * pr.run.duration() / total.max(f64::MIN_POSITIVE)).ceil() as usize;
+            let windows = consecutive.min(share.max(1));
             PredictionRun::new(pr.run.clone(), &horizons, smoothing, pr.sensor.clone(), i * FOLDS_PER_RUN, windows)
         })
         .collect()
 }
+
+/// Shooting windows of all fit runs at most: 400 windows of 0.5 s (200 s of logs, 2,000 instants
+/// per joint) fit a set's tens of parameters many times over; more only cost time (three 120 s
+/// SO-101 episodes would make 720).
+pub(crate) const MAX_WINDOWS: usize = 400;
 
 /// A multiple-shooting fit.
 #[derive(Clone, Debug)]
