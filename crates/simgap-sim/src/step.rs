@@ -25,6 +25,7 @@
 //! below the level stays at rest (the scheme of Rhoban BAM's servo simulator).
 //!
 //! A drive whose back-EMF is too stiff for RK4 within [`STIFF_DRIVE_SUBSTEPS`] steps per sample
+//! (or, with the frictions' bands, within [`STIFF_DRIVE_FRICTION_SUBSTEPS`])
 //! (a servo's back-EMF `kt²/R` against a light wrist link relaxes its speed in a tenth of a
 //! millisecond) is integrated by the linearly implicit ROS2 instead ([`Ros2`]), with the
 //! Jacobian of the velocity-dependent torques: `J = [[0, I], [0, −(H + diag(ia))⁻¹ D]]`, `D`
@@ -56,6 +57,12 @@ use crate::substeps::{drive_substeps, drive_substeps_with, substeps_and_moving_r
 /// friction, the implicit step left the corrected held-out closed loop at 0.514 of the nominal
 /// error against the 0.5 the explicit one reaches.)
 pub const STIFF_DRIVE_SUBSTEPS: usize = 16;
+
+/// The RK4 steps per sample above which a drive's back-EMF with the frictions' slopes is
+/// integrated implicitly as well: a servo whose rotor inertia keeps its back-EMF resolvable but
+/// whose load friction's band asks for hundreds of steps (an SO-101 wrist). The XL330 logs'
+/// candidates ask for at most 27 and keep RK4.
+pub const STIFF_DRIVE_FRICTION_SUBSTEPS: usize = 64;
 
 /// The implicit steps per sample at least when a smooth dry friction or a load friction acts:
 /// ROS2 is first order at a band's kinks (a servo on a light link with Coulomb friction at 20 ms
@@ -359,7 +366,7 @@ impl<'p> Stepper<'p> {
         // width 0 as stick–slip held over each step; the RK4 steps also resolve the back-EMF,
         // or ROS2 takes its damping implicitly where that would cost too many
         let emf = self.emf.iter().any(|e| *e != 0.0);
-        let stiff_drive = emf && self.emf_substeps > STIFF_DRIVE_SUBSTEPS.max(self.base_substeps);
+        let stiff_drive = emf && (self.emf_substeps > STIFF_DRIVE_SUBSTEPS.max(self.base_substeps) || self.drive_substeps > STIFF_DRIVE_FRICTION_SUBSTEPS.max(self.base_substeps));
         let steps = if stiff_drive {
             let dry = self.drive_effects || self.band.iter().any(|b| *b > 0.0);
             steps_over(self.period, dt, self.base_substeps.max(if dry { IMPLICIT_DRY_SUBSTEPS } else { 1 }))
