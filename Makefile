@@ -8,18 +8,27 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: test lint rust-test python-test browser venv python-package demo bench compare-pinocchio clean
+.PHONY: test lint check-features rust-test python-test browser venv python-package demo bench compare-pinocchio clean
 
 test: lint rust-test python-test
 
 # Formatting and lints: `cargo fmt` as configured in rustfmt.toml, clippy with every warning an
-# error (the workspace's deliberate exceptions are in Cargo.toml, with their reasons).
-lint:
+# error (the workspace's deliberate exceptions are in Cargo.toml, with their reasons). Clippy
+# checks in the release profile: the lints are the same (no code depends on debug_assertions),
+# and the proc macros and build scripts it compiles (syn, serde_derive, pyo3's, the C of zstd and
+# lz4) are then those of the release builds below, not compiled a second time for `dev`.
+# check-features: every release build below asks its dependencies for the same features, so
+# that they share one compilation (see .ci/check-features).
+lint: check-features
 	cargo fmt --all -- --check
-	cargo clippy --workspace --all-targets -- -D warnings
+	cargo clippy --release --workspace --all-targets -- -D warnings
 
-# Tests build in release: they share the artefacts of the CLI build, and the diagnosis tests
-# simulate and fit real runs (20x slower unoptimised).
+check-features:
+	$(PYTHON) .ci/check-features
+
+# Tests build in release: they share the artefacts of the CLI build (and of clippy's and
+# maturin's, as check-features keeps it), and the diagnosis tests simulate and fit real runs (20x
+# slower unoptimised).
 rust-test: browser
 	cargo build --release --bin simgap
 	SIMGAP_BIN=$(CURDIR)/target/release/simgap cargo test --release --workspace --exclude simgap-python
