@@ -6,11 +6,20 @@
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
+SIMGAP_BIN := $(CURDIR)/target/release/simgap
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: test lint check-features rust-test python-test browser venv python-package demo bench compare-pinocchio clean
+.PHONY: test all-tests lint check-features bin rust-test python-test browser venv python-package demo bench compare-pinocchio clean
 
-test: lint rust-test python-test
+# Two jobs at a time (the machines have 2 cores), each job's output printed whole when it ends:
+# the venv's installs (downloads, unpacking) overlap clippy, and once everything is built the
+# two suites run side by side, each filling the core the other leaves idle (a diagnosis's
+# serial stages, Python's own work, process and cluster start-ups, the last long test of a
+# binary). Cargo's lock on target/ still compiles one thing at a time.
+test:
+	@$(MAKE) --no-print-directory -j2 --output-sync=target all-tests
+
+all-tests: venv lint rust-test python-test
 
 # Formatting and lints: `cargo fmt` as configured in rustfmt.toml, clippy with every warning an
 # error (the workspace's deliberate exceptions are in Cargo.toml, with their reasons). Clippy
@@ -29,9 +38,12 @@ check-features:
 # Tests build in release: they share the artefacts of the CLI build (and of clippy's and
 # maturin's, as check-features keeps it), and the diagnosis tests simulate and fit real runs (20x
 # slower unoptimised).
-rust-test: browser
+rust-test: bin browser
+	SIMGAP_BIN=$(SIMGAP_BIN) cargo test --release --workspace --exclude simgap-python
+
+# The CLI that the CLI tests of both suites run ($SIMGAP_BIN).
+bin:
 	cargo build --release --bin simgap
-	SIMGAP_BIN=$(CURDIR)/target/release/simgap cargo test --release --workspace --exclude simgap-python
 
 # Headless Chromium (Debian package `chromium`) for the test that renders the HTML report, when
 # the system can install it (refreshing the package lists if the install fails without);
@@ -53,9 +65,8 @@ $(VENV)/.requirements-stamp: requirements-test.txt
 python-package: venv
 	$(PY) -m pip install --quiet ./python
 
-python-test: python-package
-	cargo build --release --bin simgap
-	SIMGAP_BIN=$(CURDIR)/target/release/simgap $(PY) -m pytest -q python/tests tests/python
+python-test: python-package bin
+	SIMGAP_BIN=$(SIMGAP_BIN) $(PY) -m pytest -q python/tests tests/python
 
 demo:
 	cargo run --release -- demo
