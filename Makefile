@@ -6,23 +6,44 @@
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
+SIMGAP_BIN := $(CURDIR)/target/release/simgap
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: test lint rust-test python-test browser venv python-package demo bench compare-pinocchio clean
+.PHONY: test all-tests lint check-features bin rust-test python-test browser venv python-package demo bench compare-pinocchio clean
 
-test: lint rust-test python-test
+# Two jobs at a time (the machines have 2 cores), each job's output printed whole when it ends:
+# the venv's installs (downloads, unpacking) overlap clippy, and once everything is built the
+# two suites run side by side, each filling the core the other leaves idle (a diagnosis's
+# serial stages, Python's own work, process and cluster start-ups, the last long test of a
+# binary). Cargo's lock on target/ still compiles one thing at a time.
+test:
+	@$(MAKE) --no-print-directory -j2 --output-sync=target all-tests
+
+all-tests: venv lint rust-test python-test
 
 # Formatting and lints: `cargo fmt` as configured in rustfmt.toml, clippy with every warning an
-# error (the workspace's deliberate exceptions are in Cargo.toml, with their reasons).
-lint:
+# error (the workspace's deliberate exceptions are in Cargo.toml, with their reasons). Clippy
+# checks in the release profile: the lints are the same (no code depends on debug_assertions),
+# and the proc macros and build scripts it compiles (syn, serde_derive, pyo3's, the C of zstd and
+# lz4) are then those of the release builds below, not compiled a second time for `dev`.
+# check-features: every release build below asks its dependencies for the same features, so
+# that they share one compilation (see .ci/check-features).
+lint: check-features
 	cargo fmt --all -- --check
-	cargo clippy --workspace --all-targets -- -D warnings
+	cargo clippy --release --workspace --all-targets -- -D warnings
 
-# Tests build in release: they share the artefacts of the CLI build, and the diagnosis tests
-# simulate and fit real runs (20x slower unoptimised).
-rust-test: browser
+check-features:
+	$(PYTHON) .ci/check-features
+
+# Tests build in release: they share the artefacts of the CLI build (and of clippy's and
+# maturin's, as check-features keeps it), and the diagnosis tests simulate and fit real runs (20x
+# slower unoptimised).
+rust-test: bin browser
+	SIMGAP_BIN=$(SIMGAP_BIN) cargo test --release --workspace --exclude simgap-python
+
+# The CLI that the CLI tests of both suites run ($SIMGAP_BIN).
+bin:
 	cargo build --release --bin simgap
-	SIMGAP_BIN=$(CURDIR)/target/release/simgap cargo test --release --workspace --exclude simgap-python
 
 # Headless Chromium (Debian package `chromium`) for the test that renders the HTML report, when
 # the system can install it (refreshing the package lists if the install fails without);
@@ -44,9 +65,8 @@ $(VENV)/.requirements-stamp: requirements-test.txt
 python-package: venv
 	$(PY) -m pip install --quiet ./python
 
-python-test: python-package
-	cargo build --release --bin simgap
-	SIMGAP_BIN=$(CURDIR)/target/release/simgap $(PY) -m pytest -q python/tests tests/python
+python-test: python-package bin
+	SIMGAP_BIN=$(SIMGAP_BIN) $(PY) -m pytest -q python/tests tests/python
 
 demo:
 	cargo run --release -- demo
