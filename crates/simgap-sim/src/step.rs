@@ -468,8 +468,8 @@ impl<'p> Stepper<'p> {
                             if !simgap_core::try_solve_spd_in_place(factor, solved) {
                                 solved.fill(f64::NAN);
                             }
+                            r2.copy_from_slice(solved);
                             for i in 0..n {
-                                r2[i] = solved[i];
                                 r1[i] += ROS2_GAMMA * h * solved[i];
                             }
                         };

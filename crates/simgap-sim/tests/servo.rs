@@ -224,7 +224,7 @@ fn a_stiff_servo_damping_integrated_implicitly_at_one_step_per_sample_tracks_as_
     // four implicit steps per sample (measured 2.8 mrad; one step: 11.6 mrad)
     let cases = [(Effect::ViscousFriction { b: vec![0.005] }, 1e-4), (Effect::CoulombFriction { fc: vec![0.002], w: vec![0.01] }, 4e-3)];
     for (effect, tolerance) in cases {
-        let plant = Plant::new(&model, Formulation::EulerLagrange, &[effect.clone()]).unwrap();
+        let plant = Plant::new(&model, Formulation::EulerLagrange, std::slice::from_ref(&effect)).unwrap();
         let simulate_with = |p: &SimParams| {
             let mut sink = MemorySink::new();
             assert_eq!(simulate(&plant, &mut servo(1.0, 1.0), &reference, p, &mut sink, None).unwrap(), RunEnd::Completed);
