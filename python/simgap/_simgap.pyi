@@ -663,7 +663,7 @@ def diagnose(
 
         report = simgap.diagnose(model, ["fit1.mcap", "fit2.mcap"], ["held.mcap"])
         print(report.summary())
-        report.selected_effects   # [{"effect": "viscous_friction", "joints": [...], ...}]
+        report.selected_effects   # [{"effect": <an effect name>, "joints": [...], ...}]
         report.gap["holdout_l2_after"] < report.gap["holdout_l2_before"]
         report.to_html("report.html")
     """

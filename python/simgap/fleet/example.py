@@ -24,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     from simgap import fleet
-    from simgap.fleet.synthetic import make_synthetic_fleet
+    from simgap.fleet.synthetic import COULOMB_EFFECT, make_synthetic_fleet
 
     with tempfile.TemporaryDirectory() as tmp:
         root = args.dir or Path(tmp)
@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
         wall = time.perf_counter() - start
 
         t = result.table
-        fc = t[(t.effect == "coulomb_friction") & (t.joint == "elbow")].pivot(index="robot", columns="day", values="value")
+        fc = t[(t.effect == COULOMB_EFFECT) & (t.joint == "elbow")].pivot(index="robot", columns="day", values="value")
         with pd.option_context("display.width", 120, "display.precision", 3):
             print("elbow Coulomb friction fc [N·m] per robot and day")
             print(fc.to_string())

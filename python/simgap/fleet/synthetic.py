@@ -24,6 +24,9 @@ KP = (64.72, 32.36)
 KV = (48.54, 6.472)
 VISCOUS = (2.288, 0.175)
 COULOMB = (7.17, 1.734)
+# the effects the fleets plant, as the vocabulary names them (simgap.effect_vocabulary())
+VISCOUS_EFFECT = "viscous_friction"
+COULOMB_EFFECT = "coulomb_friction"
 
 # The paper's arm as a URDF (identical to simgap.Model.paper_arm()): workers load the model
 # from a file, so the synthetic fleet writes this beside its logs.
@@ -126,7 +129,7 @@ def make_synthetic_fleet(
             fc = np.asarray(COULOMB) * factor_c
             if robot == fleet.rising:
                 fc[1] *= 1 + rise_per_day * d
-            effects = [f"viscous_friction:b={b[0]:.6g},{b[1]:.6g}", f"coulomb_friction:fc={fc[0]:.6g},{fc[1]:.6g}"]
+            effects = [f"{VISCOUS_EFFECT}:b={b[0]:.6g},{b[1]:.6g}", f"{COULOMB_EFFECT}:fc={fc[0]:.6g},{fc[1]:.6g}"]
             if robot == fleet.payload and d + 1 >= payload_from_day:
                 effects.append(f"payload:mass={payload_mass:g};com=0,0,-0.45")
             fleet.truth[(robot, date)] = effects
@@ -303,8 +306,8 @@ def make_change_fleet(
     names = [f"u{i + 1}" for i in range(4 + clean)]
     dates = [(first_day + _dt.timedelta(days=d)).isoformat() for d in range(days)]
     planted = [
-        Planted("u1", "drift", "viscous_friction", "shoulder", "b", dates[0]),
-        Planted("u2", "step", "coulomb_friction", "elbow", "fc", dates[step_day - 1]),
+        Planted("u1", "drift", VISCOUS_EFFECT, "shoulder", "b", dates[0]),
+        Planted("u2", "step", COULOMB_EFFECT, "elbow", "fc", dates[step_day - 1]),
         Planted("u3", "effect", "payload", "", "mass", dates[payload_day - 1]),
         Planted("u4", "effect", "torque_gain", "elbow", "k", dates[weak_day - 1]),
     ]
@@ -320,10 +323,10 @@ def make_change_fleet(
                 b[0] *= (1 + viscous_rise) ** d
             if robot == "u2" and d + 1 >= step_day:
                 fc[1] *= coulomb_step
-            effects = [f"viscous_friction:b={','.join(f'{x:.6g}' for x in b)}", f"coulomb_friction:fc={','.join(f'{x:.6g}' for x in fc)}"]
+            effects = [f"{VISCOUS_EFFECT}:b={','.join(f'{x:.6g}' for x in b)}", f"{COULOMB_EFFECT}:fc={','.join(f'{x:.6g}' for x in fc)}"]
             for j, joint in enumerate(joints):
-                truth[("viscous_friction", joint, "b")] = float(b[j])
-                truth[("coulomb_friction", joint, "fc")] = float(fc[j])
+                truth[(VISCOUS_EFFECT, joint, "b")] = float(b[j])
+                truth[(COULOMB_EFFECT, joint, "fc")] = float(fc[j])
             if robot == "u3" and d + 1 >= payload_day:
                 effects.append(f"payload:mass={payload_mass:g};com=0,0,-0.2")
                 truth[("payload", "", "mass")] = payload_mass

@@ -117,7 +117,7 @@ fn crba_solve(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f
 #[allow(clippy::too_many_arguments)]
 pub fn forward_dynamics_armature_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], armature: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
     check_len(model, "tau", tau);
-    check_len(model, "armature", armature);
+    check_len(model, "rotor inertias ia", armature);
     let n = model.dof();
     if n >= ABA_MIN_DOF {
         return crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, armature, formulation, out);
