@@ -51,6 +51,9 @@ pub enum EffectKind {
     LoadStribeckFriction,
     /// `back_emf`: `−kb q̇` while the drive is enabled.
     BackEmf,
+    /// `encoder_offset`: the joint's measured zero is not the model's; the joint is at
+    /// `q_measured + offset`.
+    EncoderOffset,
 }
 
 /// The physical quantity of a parameter, which gives its unit on a joint of either type.
@@ -184,11 +187,12 @@ const LOAD_STRIBECK: &[ParamSpec] = &[
     p("w", Width, None, false),
 ];
 const BACK_EMF: &[ParamSpec] = &[p("kb", Damping, Some(0.0), true)];
+const ENCODER_OFFSET: &[ParamSpec] = &[p("offset", Position, Some(0.0), true)];
 const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.
-    pub const ALL: [EffectKind; 17] = [
+    pub const ALL: [EffectKind; 18] = [
         EffectKind::ViscousFriction,
         EffectKind::CoulombFriction,
         EffectKind::StribeckFriction,
@@ -206,6 +210,7 @@ impl EffectKind {
         EffectKind::LoadFriction,
         EffectKind::LoadStribeckFriction,
         EffectKind::BackEmf,
+        EffectKind::EncoderOffset,
     ];
 
     /// The contract name (`viscous_friction`, …, `coriolis_structure`).
@@ -228,6 +233,7 @@ impl EffectKind {
             EffectKind::LoadFriction => "load_friction",
             EffectKind::LoadStribeckFriction => "load_stribeck_friction",
             EffectKind::BackEmf => "back_emf",
+            EffectKind::EncoderOffset => "encoder_offset",
         }
     }
 
@@ -251,6 +257,7 @@ impl EffectKind {
             EffectKind::LoadFriction => LOAD,
             EffectKind::LoadStribeckFriction => LOAD_STRIBECK,
             EffectKind::BackEmf => BACK_EMF,
+            EffectKind::EncoderOffset => ENCODER_OFFSET,
         }
     }
 

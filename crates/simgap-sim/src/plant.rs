@@ -3,16 +3,16 @@
 use nalgebra::DMatrix;
 use simgap_core::{forward_dynamics_armature_into, mass_matrix, mass_matrix_into, try_forward_dynamics_into, Formulation, Model, Workspace};
 
-use crate::effects::{apply_inertial_effects, armature, friction_torque, friction_torque_smooth, total_delay, Effect};
+use crate::effects::{apply_inertial_effects, armature, encoder_offset, friction_torque, friction_torque_smooth, total_delay, Effect};
 use crate::error::Result;
 
 /// What the simulator integrates:
 ///
 /// ```text
-/// (H(q) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q, q̇) q̇ − g(q)
+/// (H(q̄) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q̄, q̇) q̇ − g(q̄),   q̄ = q + δ
 /// ```
 ///
-/// with `H`, `C`, `g` of the model after payload and inertial errors, `C` of
+/// with `q` the measured positions, `δ` the encoder offset, `H`, `C`, `g` of the model after payload and inertial errors, `C` of
 /// `formulation.other()` when [`Effect::CoriolisStructure`] is present, `ia` the armature and
 /// `τ_friction` from [`friction_torque`]. See [`crate::effects`] for `τ_applied`.
 #[derive(Clone, Debug)]
@@ -21,6 +21,8 @@ pub struct Plant {
     formulation: Formulation,
     effects: Vec<Effect>,
     armature: Vec<f64>,
+    /// The encoder offset `δ` [rad or m] (`None` when 0 on every joint).
+    offset: Option<Vec<f64>>,
     /// H is positive definite at q = 0 and no armature is added: the one-pass
     /// `try_forward_dynamics_into` can be used (a model whose inertia is not physical can still
     /// lose definiteness elsewhere: the acceleration is then NaN).
@@ -36,6 +38,8 @@ pub struct PlantWorkspace {
     pub ws: Workspace,
     friction: Vec<f64>,
     h: DMatrix<f64>,
+    /// The true positions `q + δ` (with an encoder offset).
+    q_true: Vec<f64>,
 }
 
 impl Plant {
@@ -50,6 +54,8 @@ impl Plant {
         let n = model.dof();
         let mut ia = vec![0.0; n];
         armature(effects, &mut ia);
+        let mut offset = vec![0.0; n];
+        encoder_offset(effects, &mut offset);
         let coriolis_flip = effects.iter().filter(|e| matches!(e, Effect::CoriolisStructure)).count() % 2 == 1;
         let h_ok = {
             let mut h = mass_matrix(&changed, &mut Workspace::new(&changed), &vec![0.0; n]);
@@ -61,6 +67,7 @@ impl Plant {
             formulation: if coriolis_flip { formulation.other() } else { formulation },
             effects: effects.to_vec(),
             armature: ia,
+            offset: offset.iter().any(|x| *x != 0.0).then_some(offset),
             delay: total_delay(effects),
             effort_limits: model.joints().iter().map(|j| j.limits.effort).collect(),
             model: changed,
@@ -100,7 +107,7 @@ impl Plant {
     /// Scratch space for [`Plant::acceleration`].
     pub fn workspace(&self) -> PlantWorkspace {
         let n = self.dof();
-        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n], h: DMatrix::zeros(n, n) }
+        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n], h: DMatrix::zeros(n, n), q_true: vec![0.0; n] }
     }
 
     /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation; each
@@ -130,6 +137,7 @@ impl Plant {
     /// # Panics
     /// If a length does not match the model.
     pub fn inertia_diagonal(&self, pws: &mut PlantWorkspace, q: &[f64], out: &mut [f64]) {
+        let q = true_positions(self.offset.as_deref(), q, &mut pws.q_true);
         mass_matrix_into(&self.model, &mut pws.ws, q, &mut pws.h);
         for (i, o) in out.iter_mut().enumerate() {
             *o = pws.h[(i, i)] + self.armature[i];
@@ -141,6 +149,7 @@ impl Plant {
     /// # Panics
     /// If a size does not match the model.
     pub fn inertia_matrix(&self, pws: &mut PlantWorkspace, q: &[f64], out: &mut DMatrix<f64>) {
+        let q = true_positions(self.offset.as_deref(), q, &mut pws.q_true);
         mass_matrix_into(&self.model, &mut pws.ws, q, out);
         for i in 0..self.dof() {
             out[(i, i)] += self.armature[i];
@@ -155,12 +164,14 @@ impl Plant {
             out.fill(f64::NAN);
             return;
         }
+        // the frictions at the measured positions, the rigid body at the true ones
+        friction(&self.effects, q, qd, &mut pws.friction);
+        for i in 0..n {
+            pws.friction[i] += tau_applied[i];
+        }
+        let q = true_positions(self.offset.as_deref(), q, &mut pws.q_true);
         // fast path: one kinematics pass, q̈ = H⁻¹ (τ + friction − C q̇ − g)
         if self.fast_path {
-            friction(&self.effects, q, qd, &mut pws.friction);
-            for i in 0..n {
-                pws.friction[i] += tau_applied[i];
-            }
             // a model whose inertia is not physical (a fitted correction) cannot accelerate: NaN,
             // which the caller reads as divergence
             if !try_forward_dynamics_into(&self.model, &mut pws.ws, q, qd, &pws.friction, self.formulation, out) {
@@ -168,14 +179,23 @@ impl Plant {
             }
             return;
         }
-        // τ + friction, then q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics
-        // pass for the bias torques and H
-        friction(&self.effects, q, qd, &mut pws.friction);
-        for i in 0..n {
-            pws.friction[i] += tau_applied[i];
-        }
+        // q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics pass for the bias
+        // torques and H
         if !forward_dynamics_armature_into(&self.model, &mut pws.ws, q, qd, &pws.friction, &self.armature, self.formulation, out) {
             out.fill(f64::NAN);
         }
+    }
+}
+
+/// The true positions `q + δ` in `buf` with an encoder offset `δ`, else `q` itself.
+fn true_positions<'a>(offset: Option<&[f64]>, q: &'a [f64], buf: &'a mut [f64]) -> &'a [f64] {
+    match offset {
+        Some(d) => {
+            for ((b, x), o) in buf.iter_mut().zip(q).zip(d) {
+                *b = x + o;
+            }
+            buf
+        }
+        None => q,
     }
 }

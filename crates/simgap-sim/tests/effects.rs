@@ -62,6 +62,7 @@ fn every_effect_name_parses() {
         "load_friction:fc=0.1,0.2;mu=0.3,0.1;w=0",
         "load_stribeck_friction:fc=0.1,0.2;mu=0.3,0.1;fs=0.2,0.3;mus=0.5,0.2;vs=0.05;w=0",
         "back_emf:kb=0.04,0.02",
+        "encoder_offset:offset=0.05,-0.02",
     ];
     assert_eq!(specs.len(), EffectKind::ALL.len(), "one spelling per effect");
     for (spec, kind) in specs.iter().zip(EffectKind::ALL) {
@@ -239,6 +240,24 @@ fn torque_gain_and_offset_shift_the_steady_state() {
     assert!(weak[0] < nominal[0], "a weaker shoulder sags more: {nominal:?} vs {weak:?}");
     let pushed = last(&pd_run(&[Effect::TorqueOffset { offset: vec![0.0, 1.0] }], 8.0));
     assert!(pushed[1] > nominal[1], "a positive elbow offset raises the elbow: {nominal:?} vs {pushed:?}");
+}
+
+#[test]
+fn an_encoder_offset_is_the_nominal_arm_read_through_a_shifted_zero() {
+    // free motion: the arm with offset δ started at measured q0 is the nominal arm started at
+    // q0 + δ, logged δ lower
+    let model = Model::paper_arm();
+    let delta = [0.05, -0.08];
+    let offset = run(&model, &[Effect::EncoderOffset { offset: delta.to_vec() }], &mut ZeroTorque, &free_params());
+    let p = free_params();
+    let shifted_start = SimParams { q0: p.q0.iter().zip(delta).map(|(q, d)| q + d).collect(), ..p };
+    let nominal = run(&model, &[], &mut ZeroTorque, &shifted_start);
+    let d = offset.q.chunks(2).zip(nominal.q.chunks(2)).flat_map(|(a, b)| [a[0] + delta[0] - b[0], a[1] + delta[1] - b[1]]).fold(0.0f64, |m, x| m.max(x.abs()));
+    assert!(d < 1e-9, "{d}");
+    // under PD control on the measured angle, gravity acts at the true one: the sag differs
+    let nominal_pd = last(&pd_run(&[], 8.0));
+    let offset_pd = last(&pd_run(&[Effect::EncoderOffset { offset: delta.to_vec() }], 8.0));
+    assert!((offset_pd[0] - nominal_pd[0]).abs() > 1e-4, "{nominal_pd:?} vs {offset_pd:?}");
 }
 
 #[test]

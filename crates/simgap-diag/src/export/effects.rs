@@ -30,6 +30,8 @@ pub(super) struct Corrections {
     /// Spring rest position [rad or m] (the stiffness-weighted rest position where several
     /// springs act on one joint).
     pub(super) spring_q0: Vec<f64>,
+    /// Encoder offset [rad or m]: the joint is at its measured position plus it.
+    pub(super) encoder_offset: Vec<f64>,
 }
 
 /// A parameter's values per joint of the effect, as model indices (`PerJoint` aligned with
@@ -135,6 +137,7 @@ impl Corrections {
             limit: vec![f64::INFINITY; n],
             spring_k: vec![0.0; n],
             spring_q0: vec![0.0; n],
+            encoder_offset: vec![0.0; n],
         };
         let mut inertial = Vec::new();
         let mut spring_moment = vec![0.0; n];
@@ -152,6 +155,7 @@ impl Corrections {
                 EffectKind::Armature => nonneg("ia")?.into_iter().for_each(|(j, x)| c.armature[j] += x),
                 EffectKind::TorqueGain => per_joint(model, e, "k")?.into_iter().for_each(|(j, x)| c.gain[j] *= x),
                 EffectKind::TorqueSaturation => nonneg("limit")?.into_iter().for_each(|(j, x)| c.limit[j] = c.limit[j].min(x)),
+                EffectKind::EncoderOffset => per_joint(model, e, "offset")?.into_iter().for_each(|(j, x)| c.encoder_offset[j] += x),
                 EffectKind::JointSpring => {
                     let (k, q0) = (nonneg("k")?, per_joint(model, e, "q0")?);
                     for ((j, k), (_, q0)) in k.into_iter().zip(q0) {

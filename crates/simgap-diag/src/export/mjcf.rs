@@ -164,8 +164,14 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
             JointKind::Revolute => j.limits.lower.is_finite() && j.limits.upper.is_finite() && j.limits.upper - j.limits.lower < FULL_TURN,
             JointKind::Prismatic => j.limits.lower.is_finite() && j.limits.upper.is_finite(),
         };
+        // an encoder offset δ: qpos is the measured position, the joint turns by qpos − ref
+        // = qpos + δ, and its limits (at the true angle) are δ lower in qpos
+        let delta = c.encoder_offset[i];
+        if delta != 0.0 {
+            let _ = write!(attrs, " ref=\"{}\"", num(-delta));
+        }
         if real_range {
-            let _ = write!(attrs, " limited=\"true\" range=\"{} {}\"", num(j.limits.lower), num(j.limits.upper));
+            let _ = write!(attrs, " limited=\"true\" range=\"{} {}\"", num(j.limits.lower - delta), num(j.limits.upper - delta));
         } else {
             attrs.push_str(" limited=\"false\"");
         }
@@ -256,6 +262,11 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
             EffectKind::TorqueGain => sidecar.hold(e, "motor gear", ""),
             EffectKind::TorqueSaturation => sidecar.hold(e, "motor forcerange (forcelimited), applied to ctrl before the gear as simgap clamps before the gain", ""),
             EffectKind::JointSpring => sidecar.hold(e, "joint stiffness and springref", ""),
+            EffectKind::EncoderOffset => sidecar.hold(
+                e,
+                "joint ref = −offset (qpos is the measured position; the joint turns by qpos − ref) and its range shifted by −offset",
+                "a joint spring's springref and the servo's goal stay in measured positions",
+            ),
             _ => sidecar.defer(e, Format::Mjcf),
         }
     }

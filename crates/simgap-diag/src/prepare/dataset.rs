@@ -97,6 +97,10 @@ pub struct FitData {
     pub coriolis_delta: Vec<f64>,
     /// Inertial regressor per kept sample, `dof × 10 dof` row-major, when requested.
     pub regressor: Vec<f64>,
+    /// Per joint `j`, the slope `∂(H q̈ + C q̇ + g)/∂q_j` of the model torque at every kept
+    /// sample (`len × dof` row-major, central difference) [N·m/rad or N/m]: the torque an
+    /// encoder offset of one unit on joint `j` adds (the joint is at `q + δ`).
+    pub offset_slope: Vec<Vec<f64>>,
     /// Per joint, the largest diagonal entry `H_jj(q)` of the mass matrix over the kept
     /// samples: the link inertia the joint moves [kg·m² or kg].
     pub h_max: Vec<f64>,
@@ -119,6 +123,20 @@ pub struct FitData {
     qd_every: Vec<f64>,
     smoother: Smoother,
     kept: Vec<usize>,
+}
+
+/// The step [rad or m] of the central difference of [`FitData::offset_slope`].
+const OFFSET_STEP: f64 = 1e-6;
+
+/// The model torque `H(q) q̈ + C(q, q̇) q̇ + g(q)` with `formulation`'s C into `out` (`h`:
+/// scratch `dof × dof`).
+#[allow(clippy::too_many_arguments)]
+fn model_torque(model: &Model, ws: &mut Workspace, formulation: Formulation, q: &[f64], qd: &[f64], qdd: &[f64], h: &mut nalgebra::DMatrix<f64>, out: &mut [f64]) {
+    mass_matrix_into(model, ws, q, h);
+    bias_torques_into(model, ws, q, qd, formulation, out);
+    for (i, o) in out.iter_mut().enumerate() {
+        *o += (0..q.len()).map(|j| h[(i, j)] * qdd[j]).sum::<f64>();
+    }
 }
 
 impl FitData {
@@ -193,7 +211,9 @@ impl FitData {
         let mut coriolis_delta = vec![0.0; m * n];
         let mut regressor = if options.regressor { Vec::with_capacity(m * n * PARAMS_PER_LINK * n) } else { Vec::new() };
         let mut h_max = vec![0.0f64; n];
-        // per sample: model torque, the other formulation's bias, the regressor
+        let mut offset_slope = vec![vec![0.0; m * n]; n];
+        let (mut q_shift, mut id_plus, mut id_minus) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        // per sample: model torque, the other formulation's bias, the regressor, the slopes
         for k in 0..m {
             let (qk, qdk, qddk) = (&q[k * n..(k + 1) * n], &qd[k * n..(k + 1) * n], &qdd[k * n..(k + 1) * n]);
             mass_matrix_into(model, &mut ws, qk, &mut h);
@@ -206,6 +226,17 @@ impl FitData {
                 let hq: f64 = (0..n).map(|j| h[(i, j)] * qddk[j]).sum();
                 residual[k * n + i] = tau[k * n + i] - hq - b[i];
                 coriolis_delta[k * n + i] = b_other[i] - b[i];
+            }
+            // the model torque's slope in each joint's position, by central difference
+            for (j, slope) in offset_slope.iter_mut().enumerate() {
+                for (sign, out) in [(1.0, &mut id_plus), (-1.0, &mut id_minus)] {
+                    q_shift.copy_from_slice(qk);
+                    q_shift[j] += sign * OFFSET_STEP;
+                    model_torque(model, &mut ws, formulation, &q_shift, qdk, qddk, &mut h, out);
+                }
+                for i in 0..n {
+                    slope[k * n + i] = (id_plus[i] - id_minus[i]) / (2.0 * OFFSET_STEP);
+                }
             }
             if options.regressor {
                 inverse_dynamics_regressor_into(model, &mut ws, qk, qdk, qddk, &mut y);
@@ -231,6 +262,7 @@ impl FitData {
             residual,
             coriolis_delta,
             regressor,
+            offset_slope,
             h_max,
             dry_width: Vec::new(),
             recorder_bandwidth: None,

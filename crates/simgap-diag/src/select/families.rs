@@ -82,6 +82,7 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
         }
         f.push(Family::Cogging(j));
         f.push(Family::Fixed(Term::Spring(j)));
+        f.push(Family::Fixed(Term::EncoderOffset(j)));
     }
     f.push(Family::Delay);
     f.push(Family::Fixed(Term::CoriolisStructure));

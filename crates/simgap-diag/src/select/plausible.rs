@@ -299,9 +299,13 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         }
         // the simplest replacement that predicts as well, or a richer one that predicts better
         // than it by more than the tie tolerance
+        // encoder offsets on every joint: a joint turned from its measured angle moves the
+        // links after it as a rotated centre of mass does (on the last joint, exactly)
+        let encoder: Vec<Term> = (0..scorer.prep.passive.len()).map(Term::EncoderOffset).collect();
         let mut chosen: Option<(Vec<Term>, Vec<Term>, f64, &str)> = None;
         let candidates = [
             (offsets_only, "mostly a constant"),
+            (encoder, "that of joints turned from their measured angles"),
             (with_rotor, "mostly a constant and a multiple of the joint's acceleration"),
             (every_rotor, "in part a constant and a multiple of a joint's acceleration"),
         ];
@@ -328,7 +332,13 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
                     on.push(joints[j].as_str());
                 }
             }
-            let by = if replacing.iter().any(|t| matches!(t, Term::Armature(_))) { "torque offsets and rotor inertias" } else { "torque offsets" };
+            let by = if replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_))) {
+                "encoder offsets"
+            } else if replacing.iter().any(|t| matches!(t, Term::Armature(_))) {
+                "torque offsets and rotor inertias"
+            } else {
+                "torque offsets"
+            };
             let how = if s < score * (1.0 - TIE_TOLERANCE) {
                 format!("better (cross-validated k-step score {s:.4} against {score:.4})")
             } else {

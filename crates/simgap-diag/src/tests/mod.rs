@@ -3,6 +3,7 @@
 mod alternatives;
 mod common;
 mod delay_line;
+mod encoder_offset;
 mod friction_filter;
 mod gram_cache;
 mod intervals;

@@ -20,6 +20,7 @@
 //! directional    r_j ∋  s⁺ (fc⁺ + b⁺ q̇) − s⁻ (fc⁻ − b⁻ q̇) (s± = (1 ± tanh(q̇/w)) / 2, all ≥ 0)
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
+//! encoder_offset r   ∋  ∂(H q̈ + C q̇ + g)/∂q_j δ_j       (|δ| ≤ OFFSET_MAX, first order in δ)
 //! ```
 
 mod actuator;
@@ -29,6 +30,7 @@ mod coriolis;
 mod delay;
 mod directional;
 pub(crate) mod effects;
+mod encoder;
 mod friction;
 mod inertial;
 mod load_friction;
@@ -127,6 +129,8 @@ pub(crate) enum Term {
         /// Periods per revolution.
         periods: f64,
     },
+    /// An encoder offset on a joint: the joint is at its measured position plus the offset.
+    EncoderOffset(usize),
     /// Whole-robot actuation delay.
     Delay {
         /// Delay [s].
@@ -172,6 +176,7 @@ impl Term {
             Term::CoriolisStructure => EffectKind::CoriolisStructure,
             Term::Payload { .. } => EffectKind::Payload,
             Term::InertialError { .. } => EffectKind::InertialError,
+            Term::EncoderOffset(_) => EffectKind::EncoderOffset,
         }
     }
 
@@ -190,7 +195,7 @@ impl Term {
     /// The joint of a per-joint term.
     pub(crate) fn joint(&self) -> Option<usize> {
         match *self {
-            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) | Term::BackEmf(j) => Some(j),
+            Term::Viscous(j) | Term::Armature(j) | Term::Gain(j) | Term::Offset(j) | Term::Spring(j) | Term::BackEmf(j) | Term::EncoderOffset(j) => Some(j),
             Term::Coulomb { joint, .. }
             | Term::Stribeck { joint, .. }
             | Term::LoadFriction { joint, .. }
@@ -306,6 +311,7 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
         Term::CoriolisStructure => coriolis::design(data),
         Term::Payload { com, max_mass } => payload::design(*com, *max_mass, data),
         Term::InertialError { prior } => inertial::design(prior, data),
+        Term::EncoderOffset(j) => encoder::design(*j, data),
     }
 }
 
@@ -326,7 +332,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
         Term::Payload { .. } => payload::physical(theta),
         Term::Spring(_) => spring::physical(theta),
         Term::InertialError { prior } => prior.is_physical(theta),
-        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure | Term::BackEmf(_) => true,
+        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure | Term::BackEmf(_) | Term::EncoderOffset(_) => true,
     }
 }
 
@@ -357,6 +363,7 @@ fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
         Term::CoriolisStructure => out.push(Effect::CoriolisStructure),
         Term::Payload { com, .. } => out.push(Effect::Payload { mass: f.theta[0], com: *com }),
         Term::InertialError { prior } => out.push(inertial::apply(model, prior, &f.theta)),
+        Term::EncoderOffset(j) => encoder::apply(*j, &f.theta, n, out),
     }
 }
 
@@ -378,6 +385,7 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
         Term::CoriolisStructure => {}
         Term::Payload { com, .. } => payload::report(*com, th, sd, entry),
         Term::InertialError { prior } => inertial::report(model, prior, f, entry),
+        Term::EncoderOffset(_) => entry.push("offset", th[0], ci(sd[0])),
     }
 }
 
@@ -396,6 +404,7 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         EffectKind::CoriolisStructure => coriolis::describe(),
         EffectKind::Payload => payload::describe(model, e),
         EffectKind::DirectionalFriction => directional::describe(e),
+        EffectKind::EncoderOffset => encoder::describe(e),
         // an inertial error states its changes per link
         EffectKind::InertialError => String::new(),
     }

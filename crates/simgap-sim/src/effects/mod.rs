@@ -5,11 +5,12 @@
 //! integrates
 //!
 //! ```text
-//! (H(q) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q, q̇) q̇ − g(q)
+//! (H(q̄) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q̄, q̇) q̇ − g(q̄),   q̄ = q + δ
 //! τ_applied(t)        = k · clamp(τ_cmd(t − delay), ±limit) + offset
 //! ```
 //!
-//! with `H`, `C`, `g` those of the model after [`Effect::Payload`] and [`Effect::InertialError`]
+//! with `q` the measured positions (the state, what the controller and the log see) and `δ`
+//! the [`Effect::EncoderOffset`] (0 without one), and `H`, `C`, `g` those of the model after [`Effect::Payload`] and [`Effect::InertialError`]
 //! were applied, and `C` of the other [`Formulation`](simgap_core::Formulation) when
 //! [`Effect::CoriolisStructure`] is present.
 //!
@@ -44,6 +45,7 @@ mod cogging;
 mod coriolis_structure;
 mod coulomb_friction;
 mod directional_friction;
+mod encoder_offset;
 mod inertial_error;
 mod joint_spring;
 mod load_friction;
@@ -229,6 +231,14 @@ pub enum Effect {
         /// Back-EMF coefficients.
         kb: Vec<f64>,
     },
+    /// The joint's measured zero is not the model's: the joint is at `q_measured + offset`
+    /// [rad or m]. The simulator's state, controller and log are in measured positions; the
+    /// plant evaluates `H`, `C q̇` and `g` at `q + offset` (gravity and inertia act at the true
+    /// angle, the controller sees the measured one).
+    EncoderOffset {
+        /// Offsets: true position minus measured position.
+        offset: Vec<f64>,
+    },
 }
 
 /// How the simulator applies one kind of effect. Each effect's file implements it once, over a
@@ -301,6 +311,9 @@ trait Simulated {
 
     /// Adds the effect's armature to `out` [kg·m² or kg] (see [`armature`]).
     fn add_armature(&self, _out: &mut [f64]) {}
+
+    /// Adds the effect's encoder offset to `out` [rad or m] (see [`encoder_offset`]).
+    fn add_encoder_offset(&self, _out: &mut [f64]) {}
 
     /// Applies the effect to the link inertias of `model` (see [`apply_inertial_effects`]).
     fn apply_to_model(&self, _model: &mut Model) -> Result<()> {
@@ -393,6 +406,7 @@ impl Effect {
             Effect::LoadFriction { fc, mu, w } => f(&load_friction::LoadFriction { fc, mu, w }),
             Effect::LoadStribeckFriction { fc, mu, fs, mus, vs, w } => f(&load_stribeck_friction::LoadStribeckFriction { fc, mu, fs, mus, vs, w }),
             Effect::BackEmf { kb } => f(&back_emf::BackEmf { kb }),
+            Effect::EncoderOffset { offset } => f(&encoder_offset::EncoderOffset { offset }),
         }
     }
 
@@ -529,6 +543,7 @@ impl Effect {
             EffectKind::LoadFriction => load_friction::parse(&s)?,
             EffectKind::LoadStribeckFriction => load_stribeck_friction::parse(&s)?,
             EffectKind::BackEmf => back_emf::parse(&s)?,
+            EffectKind::EncoderOffset => encoder_offset::parse(&s)?,
         };
         effect.validate(dof)?;
         Ok(effect)
@@ -775,6 +790,18 @@ pub fn armature(effects: &[Effect], out: &mut [f64]) {
     out.fill(0.0);
     for e in effects {
         e.simulated(|e| e.add_armature(out));
+    }
+}
+
+/// Total encoder offset per joint (sum of every [`Effect::EncoderOffset`]) into `out`
+/// (overwritten) [rad or m]: the true position is the measured one plus it.
+///
+/// # Panics
+/// If an effect's vector is shorter than `out`.
+pub fn encoder_offset(effects: &[Effect], out: &mut [f64]) {
+    out.fill(0.0);
+    for e in effects {
+        e.simulated(|e| e.add_encoder_offset(out));
     }
 }
 
