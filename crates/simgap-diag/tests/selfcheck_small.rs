@@ -158,3 +158,22 @@ fn real_drive_families_are_diagnosed_right_with_plausible_effects() {
     assert_eq!(sum.implausible.0, 0, "selected effects outside their physical range or consistent with no effect");
     every_report_states_what_its_log_kept(&scores);
 }
+
+#[test]
+fn encoder_offsets_on_servo_arms_are_found_and_not_invented() {
+    use simgap_diag::selfcheck::run_encoder_offset_scenario;
+    // six servo scenarios with a joint's measured zero 1-5 degrees off (two of them nulls,
+    // indices 2 and 5, without one): the offsets found, with their values, and none invented
+    let seed: u64 = std::env::var("SIMGAP_OFFSET_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let scores: Vec<_> = (0..6usize).into_par_iter().map(|i| run_encoder_offset_scenario(seed, i)).collect();
+    for s in &scores {
+        eprintln!(
+            "seed {seed} scenario {} {:<15} right={:<5} truth={:?} found={:?} kstep={:.3} {:?} {} {:?}",
+            s.index, s.robot, s.right, s.truth, s.found, s.kstep_ratio, s.parameter_errors, s.rule, s.error
+        );
+    }
+    let right = scores.iter().filter(|s| s.right).count();
+    assert!(right >= 5, "{right} of {} encoder-offset scenarios right", scores.len());
+    let invented = scores.iter().filter(|s| s.index % 3 == 2 && s.found.iter().any(|f| f.starts_with("encoder_offset@"))).count();
+    assert_eq!(invented, 0, "an encoder offset found where none was hidden");
+}

@@ -302,10 +302,22 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         // encoder offsets on every joint: a joint turned from its measured angle moves the
         // links after it as a rotated centre of mass does (on the last joint, exactly)
         let encoder: Vec<Term> = (0..scorer.prep.passive.len()).map(Term::EncoderOffset).collect();
+        // and with a rotor inertia on every actuated joint (the correction may have taken a
+        // rotor inertia's part as well)
+        let mut encoder_rotor = encoder.clone();
+        if rotor {
+            encoder_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature));
+        }
+        // and on servo logs, whose motor constants were fitted with the nominal model (an offset
+        // biases them), a torque gain on every actuated joint as well
+        if scorer.prep.servo.is_some() {
+            encoder_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Gain));
+        }
         let mut chosen: Option<(Vec<Term>, Vec<Term>, f64, &str)> = None;
         let candidates = [
             (offsets_only, "mostly a constant"),
             (encoder, "that of joints turned from their measured angles"),
+            (encoder_rotor, "that of joints turned from their measured angles and of rotor inertias"),
             (with_rotor, "mostly a constant and a multiple of the joint's acceleration"),
             (every_rotor, "in part a constant and a multiple of a joint's acceleration"),
         ];
@@ -320,7 +332,15 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
             with.remove(i);
             with.extend(replacing.iter().cloned());
             let s = scorer.score(&with);
-            let bar = chosen.as_ref().map_or(score * (1.0 + TIE_TOLERANCE), |c| c.2 * (1.0 - TIE_TOLERANCE));
+            // encoder offsets stand for a turned centre of mass exactly, and what the correction's
+            // other parameters add beyond that is a fit of the motor constants' bias: within
+            // ENCODER_TIE of the nominal error they predict as well
+            let tie = if replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_))) {
+                (score * (1.0 + TIE_TOLERANCE)).max(score + ENCODER_TIE)
+            } else {
+                score * (1.0 + TIE_TOLERANCE)
+            };
+            let bar = chosen.as_ref().map_or(tie, |c| c.2 * (1.0 - TIE_TOLERANCE));
             if s <= bar {
                 chosen = Some((replacing, with, s, shape));
             }
@@ -332,7 +352,11 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
                     on.push(joints[j].as_str());
                 }
             }
-            let by = if replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_))) {
+            let encoder = replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_)));
+            let rotors = replacing.iter().any(|t| matches!(t, Term::Armature(_)));
+            let by = if encoder && rotors {
+                "encoder offsets and rotor inertias"
+            } else if encoder {
                 "encoder offsets"
             } else if replacing.iter().any(|t| matches!(t, Term::Armature(_))) {
                 "torque offsets and rotor inertias"
@@ -357,6 +381,11 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
     }
     (score, replacements)
 }
+
+/// Where encoder offsets replace an inertial correction ([`parsimony`]), the k-step score (a
+/// share of the nominal model's error) by which they may fall short of it and still predict as
+/// well: half a percent of the nominal error.
+const ENCODER_TIE: f64 = 0.005;
 
 /// How a fitted term's torque on one joint decomposes ([`affine_torque_joints`]).
 struct AffineTorque {

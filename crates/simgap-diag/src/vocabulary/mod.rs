@@ -42,6 +42,7 @@ mod spring;
 pub use effects::{EffectReport, Param};
 
 pub(crate) use crate::lsq::design::{Column, TermDesign};
+pub(crate) use encoder::OFFSET_MAX;
 pub(crate) use friction::resolvable as stribeck_resolvable;
 pub(crate) use load_stribeck::VS_GRID as LOAD_STRIBECK_VS_GRID;
 pub(crate) use payload::{largest_command, payload_basis_rows, payload_linear_design, payload_mass_bound, point_mass_parameters};

@@ -31,7 +31,17 @@ use super::scenarios::{double_pendulum, Scenario};
 /// [`servo_scenario`]`(seed, index)`, scored by [`run_servo_scenario`](super::run_servo_scenario).
 pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
     let family = servo_family(index);
-    draw_servo(seed, index, family == "servo_saturation", family == "servo_breakaway")
+    draw_servo(seed, index, family == "servo_saturation", family == "servo_breakaway", false)
+}
+
+/// A `servo_encoder_offset` scenario: the `servo` draw of [`servo_scenario`] (its mechanics,
+/// motor constants and logs' goals), with, on two indices in three, the measured zero of one
+/// joint, or of each of the double pendulum's two with even odds, 1–5° off either way
+/// (`encoder_offset`, drawn from a stream of its own); the third (`index % 3 == 2`) is a null,
+/// the servo draw alone.
+pub fn encoder_offset_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
+    let drawn = draw_servo(seed, index, false, false, index % 3 != 2)?;
+    Ok(Scenario { family: "servo_encoder_offset", ..drawn })
 }
 
 /// `effects` (of a `dof`-joint robot) with their first a load friction rising at rest on
@@ -72,12 +82,13 @@ pub const SATURATION_EVERY: usize = 4;
 /// # Errors
 /// [`crate::Error::Input`] when every draw diverged.
 pub fn servo_draw(seed: u64, index: usize, limited: bool) -> crate::Result<Scenario> {
-    draw_servo(seed, index, limited, false)
+    draw_servo(seed, index, limited, false, false)
 }
 
 /// [`servo_draw`], or with `breakaway` the same draw with its first effect a load friction
-/// rising at rest (its parameters and the logs' goals drawn apart, see [`servo_scenario`]).
-fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool) -> crate::Result<Scenario> {
+/// rising at rest (its parameters and the logs' goals drawn apart, see [`servo_scenario`]); with
+/// `offsets`, encoder offsets added ([`encoder_offset_scenario`]).
+fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool, offsets: bool) -> crate::Result<Scenario> {
     use crate::check::bench::{generate_servo, random_fourier, ServoSpec};
     // the limit's share of the gravity torque, drawn apart from the rest
     let limit_share = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(4_000_037).wrapping_add(index as u64)).random_range(0.45..0.75);
@@ -138,6 +149,14 @@ fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool) -> crate:
         let mut apart = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(5_000_011).wrapping_add(index as u64));
         if breakaway {
             effects = rising_at_rest(&effects, n, joint, kt[joint] / r[joint] * volts, &mut apart);
+        }
+        if offsets {
+            let mut own = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(6_000_047).wrapping_add(index as u64));
+            let first = own.random_range(0..n);
+            let both = n > 1 && own.random_bool(0.5);
+            let offset: Vec<f64> =
+                (0..n).map(|j| if j == first || both { own.random_range(1.0f64..5.0).to_radians() * if own.random_bool(0.5) { 1.0 } else { -1.0 } } else { 0.0 }).collect();
+            effects.push(Effect::EncoderOffset { offset });
         }
         let logs: &mut ChaCha8Rng = if breakaway { &mut apart } else { &mut *rng };
         let goal = |rng: &mut ChaCha8Rng| random_fourier(n, amp, rng);
