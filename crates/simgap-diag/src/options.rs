@@ -15,11 +15,13 @@ pub struct DiagnoseOptions {
     pub select: SelectOptions,
     /// Prediction horizons [s] of the k-step figures; empty = 0.1, 0.25 and 0.5 s.
     pub horizons: Vec<f64>,
-    /// Try `directional_friction` (levels and slopes per direction of motion) in place of a
-    /// joint's selected Coulomb and viscous friction (default false). Off by default: on the
-    /// DFKI double pendulum, trying it on every fold changed which multiple-shooting set won a
-    /// near-tie on one fold and made its held-out prediction 2.5 times worse; on a drive
-    /// expected to differ by direction (a ball screw, a worn gearbox) turn it on.
+    /// Try `directional_friction` (levels and slopes per direction of motion) in place of the
+    /// selected Coulomb and viscous friction of every joint (default false); without it, it is
+    /// tried on the linear axes (prismatic joints: ball screws, belts, guides) only. Off by
+    /// default on turning joints: on the DFKI double pendulum, trying it on every fold changed
+    /// which multiple-shooting set won a near-tie on one fold and made its held-out prediction
+    /// 2.5 times worse; on a turning drive expected to differ by direction (a worn gearbox)
+    /// turn it on.
     pub directional_friction: bool,
     /// On servo logs, also try the servo's load friction rising at rest
     /// (`load_stribeck_friction`: a breakaway level `fs + mus |τ_drive|` above the moving

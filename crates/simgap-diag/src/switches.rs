@@ -30,8 +30,8 @@ pub const SWITCHES: &[Switch] = &[
     Switch {
         name: EffectKind::DirectionalFriction.as_str(),
         flag: "directional-friction",
-        help: "Also try friction that differs with the direction of motion (levels and slopes per direction) in place of each \
-               joint's Coulomb and viscous friction: for ball screws and worn gearboxes",
+        help: "Also try friction that differs with the direction of motion (levels and slopes per direction) in place of the \
+               Coulomb and viscous friction of turning joints (worn gearboxes); on linear axes (ball screws) it is tried without it",
         default: false,
         set: |o, v| o.directional_friction = v,
         get: |o| o.directional_friction,

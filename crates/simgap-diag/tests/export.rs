@@ -221,6 +221,29 @@ fn a_joint_spring_is_mjcf_stiffness_and_springref_and_a_urdf_sidecar_entry() {
 }
 
 #[test]
+fn an_encoder_offset_is_the_mjcf_joint_ref_with_its_range_shifted_and_a_urdf_sidecar_entry() {
+    // the joint turns by qpos − ref = q_measured + offset: ref = −offset, and the limits (at the
+    // true angle) are offset lower in qpos
+    let model = Model::from_urdf_str(PAPER_ARM_URDF).unwrap();
+    let effects = [effect("encoder_offset", &["elbow"], &[("offset", Param::PerJoint(vec![0.05]))])];
+    let out = export_mjcf(&model, &effects, &MjcfOptions::new(0.0025)).unwrap();
+    let doc = roxmltree::Document::parse(&out.text).unwrap();
+    let elbow = doc.descendants().find(|n| n.has_tag_name("joint") && n.attribute("name") == Some("elbow")).unwrap();
+    assert_eq!(elbow.attribute("ref"), Some("-0.05"), "{}", out.text);
+    let limits = model.joints()[1].limits;
+    if let Some(range) = elbow.attribute("range") {
+        let r: Vec<f64> = range.split_whitespace().map(|x| x.parse().unwrap()).collect();
+        assert!((r[0] - (limits.lower - 0.05)).abs() < 1e-9 && (r[1] - (limits.upper - 0.05)).abs() < 1e-9, "{range}");
+    }
+    let shoulder = doc.descendants().find(|n| n.has_tag_name("joint") && n.attribute("name") == Some("shoulder")).unwrap();
+    assert_eq!(shoulder.attribute("ref"), None);
+    assert!(out.sidecar.selected_effects.is_empty() && out.sidecar.held.len() == 1, "{:?}", out.sidecar);
+    let urdf = export_urdf(PAPER_ARM_URDF, "paper_arm.urdf", &model, &effects).unwrap();
+    let deferred: Vec<&str> = urdf.sidecar.selected_effects.iter().map(|e| e.effect.as_str()).collect();
+    assert_eq!(deferred, ["encoder_offset"]);
+}
+
+#[test]
 fn mjcf_body_frames_follow_the_urdf_joint_placements() {
     // panda_joint2 is rotated by rpy (−π/2, 0, 0): quat (cos(−π/4), sin(−π/4), 0, 0)
     let model = arm7();

@@ -71,7 +71,7 @@ fn on(n: usize, joint: usize, neutral: f64, value: f64) -> Vec<f64> {
 ///   nests it and must not be selected;
 /// - `directional_friction`: a 5 kg linear axis at 1 kHz ([`SLIDER_URDF`], 1 µm encoder) whose
 ///   dry and viscous friction differ by direction (two thirds of the draws) or not (a third: the
-///   symmetric pair must be kept), diagnosed with directional friction tried;
+///   symmetric pair must be kept), diagnosed with the defaults (directional friction is tried on linear axes);
 /// - `load_friction`: the paper's arm or a pendulum whose dry friction grows with the drive
 ///   torque, `fc + mu |τ|`, mu 0.1–0.3;
 /// - `link_side`: the 7-DOF arm whose torques are measured on the link side at 200 Hz: sensor
@@ -223,7 +223,7 @@ fn directional(model: Model, index: usize, rng: &mut ChaCha8Rng) -> crate::Resul
     let hold = spec(format!("d{index}-holdout"), 6.0, rng);
     let gen = |s: &RunSpec| generate(&model, Formulation::EulerLagrange, &effects, s, period, counts);
     let (Ok(fit), Ok(hold)) = (specs.iter().map(gen).collect::<crate::Result<Vec<Run>>>(), gen(&hold)) else { return Ok(None) };
-    Ok(Some(Scenario { directional_friction: true, ..Scenario::simulated(index, model, effects, fit, vec![hold], DIRECTIONAL) }))
+    Ok(Some(Scenario::simulated(index, model, effects, fit, vec![hold], DIRECTIONAL)))
 }
 
 /// A `link_side` draw on the 7-DOF arm `model`.

@@ -332,14 +332,10 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
             with.remove(i);
             with.extend(replacing.iter().cloned());
             let s = scorer.score(&with);
-            // encoder offsets stand for a turned centre of mass exactly, and what the correction's
-            // other parameters add beyond that is a fit of the motor constants' bias: within
-            // ENCODER_TIE of the nominal error they predict as well
-            let tie = if replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_))) {
-                (score * (1.0 + TIE_TOLERANCE)).max(score + ENCODER_TIE)
-            } else {
-                score * (1.0 + TIE_TOLERANCE)
-            };
+            // encoder offsets stand for a turned centre of mass exactly: they predict as well when
+            // the correction's other parameters add no more than ENCODER_TIE of the nominal error
+            // (on servo logs those fit the bias of motor constants fitted with the nominal model)
+            let tie = if replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_))) { score + ENCODER_TIE } else { score * (1.0 + TIE_TOLERANCE) };
             let bar = chosen.as_ref().map_or(tie, |c| c.2 * (1.0 - TIE_TOLERANCE));
             if s <= bar {
                 chosen = Some((replacing, with, s, shape));
@@ -365,6 +361,8 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
             };
             let how = if s < score * (1.0 - TIE_TOLERANCE) {
                 format!("better (cross-validated k-step score {s:.4} against {score:.4})")
+            } else if encoder {
+                format!("as well (cross-validated k-step score {s:.4} against {score:.4}, within {ENCODER_TIE} of the nominal error)")
             } else {
                 format!("as well (cross-validated k-step score {s:.4} against {score:.4}, within {:.0} %)", 100.0 * TIE_TOLERANCE)
             };
@@ -384,7 +382,8 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
 
 /// Where encoder offsets replace an inertial correction ([`parsimony`]), the k-step score (a
 /// share of the nominal model's error) by which they may fall short of it and still predict as
-/// well: half a percent of the nominal error.
+/// well: half a percent of the nominal error (in place of the relative tie tolerance: a
+/// correction that explains half the nominal error is not matched within 1 % of it).
 const ENCODER_TIE: f64 = 0.005;
 
 /// How a fitted term's torque on one joint decomposes ([`affine_torque_joints`]).

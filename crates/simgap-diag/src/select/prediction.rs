@@ -76,11 +76,13 @@ pub(crate) fn prune_and_complete(
         terms = set;
         score = refine_by_prediction(scorer, groups, alone_score, &mut terms, &mut log, progress, options)?;
     }
-    // friction that differs with the direction of motion (when asked for), tried in place of a
-    // joint's selected Coulomb and viscous friction (the symmetric pair it nests): kept only when it predicts
-    // the fit runs better by ADD_GAIN in every part of them, so symmetric friction stays the pair
-    let dof = if options.directional_friction { scorer.ctx.problem.dof } else { 0 };
-    for j in 0..dof {
+    // friction that differs with the direction of motion, tried in place of a joint's selected
+    // Coulomb and viscous friction (the symmetric pair it nests) on every linear axis (ball
+    // screws, belts and guides, whose friction commonly differs by direction) and, when asked
+    // for, on every joint: kept only when it predicts the fit runs better by ADD_GAIN in every
+    // part of them, so symmetric friction stays the pair
+    let tried = |j: usize| options.directional_friction || scorer.model.joints()[j].kind == simgap_core::JointKind::Prismatic;
+    for j in (0..scorer.ctx.problem.dof).filter(|&j| tried(j)) {
         check_stop(options)?;
         let dry_w = terms.iter().find_map(|t| match *t {
             Term::Coulomb { joint, w } if joint == j => Some(w),
