@@ -231,9 +231,9 @@ SLIDER_URDF = """<robot name="slider">
 """
 
 
-def test_directional_friction_is_tried_only_when_asked_for(tmp_path: Path) -> None:
+def test_directional_friction_is_tried_on_linear_axes_by_default_and_on_turning_joints_when_asked(tmp_path: Path) -> None:
     # a worn ball screw (8 N and 30 N·s/m moving forward, 5 N and 45 N·s/m back) tracked by a
-    # PD loop: diagnose(..., directional_friction=True) mirrors the CLI's --directional-friction
+    # PD loop: found without being asked, on a linear axis
     urdf = tmp_path / "slider.urdf"
     urdf.write_text(SLIDER_URDF)
     model = simgap.Model.from_urdf(urdf)
@@ -249,10 +249,23 @@ def test_directional_friction_is_tried_only_when_asked_for(tmp_path: Path) -> No
 
     fit = [slide(0.7, 0.1, "fit1"), slide(0.3, 0.15, "fit2")]
     held = [slide(1.1, 0.12, "hold")]
-    asked = simgap.diagnose(model, fit, held, directional_friction=True)
-    assert [e["effect"] for e in asked["selected_effects"]] == ["directional_friction"], asked.summary()
     default = simgap.diagnose(model, fit, held)
-    assert "directional_friction" not in [e["effect"] for e in default["selected_effects"]], default.summary()
+    assert [e["effect"] for e in default["selected_effects"]] == ["directional_friction"], default.summary()
+
+    # the paper's arm with an elbow whose friction differs by direction: on a turning joint it is
+    # tried with directional_friction=True (the CLI's --directional-friction), not by default
+    arm = simgap.Model.paper_arm()
+    on_elbow = "directional_friction:fc_pos=0,3;fc_neg=0,1.5;b_pos=0,0.3;b_neg=0,0.6;w=0.01"
+
+    def tracked(freqs: tuple[float, float], amps: tuple[float, float], name: str) -> simgap.Run:
+        return simgap.simulate(arm, sine_reference(arm, 4.0, freqs, amps, name), controller="pd_gravity", kp=KP, kv=KV, effects=[on_elbow], duration=4.0)
+
+    fit = [tracked((0.5, 0.8), (0.6, 0.8), "f1"), tracked((0.3, 1.2), (0.8, 0.5), "f2")]
+    held = [tracked((0.4, 1.0), (0.7, 0.6), "h")]
+    turning = simgap.diagnose(arm, fit, held)
+    assert "directional_friction" not in [e["effect"] for e in turning["selected_effects"]], turning.summary()
+    asked = simgap.diagnose(arm, fit, held, directional_friction=True)
+    assert [e["effect"] for e in asked["selected_effects"]] == ["directional_friction"], asked.summary()
 
 
 def test_link_side_torque_tries_no_rotor_inertia() -> None:
