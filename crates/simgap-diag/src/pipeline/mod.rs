@@ -70,7 +70,7 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     // screen: every candidate alone on the held-out runs
     let screened = stages.run(None, |s| screen::screen(&scorer, &prep, &candidates, &intervals.chosen, &how_far, s))?;
     // notes: alternatives and notes
-    let notes = stages.run(shown("naming alternatives and notes", 0, 1), |_| Ok(notes::notes(&scorer, &prep, &located, &candidates, &intervals, &how_far)))?;
+    let notes = stages.run(shown("naming alternatives and notes", 0, 1), |_| Ok(notes::notes(&scorer, &prep, &located, &candidates, &intervals, &how_far, options)))?;
     // what is left: the torque residual after the selected effects, joint by joint
     let notes = stages.run(shown("testing what is left", 0, 1), |_| Ok(what_is_left::what_is_left(&scorer, &prep, &intervals, notes)))?;
     // report: headline, verdict, the report

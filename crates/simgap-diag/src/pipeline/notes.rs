@@ -38,7 +38,15 @@ pub(crate) struct Notes {
 }
 
 /// The notes stage: alternatives and notes (see the module documentation).
-pub(crate) fn notes(scorer: &Scorer<'_>, prep: &Prepared, located: &Located, candidates: &Candidates, intervals: &Intervals, how_far: &HowFar) -> Notes {
+pub(crate) fn notes(
+    scorer: &Scorer<'_>,
+    prep: &Prepared,
+    located: &Located,
+    candidates: &Candidates,
+    intervals: &Intervals,
+    how_far: &HowFar,
+    options: &crate::DiagnoseOptions,
+) -> Notes {
     let (model, data, joints, horizons) = (scorer.model, &prep.data, &prep.joints, &prep.horizons);
     let (groups, alone_score) = (&candidates.groups, &candidates.alone_score);
     let (selection, final_score) = (&intervals.chosen.selection, intervals.chosen.score);
@@ -51,8 +59,9 @@ pub(crate) fn notes(scorer: &Scorer<'_>, prep: &Prepared, located: &Located, can
             alternatives.push(a);
         }
     }
-    // the logs' notes and multiple shooting's
+    // the logs' notes, the families not tried, and multiple shooting's
     let mut notes = prep.notes.clone();
+    notes.extend(crate::select::families::not_tried(&kinds, joints, prep.servo.is_some(), options));
     notes.extend(intervals.chosen.shooting_notes.iter().cloned());
     // servo runs: the gap by phase, and what their temperatures confound
     let h_last = horizons.len() - 1;

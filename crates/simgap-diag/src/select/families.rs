@@ -90,6 +90,30 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
     f
 }
 
+/// The families of the vocabulary a diagnosis with `options` does not try on these runs, each
+/// with why and how to ask for it, for the report's notes: directional friction on turning
+/// joints (`kinds`; it is tried on linear axes) and, on servo logs (`servo`), the load friction
+/// rising at rest.
+pub(crate) fn not_tried(kinds: &[simgap_core::JointKind], joints: &[String], servo: bool, options: &crate::DiagnoseOptions) -> Vec<String> {
+    use simgap_sim::EffectKind;
+    let mut out = Vec::new();
+    let turning: Vec<&str> = kinds.iter().zip(joints).filter(|(k, _)| k.is_rotational()).map(|(_, j)| j.as_str()).collect();
+    if !options.directional_friction && !turning.is_empty() {
+        out.push(format!(
+            "not tried: {} on the turning joints ({}): it is tried on linear axes only unless asked for (--directional-friction, Python directional_friction=True), since on turning joints a near-tie between it and the symmetric pair can pick the worse",
+            EffectKind::DirectionalFriction,
+            turning.join(", ")
+        ));
+    }
+    if servo && !options.load_stribeck_friction {
+        out.push(format!(
+            "not tried: {} (a load friction rising at rest) on these servo logs: it is tried when asked for (--load-stribeck-friction, Python load_stribeck_friction=True), at up to twice the time",
+            EffectKind::LoadStribeckFriction
+        ));
+    }
+    out
+}
+
 impl Context<'_> {
     /// The members of `family` the search tries: its grid over the nonlinear parameter.
     fn grid(&self, family: &Family) -> Vec<Term> {

@@ -9,7 +9,7 @@
 
 pub(crate) mod alternatives;
 mod context;
-mod families;
+pub(crate) mod families;
 mod payload;
 pub(crate) mod plausible;
 pub(crate) mod prediction;

@@ -10,6 +10,7 @@ mod intervals;
 mod kstep_groups;
 mod link_side;
 mod lowpass;
+mod not_tried;
 mod payload;
 mod physical;
 mod pitfalls;
