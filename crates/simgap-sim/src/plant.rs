@@ -12,9 +12,10 @@ use crate::error::Result;
 /// (H(q̄) + diag(ia)) q̈ = τ_applied + τ_friction(q, q̇) − C(q̄, q̇) q̇ − g(q̄),   q̄ = q + δ
 /// ```
 ///
-/// with `q` the measured positions, `δ` the encoder offset, `H`, `C`, `g` of the model after payload and inertial errors, `C` of
-/// `formulation.other()` when [`Effect::CoriolisStructure`] is present, `ia` the armature and
-/// `τ_friction` from [`friction_torque`]. See [`crate::effects`] for `τ_applied`.
+/// with `q` the measured positions, `δ` the encoder offset, `H`, `C`, `g` of the model after
+/// payload and inertial errors, `C` of `formulation.other()` when [`Effect::CoriolisStructure`]
+/// is present, `ia` the armature and `τ_friction` from [`friction_torque`]. See
+/// [`crate::effects`] for `τ_applied`.
 #[derive(Clone, Debug)]
 pub struct Plant {
     model: Model,

@@ -1,9 +1,7 @@
 //! The RK4 steps per sample: raised from [`SimParams::substeps`] so that the stiffness of
 //! the friction effects keeps RK4 stable.
 
-use simgap_core::{mass_matrix, Workspace};
-
-use crate::effects::{armature, friction_slope_bound, moving_friction_slope_bound, Effect};
+use crate::effects::{friction_slope_bound, moving_friction_slope_bound, Effect};
 use crate::integrate::Integrator;
 use crate::params::SimParams;
 use crate::plant::Plant;
@@ -156,15 +154,11 @@ fn stiffness_inverse(plant: &Plant, params: &SimParams, slope: &[f64]) -> Option
     inverse_inertia(plant, &q0)
 }
 
-/// `(H(q) + diag(ia))⁻¹` of `plant` (`None` for a singular H).
+/// `(H(q) + diag(ia))⁻¹` of `plant` ([`Plant::inertia_matrix`]; `None` for a singular H).
 fn inverse_inertia(plant: &Plant, q: &[f64]) -> Option<nalgebra::DMatrix<f64>> {
     let n = plant.dof();
-    let mut h = mass_matrix(plant.model(), &mut Workspace::new(plant.model()), q);
-    let mut ia = vec![0.0; n];
-    armature(plant.effects(), &mut ia);
-    for i in 0..n {
-        h[(i, i)] += ia[i];
-    }
+    let mut h = nalgebra::DMatrix::zeros(n, n);
+    plant.inertia_matrix(&mut plant.workspace(), q, &mut h);
     h.try_inverse()
 }
 

@@ -90,6 +90,13 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
     f
 }
 
+/// Whether directional friction is tried on a joint of type `kind`: on every linear axis (ball
+/// screws, belts and guides, whose friction commonly differs by direction) and, when asked for
+/// (`options.directional_friction`), on every joint.
+pub(crate) fn directional_tried(kind: simgap_core::JointKind, options: &crate::DiagnoseOptions) -> bool {
+    options.directional_friction || kind == simgap_core::JointKind::Prismatic
+}
+
 /// The families of the vocabulary a diagnosis with `options` does not try on these runs, each
 /// with why and how to ask for it, for the report's notes: directional friction on turning
 /// joints (`kinds`; it is tried on linear axes) and, on servo logs (`servo`), the load friction
@@ -97,8 +104,8 @@ pub(crate) fn families(data: &[FitData]) -> Vec<Family> {
 pub(crate) fn not_tried(kinds: &[simgap_core::JointKind], joints: &[String], servo: bool, options: &crate::DiagnoseOptions) -> Vec<String> {
     use simgap_sim::EffectKind;
     let mut out = Vec::new();
-    let turning: Vec<&str> = kinds.iter().zip(joints).filter(|(k, _)| k.is_rotational()).map(|(_, j)| j.as_str()).collect();
-    if !options.directional_friction && !turning.is_empty() {
+    let turning: Vec<&str> = kinds.iter().zip(joints).filter(|(k, _)| !directional_tried(**k, options)).map(|(_, j)| j.as_str()).collect();
+    if !turning.is_empty() {
         out.push(format!(
             "not tried: {} on the turning joints ({}): it is tried on linear axes only unless asked for (--directional-friction, Python directional_friction=True), since on turning joints a near-tie between it and the symmetric pair can pick the worse",
             EffectKind::DirectionalFriction,

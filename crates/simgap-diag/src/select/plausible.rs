@@ -24,6 +24,7 @@ use crate::select::prediction::{PRUNE_TOLERANCE, TIE_TOLERANCE};
 use crate::select::scorer::Scorer;
 use crate::select::{self, Step};
 use crate::vocabulary::{simpler, Term, TermDesign};
+use simgap_sim::EffectKind;
 
 /// What the plausibility check concludes of one selected term.
 #[derive(Clone, Debug)]
@@ -293,31 +294,31 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         }
         // and with a rotor inertia on every actuated joint (an inertial correction spreads a
         // rotor inertia over the links the joint moves, so its torque shows it only in part)
+        let actuated: Vec<usize> = (0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).collect();
         let mut every_rotor = with_rotor.clone();
         if rotor {
-            every_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature).filter(|t| !with_rotor.contains(t)));
+            every_rotor.extend(actuated.iter().map(|&j| Term::Armature(j)).filter(|t| !with_rotor.contains(t)));
         }
-        // the simplest replacement that predicts as well, or a richer one that predicts better
-        // than it by more than the tie tolerance
         // encoder offsets on every joint: a joint turned from its measured angle moves the
         // links after it as a rotated centre of mass does (on the last joint, exactly)
         let encoder: Vec<Term> = (0..scorer.prep.passive.len()).map(Term::EncoderOffset).collect();
         // and with a rotor inertia on every actuated joint (the correction may have taken a
-        // rotor inertia's part as well)
+        // rotor inertia's part as well) and, on servo logs, whose motor constants were fitted
+        // with the nominal model (an offset biases them), a torque gain there as well
         let mut encoder_rotor = encoder.clone();
         if rotor {
-            encoder_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Armature));
+            encoder_rotor.extend(actuated.iter().map(|&j| Term::Armature(j)));
         }
-        // and on servo logs, whose motor constants were fitted with the nominal model (an offset
-        // biases them), a torque gain on every actuated joint as well
         if scorer.prep.servo.is_some() {
-            encoder_rotor.extend((0..scorer.prep.passive.len()).filter(|&j| !scorer.prep.passive[j]).map(Term::Gain));
+            encoder_rotor.extend(actuated.iter().map(|&j| Term::Gain(j)));
         }
+        // the simplest replacement that predicts as well, or a richer one that predicts better
+        // than it by more than the tie tolerance
         let mut chosen: Option<(Vec<Term>, Vec<Term>, f64, &str)> = None;
         let candidates = [
             (offsets_only, "mostly a constant"),
             (encoder, "that of joints turned from their measured angles"),
-            (encoder_rotor, "that of joints turned from their measured angles and of rotor inertias"),
+            (encoder_rotor, "that of joints turned from their measured angles, with rotor inertias (and drive gains on servo logs)"),
             (with_rotor, "mostly a constant and a multiple of the joint's acceleration"),
             (every_rotor, "in part a constant and a multiple of a joint's acceleration"),
         ];
@@ -349,16 +350,7 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
                 }
             }
             let encoder = replacing.iter().any(|t| matches!(t, Term::EncoderOffset(_)));
-            let rotors = replacing.iter().any(|t| matches!(t, Term::Armature(_)));
-            let by = if encoder && rotors {
-                "encoder offsets and rotor inertias"
-            } else if encoder {
-                "encoder offsets"
-            } else if replacing.iter().any(|t| matches!(t, Term::Armature(_))) {
-                "torque offsets and rotor inertias"
-            } else {
-                "torque offsets"
-            };
+            let by = replaced_by(&replacing);
             let how = if s < score * (1.0 - TIE_TOLERANCE) {
                 format!("better (cross-validated k-step score {s:.4} against {score:.4})")
             } else if encoder {
@@ -378,6 +370,26 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
         }
     }
     (score, replacements)
+}
+
+/// The terms replacing an inertial correction in words: "torque offsets", "encoder offsets,
+/// rotor inertias and torque gains", … (their kinds, in the order of the vocabulary).
+fn replaced_by(replacing: &[Term]) -> String {
+    let names: Vec<&str> = [
+        (EffectKind::EncoderOffset, "encoder offsets"),
+        (EffectKind::TorqueOffset, "torque offsets"),
+        (EffectKind::Armature, "rotor inertias"),
+        (EffectKind::TorqueGain, "torque gains"),
+    ]
+    .into_iter()
+    .filter(|(k, _)| replacing.iter().any(|t| t.kind() == *k))
+    .map(|(_, name)| name)
+    .collect();
+    match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+        None => String::new(),
+    }
 }
 
 /// Where encoder offsets replace an inertial correction ([`parsimony`]), the k-step score (a

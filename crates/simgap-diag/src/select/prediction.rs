@@ -77,11 +77,10 @@ pub(crate) fn prune_and_complete(
         score = refine_by_prediction(scorer, groups, alone_score, &mut terms, &mut log, progress, options)?;
     }
     // friction that differs with the direction of motion, tried in place of a joint's selected
-    // Coulomb and viscous friction (the symmetric pair it nests) on every linear axis (ball
-    // screws, belts and guides, whose friction commonly differs by direction) and, when asked
-    // for, on every joint: kept only when it predicts the fit runs better by ADD_GAIN in every
-    // part of them, so symmetric friction stays the pair
-    let tried = |j: usize| options.directional_friction || scorer.model.joints()[j].kind == simgap_core::JointKind::Prismatic;
+    // Coulomb and viscous friction (the symmetric pair it nests) where it is tried at all
+    // (`families::directional_tried`): kept only when it predicts the fit runs better by
+    // ADD_GAIN in every part of them, so symmetric friction stays the pair
+    let tried = |j: usize| crate::select::families::directional_tried(scorer.model.joints()[j].kind, options);
     for j in (0..scorer.ctx.problem.dof).filter(|&j| tried(j)) {
         check_stop(options)?;
         let dry_w = terms.iter().find_map(|t| match *t {

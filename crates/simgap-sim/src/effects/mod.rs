@@ -9,10 +9,10 @@
 //! τ_applied(t)        = k · clamp(τ_cmd(t − delay), ±limit) + offset
 //! ```
 //!
-//! with `q` the measured positions (the state, what the controller and the log see) and `δ`
-//! the [`Effect::EncoderOffset`] (0 without one), and `H`, `C`, `g` those of the model after [`Effect::Payload`] and [`Effect::InertialError`]
-//! were applied, and `C` of the other [`Formulation`](simgap_core::Formulation) when
-//! [`Effect::CoriolisStructure`] is present.
+//! with `q` the measured positions (the state, what the controller and the log see), `δ` the
+//! [`Effect::EncoderOffset`] (0 without one), `H`, `C`, `g` those of the model after
+//! [`Effect::Payload`] and [`Effect::InertialError`] were applied, and `C` of the other
+//! [`Formulation`](simgap_core::Formulation) when [`Effect::CoriolisStructure`] is present.
 //!
 //! Per-joint parameters are `Vec<f64>` of length `model.dof()` in model joint order. A joint an
 //! effect does not act on holds the neutral value: 0 for friction, armature, offset and cogging
