@@ -244,6 +244,29 @@ fn an_encoder_offset_is_the_mjcf_joint_ref_with_its_range_shifted_and_a_urdf_sid
 }
 
 #[test]
+fn backlash_is_a_second_mjcf_joint_of_the_links_body_with_range_plus_minus_half_the_play() {
+    // the drive's joint keeps the rotor's armature (and the motor); the play's joint, of the same
+    // body and axis, lets the link turn ±w/2 from it
+    let model = Model::from_urdf_str(PAPER_ARM_URDF).unwrap();
+    let effects = [effect("armature", &["elbow"], &[("ia", Param::PerJoint(vec![0.4]))]), effect("backlash", &["elbow"], &[("width", Param::PerJoint(vec![0.03]))])];
+    let out = export_mjcf(&model, &effects, &MjcfOptions::new(0.0025)).unwrap();
+    let doc = roxmltree::Document::parse(&out.text).unwrap();
+    let joint = |name: &str| doc.descendants().find(|n| n.has_tag_name("joint") && n.attribute("name") == Some(name));
+    let (drive, play) = (joint("elbow").unwrap(), joint("elbow_backlash").unwrap());
+    assert_eq!(drive.parent(), play.parent(), "{}", out.text);
+    assert_eq!(drive.attribute("armature"), Some("0.4"));
+    assert_eq!(play.attribute("axis"), drive.attribute("axis"));
+    assert_eq!(play.attribute("range"), Some("-0.015 0.015"), "{}", out.text);
+    assert!(joint("shoulder_backlash").is_none());
+    let motor = doc.descendants().find(|n| n.has_tag_name("motor") && n.attribute("name") == Some("elbow_motor")).unwrap();
+    assert_eq!(motor.attribute("joint"), Some("elbow"));
+    assert_eq!(out.sidecar.held.len(), 2, "{:?}", out.sidecar);
+    let urdf = export_urdf(PAPER_ARM_URDF, "paper_arm.urdf", &model, &effects).unwrap();
+    let deferred: Vec<&str> = urdf.sidecar.selected_effects.iter().map(|e| e.effect.as_str()).collect();
+    assert!(deferred.contains(&"backlash"), "{deferred:?}");
+}
+
+#[test]
 fn mjcf_body_frames_follow_the_urdf_joint_placements() {
     // panda_joint2 is rotated by rpy (−π/2, 0, 0): quat (cos(−π/4), sin(−π/4), 0, 0)
     let model = arm7();

@@ -54,6 +54,9 @@ pub enum EffectKind {
     /// `encoder_offset`: the joint's measured zero is not the model's; the joint is at
     /// `q_measured + offset`.
     EncoderOffset,
+    /// `backlash`: free play of total width `width` between the drive and the link; the drive's
+    /// torque reaches the link only while the play is taken up.
+    Backlash,
 }
 
 /// The physical quantity of a parameter, which gives its unit on a joint of either type.
@@ -188,11 +191,12 @@ const LOAD_STRIBECK: &[ParamSpec] = &[
 ];
 const BACK_EMF: &[ParamSpec] = &[p("kb", Damping, Some(0.0), true)];
 const ENCODER_OFFSET: &[ParamSpec] = &[p("offset", Position, Some(0.0), true)];
+const BACKLASH: &[ParamSpec] = &[p("width", Position, Some(0.0), false)];
 const COGGING: &[ParamSpec] = &[p("amplitude", Effort, Some(0.0), true), p("periods_per_rev", Count, None, false)];
 
 impl EffectKind {
     /// Every effect, in the documented order.
-    pub const ALL: [EffectKind; 18] = [
+    pub const ALL: [EffectKind; 19] = [
         EffectKind::ViscousFriction,
         EffectKind::CoulombFriction,
         EffectKind::StribeckFriction,
@@ -211,6 +215,7 @@ impl EffectKind {
         EffectKind::LoadStribeckFriction,
         EffectKind::BackEmf,
         EffectKind::EncoderOffset,
+        EffectKind::Backlash,
     ];
 
     /// The contract name (`viscous_friction`, …, `coriolis_structure`).
@@ -234,6 +239,7 @@ impl EffectKind {
             EffectKind::LoadStribeckFriction => "load_stribeck_friction",
             EffectKind::BackEmf => "back_emf",
             EffectKind::EncoderOffset => "encoder_offset",
+            EffectKind::Backlash => "backlash",
         }
     }
 
@@ -258,6 +264,7 @@ impl EffectKind {
             EffectKind::LoadStribeckFriction => LOAD_STRIBECK,
             EffectKind::BackEmf => BACK_EMF,
             EffectKind::EncoderOffset => ENCODER_OFFSET,
+            EffectKind::Backlash => BACKLASH,
         }
     }
 
@@ -323,8 +330,8 @@ mod tests {
 
     #[test]
     fn an_unknown_name_is_refused_naming_the_known_ones() {
-        let err = "backlash".parse::<EffectKind>().unwrap_err().to_string();
-        assert!(err.contains("backlash") && err.contains("viscous_friction") && err.contains("coriolis_structure"), "{err}");
+        let err = "gear_wear".parse::<EffectKind>().unwrap_err().to_string();
+        assert!(err.contains("gear_wear") && err.contains("viscous_friction") && err.contains("coriolis_structure"), "{err}");
     }
 
     #[test]

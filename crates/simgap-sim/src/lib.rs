@@ -2,6 +2,7 @@
 //! every log reader fills, and the L² index. Reading and writing log files is the job of the
 //! `simgap-log` crate: the simulator and its tests never touch a file format.
 
+pub mod backlash;
 pub mod controller;
 pub mod delay;
 pub mod effects;

@@ -3,7 +3,7 @@
 use nalgebra::DMatrix;
 use simgap_core::{forward_dynamics_armature_into, mass_matrix, mass_matrix_into, try_forward_dynamics_into, Formulation, Model, Workspace};
 
-use crate::effects::{apply_inertial_effects, armature, encoder_offset, friction_torque, friction_torque_smooth, total_delay, Effect};
+use crate::effects::{apply_inertial_effects, armature, backlash, encoder_offset, friction_torque, friction_torque_smooth, total_delay, Effect};
 use crate::error::Result;
 
 /// What the simulator integrates:
@@ -24,6 +24,8 @@ pub struct Plant {
     armature: Vec<f64>,
     /// The encoder offset `δ` [rad or m] (`None` when 0 on every joint).
     offset: Option<Vec<f64>>,
+    /// The backlash widths [rad or m] (`None` when no joint with a rotor inertia has play).
+    backlash: Option<Vec<f64>>,
     /// H is positive definite at q = 0 and no armature is added: the one-pass
     /// `try_forward_dynamics_into` can be used (a model whose inertia is not physical can still
     /// lose definiteness elsewhere: the acceleration is then NaN).
@@ -41,6 +43,21 @@ pub struct PlantWorkspace {
     h: DMatrix<f64>,
     /// The true positions `q + δ` (with an encoder offset).
     q_true: Vec<f64>,
+    /// The armature coupled to each link now: the plant's, 0 on a joint whose drive side is
+    /// inside its backlash's gap ([`PlantWorkspace::couple_rotor`]).
+    armature: Vec<f64>,
+}
+
+impl PlantWorkspace {
+    /// Couples joint `i`'s rotor inertia `ia` [kg·m² or kg] to its link (`ia` the plant's
+    /// armature), or uncouples it (`ia = 0`) while a backlash's gap is open: the accelerations
+    /// and inertias that follow use it.
+    ///
+    /// # Panics
+    /// If `i` is not a joint.
+    pub fn couple_rotor(&mut self, i: usize, ia: f64) {
+        self.armature[i] = ia;
+    }
 }
 
 impl Plant {
@@ -57,6 +74,9 @@ impl Plant {
         armature(effects, &mut ia);
         let mut offset = vec![0.0; n];
         encoder_offset(effects, &mut offset);
+        let mut play = vec![0.0; n];
+        backlash(effects, &mut play);
+        let has_play = play.iter().zip(&ia).any(|(w, a)| *w > 0.0 && *a > 0.0);
         let coriolis_flip = effects.iter().filter(|e| matches!(e, Effect::CoriolisStructure)).count() % 2 == 1;
         let h_ok = {
             let mut h = mass_matrix(&changed, &mut Workspace::new(&changed), &vec![0.0; n]);
@@ -69,6 +89,7 @@ impl Plant {
             effects: effects.to_vec(),
             armature: ia,
             offset: offset.iter().any(|x| *x != 0.0).then_some(offset),
+            backlash: has_play.then_some(play),
             delay: total_delay(effects),
             effort_limits: model.joints().iter().map(|j| j.limits.effort).collect(),
             model: changed,
@@ -90,6 +111,18 @@ impl Plant {
         &self.effects
     }
 
+    /// The reflected rotor inertias `ia` [kg·m² or kg] (the armature effects, summed).
+    pub fn armature(&self) -> &[f64] {
+        &self.armature
+    }
+
+    /// The backlash widths [rad or m] per joint, `None` when no joint with a rotor inertia has
+    /// play (without one, the drive's side crosses the gap at once and the link moves as
+    /// without play).
+    pub fn backlash(&self) -> Option<&[f64]> {
+        self.backlash.as_deref()
+    }
+
     /// Total actuation delay [s].
     pub fn delay(&self) -> f64 {
         self.delay
@@ -108,7 +141,7 @@ impl Plant {
     /// Scratch space for [`Plant::acceleration`].
     pub fn workspace(&self) -> PlantWorkspace {
         let n = self.dof();
-        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n], h: DMatrix::zeros(n, n), q_true: vec![0.0; n] }
+        PlantWorkspace { ws: Workspace::new(&self.model), friction: vec![0.0; n], h: DMatrix::zeros(n, n), q_true: vec![0.0; n], armature: self.armature.clone() }
     }
 
     /// Joint accelerations q̈ for applied torques `tau_applied` (see the type's equation; each
@@ -141,7 +174,7 @@ impl Plant {
         let q = true_positions(self.offset.as_deref(), q, &mut pws.q_true);
         mass_matrix_into(&self.model, &mut pws.ws, q, &mut pws.h);
         for (i, o) in out.iter_mut().enumerate() {
-            *o = pws.h[(i, i)] + self.armature[i];
+            *o = pws.h[(i, i)] + pws.armature[i];
         }
     }
 
@@ -153,7 +186,7 @@ impl Plant {
         let q = true_positions(self.offset.as_deref(), q, &mut pws.q_true);
         mass_matrix_into(&self.model, &mut pws.ws, q, out);
         for i in 0..self.dof() {
-            out[(i, i)] += self.armature[i];
+            out[(i, i)] += pws.armature[i];
         }
     }
 
@@ -182,7 +215,7 @@ impl Plant {
         }
         // q̈ = (H + diag(ia))⁻¹ (τ + friction − C q̇ − g) with one kinematics pass for the bias
         // torques and H
-        if !forward_dynamics_armature_into(&self.model, &mut pws.ws, q, qd, &pws.friction, &self.armature, self.formulation, out) {
+        if !forward_dynamics_armature_into(&self.model, &mut pws.ws, q, qd, &pws.friction, &pws.armature, self.formulation, out) {
             out.fill(f64::NAN);
         }
     }

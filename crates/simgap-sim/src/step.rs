@@ -40,6 +40,7 @@
 //! A state diverged when it is not finite or `|q̇|` exceeds [`SimParams::divergence_bound`]
 //! ([`Stepper::diverged`]). The step never allocates.
 
+use crate::backlash::{DriveSides, BACKLASH_SUBSTEPS};
 use crate::controller::Controller;
 use crate::delay::DelayLine;
 use crate::effects::{applied_torque, drive_torque, exact_dry_levels, friction_torque_smooth, has_drive_effects, has_exact_dry_friction, stiff_band};
@@ -126,6 +127,10 @@ pub struct Stepper<'p> {
     moving_rate: Option<f64>,
     /// Per joint, the speed below which its dry friction is stiff ([`stiff_band`]).
     band: Vec<f64>,
+    /// The drive sides of the joints with backlash ([`crate::backlash`]), and the speeds at the
+    /// start of the current step.
+    sides: Option<DriveSides>,
+    qd_start: Vec<f64>,
     /// Integration steps taken so far.
     steps_taken: u64,
     divergence_bound: f64,
@@ -149,6 +154,13 @@ impl<'p> Stepper<'p> {
         let (substeps, moving_rate) = substeps_and_moving_rate(plant, params);
         let mut band = vec![0.0; n];
         stiff_band(plant.effects(), &mut band);
+        let sides = DriveSides::new(plant);
+        if sides.is_some() && matches!(params.integrator, Integrator::Adaptive { .. }) {
+            return Err(crate::Error::Invalid {
+                what: "backlash".into(),
+                message: "the drive side's impacts are integrated with fixed RK4 steps; the adaptive integrator does not take them (use the default integrator)".into(),
+            });
+        }
         Ok(Stepper {
             plant,
             pws: plant.workspace(),
@@ -184,6 +196,8 @@ impl<'p> Stepper<'p> {
             base_substeps: params.substeps,
             moving_rate,
             band,
+            sides,
+            qd_start: vec![0.0; n],
             steps_taken: 0,
             divergence_bound: params.divergence_bound,
         })
@@ -218,6 +232,9 @@ impl<'p> Stepper<'p> {
         let n = self.dof();
         if let Some(q) = q_meas_prev {
             self.sensor.restart(q);
+        }
+        if let Some(sides) = &mut self.sides {
+            sides.reset(&mut self.pws);
         }
         // the taps from k0 on reach back at most depth − 1 samples (or to sample 0); without
         // a delay they reach nothing before k0
@@ -318,7 +335,7 @@ impl<'p> Stepper<'p> {
             self.line.delayed_row(k, |i| &history[(i % depth) * n..(i % depth + 1) * n], &mut self.delayed);
         }
         let steps = steps_over(self.period, dt, self.substeps);
-        let drive = self.drive_effects || self.exact_dry || self.emf.iter().any(|e| *e != 0.0) || self.enabled.iter().any(|e| *e != 1.0);
+        let drive = self.drive_effects || self.exact_dry || self.sides.is_some() || self.emf.iter().any(|e| *e != 0.0) || self.enabled.iter().any(|e| *e != 1.0);
         if !drive {
             // actuators: saturation, gain, offset, then the model's effort limits, held
             applied_torque(self.plant.effects(), &self.delayed, &mut self.applied);
@@ -375,6 +392,7 @@ impl<'p> Stepper<'p> {
         } else {
             steps
         };
+        let steps = if self.sides.is_some() { steps.max(steps_over(self.period, dt, BACKLASH_SUBSTEPS)) } else { steps };
         let (plant, limits) = (self.plant, self.limits.as_deref());
         let (delayed, emf, enabled) = (&self.delayed, &self.emf, &self.enabled);
         let [minus_emf, tau_drive, stick, pos, neg, m_diag, acc] = &mut self.scratch;
@@ -404,6 +422,15 @@ impl<'p> Stepper<'p> {
                 let [inertia, w, factor] = &mut self.inertia;
                 damping.fill(0.0);
                 for s in 0..steps {
+                    if let Some(sides) = &mut self.sides {
+                        // the gaps that open at the start of the step (the contact would pull)
+                        let (q, qd) = y.split_at(n);
+                        self.qd_start.copy_from_slice(qd);
+                        torque(qd, minus_emf, tau_drive, &mut self.applied);
+                        sides.uncouple(&mut self.applied);
+                        plant.acceleration(pws, q, qd, &self.applied, acc);
+                        sides.open_where_pulling(pws, &self.applied, acc, qd);
+                    }
                     if stiff_drive {
                         // the damping D_i = −∂(τ_drive + τ_friction)_i/∂q̇_i (a forward
                         // difference, per joint: a joint's drive torque and friction depend on
@@ -416,6 +443,11 @@ impl<'p> Stepper<'p> {
                         torque(qd_step, minus_emf, tau_drive, drive_step);
                         friction_torque_smooth(plant.effects(), q, qd, friction_at);
                         friction_torque_smooth(plant.effects(), q, qd_step, friction_step);
+                        if let Some(sides) = &self.sides {
+                            // an open gap's drive damps its rotor, not its link
+                            sides.uncouple(drive_at);
+                            sides.uncouple(drive_step);
+                        }
                         for i in 0..n {
                             let d = (drive_at[i] + friction_at[i] - drive_step[i] - friction_step[i]) / (qd_step[i] - qd[i]);
                             damping[i] = if d.is_finite() { d.max(0.0) } else { 0.0 };
@@ -431,6 +463,9 @@ impl<'p> Stepper<'p> {
                         // (with the implicit damping's share where ROS2 steps)
                         let (q, qd) = y.split_at(n);
                         torque(qd, minus_emf, tau_drive, &mut self.applied);
+                        if let Some(sides) = &self.sides {
+                            sides.uncouple(&mut self.applied);
+                        }
                         plant.acceleration_smooth(pws, q, qd, &self.applied, acc);
                         plant.inertia_diagonal(pws, q, m_diag);
                         exact_dry_levels(plant.effects(), qd, tau_drive, pos, neg);
@@ -442,11 +477,15 @@ impl<'p> Stepper<'p> {
                     }
                     let applied = &mut self.applied;
                     let stick = &*stick;
+                    let sides = self.sides.as_ref();
                     let mut f = |_t: f64, y: &[f64], dy: &mut [f64]| {
                         let (q, qd) = y.split_at(n);
                         let (dq, ddq) = dy.split_at_mut(n);
                         dq.copy_from_slice(qd);
                         torque(qd, minus_emf, tau_drive, applied);
+                        if let Some(sides) = sides {
+                            sides.uncouple(applied);
+                        }
                         if exact {
                             for i in 0..n {
                                 applied[i] += stick[i];
@@ -476,6 +515,11 @@ impl<'p> Stepper<'p> {
                         self.ros2.step(&mut f, &mut solve, t + s as f64 * h, h, y);
                     } else {
                         self.rk4.step(&mut f, t + s as f64 * h, h, y);
+                    }
+                    if let Some(sides) = &mut self.sides {
+                        // the open rotors under the drive's torque, and their impacts
+                        let torque_at = |qd: &[f64], a: &mut [f64], b: &mut [f64], out: &mut [f64]| torque(qd, a, b, out);
+                        sides.advance(plant, pws, h, &self.qd_start, y, m_diag, &torque_at);
                     }
                 }
             }

@@ -32,6 +32,8 @@ pub(super) struct Corrections {
     pub(super) spring_q0: Vec<f64>,
     /// Encoder offset [rad or m]: the joint is at its measured position plus it.
     pub(super) encoder_offset: Vec<f64>,
+    /// Backlash widths [rad or m] (0: no play).
+    pub(super) backlash: Vec<f64>,
 }
 
 /// A parameter's values per joint of the effect, as model indices (`PerJoint` aligned with
@@ -138,6 +140,7 @@ impl Corrections {
             spring_k: vec![0.0; n],
             spring_q0: vec![0.0; n],
             encoder_offset: vec![0.0; n],
+            backlash: vec![0.0; n],
         };
         let mut inertial = Vec::new();
         let mut spring_moment = vec![0.0; n];
@@ -156,6 +159,7 @@ impl Corrections {
                 EffectKind::TorqueGain => per_joint(model, e, "k")?.into_iter().for_each(|(j, x)| c.gain[j] *= x),
                 EffectKind::TorqueSaturation => nonneg("limit")?.into_iter().for_each(|(j, x)| c.limit[j] = c.limit[j].min(x)),
                 EffectKind::EncoderOffset => per_joint(model, e, "offset")?.into_iter().for_each(|(j, x)| c.encoder_offset[j] += x),
+                EffectKind::Backlash => nonneg("width")?.into_iter().for_each(|(j, x)| c.backlash[j] += x),
                 EffectKind::JointSpring => {
                     let (k, q0) = (nonneg("k")?, per_joint(model, e, "q0")?);
                     for ((j, k), (_, q0)) in k.into_iter().zip(q0) {

@@ -189,6 +189,21 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
             let _ = write!(attrs, " solreffriction=\"{} 1\"", num(2.0 * options.timestep));
         }
         let _ = writeln!(s, "{pad}  <joint {attrs}/>");
+        // backlash: a second joint of the same body and axis, of range ±w/2, between the drive
+        // (the joint above, with the rotor's armature and the actuator) and the link
+        if c.backlash[i] > 0.0 {
+            let half = 0.5 * c.backlash[i];
+            let _ = writeln!(
+                s,
+                "{pad}  <joint name=\"{}_backlash\" type=\"{kind}\" pos=\"0 0 0\" axis=\"{} {} {}\" limited=\"true\" range=\"{} {}\"/>",
+                xml(&j.name),
+                num(j.axis.x),
+                num(j.axis.y),
+                num(j.axis.z),
+                num(-half),
+                num(half)
+            );
+        }
         // a visual capsule to the next joint (the last body's to its centre of mass)
         let to: Vector3<f64> = joints.get(i + 1).map_or(c.bodies[i].com(), |next| next.placement.translation);
         if to.norm() > 1e-6 {
@@ -266,6 +281,11 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
                 e,
                 "joint ref = −offset (qpos is the measured position; the joint turns by qpos − ref) and its range shifted by −offset",
                 "a joint spring's springref and the servo's goal stay in measured positions",
+            ),
+            EffectKind::Backlash => sidecar.hold(
+                e,
+                "a second joint '<name>_backlash' of the same body and axis, range ±width/2, between the drive (the joint, with the rotor's armature and the actuator) and the link",
+                "the link's position is the sum of the two joints' qpos; MuJoCo applies the joint's damping, friction and servo on the drive side, simgap its frictions on the link; MuJoCo's joint limit is a soft contact, simgap's take-up a plastic impact",
             ),
             _ => sidecar.defer(e, Format::Mjcf),
         }

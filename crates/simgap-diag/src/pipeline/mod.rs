@@ -10,6 +10,7 @@ mod intervals;
 mod locate;
 mod notes;
 mod parsimony;
+mod play;
 mod prune;
 mod refine;
 mod report;
@@ -59,6 +60,8 @@ pub fn diagnose(model: &Model, formulation: Formulation, fit: &[Run], holdout: &
     let selection = stages.run(None, |s| prune::prune(&scorer, &candidates, selection, &prep, s))?;
     // parsimony: a richer effect the simpler nested in it matches becomes the simpler
     let chosen = stages.run(None, |_| Ok(parsimony::parsimony(&scorer, &prep, selection)))?;
+    // play: the backlash of each drive whose rotor inertia the set holds, searched by prediction
+    let chosen = stages.run(None, |s| play::play(&scorer, &prep, chosen, s))?;
     // refine: the set fitted by multiple shooting where prediction says so
     let chosen = stages.run(None, |s| refine::refine(&scorer, &prep, chosen, s))?;
     // drive swap: on a one-joint servo arm, the drive's constants in place of an inertia

@@ -36,6 +36,6 @@ pub(crate) fn refine(scorer: &Scorer<'_>, prep: &Prepared, mut chosen: Chosen, s
         chosen.cv = r.cv.clone();
     }
     chosen.refined = refined;
-    chosen.shooting_notes = notes;
+    chosen.shooting_notes.extend(notes);
     Ok(chosen)
 }

@@ -8,6 +8,7 @@
 //! effects too small to matter are reported, not selected.
 
 pub(crate) mod alternatives;
+pub(crate) mod backlash;
 mod context;
 pub(crate) mod families;
 mod payload;

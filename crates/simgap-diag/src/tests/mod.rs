@@ -1,6 +1,7 @@
 //! Tests of the stages' internals (the public API is tested from `tests/`).
 
 mod alternatives;
+mod backlash;
 mod common;
 mod delay_line;
 mod encoder_offset;

@@ -21,10 +21,12 @@
 //! payload        r   ∋  m Y_last π_point(c)             (m linear, c searched)
 //! inertial_error r   ∋  Y Δπ                            (Δπ physically consistent, see inertial)
 //! encoder_offset r   ∋  ∂(H q̈ + C q̇ + g)/∂q_j δ_j       (|δ| ≤ OFFSET_MAX, first order in δ)
+//! backlash       (no column: the width searched by prediction through the simulator)
 //! ```
 
 mod actuator;
 pub(crate) mod back_emf;
+pub(crate) mod backlash;
 mod cogging;
 mod coriolis;
 mod delay;
@@ -132,6 +134,13 @@ pub(crate) enum Term {
     },
     /// An encoder offset on a joint: the joint is at its measured position plus the offset.
     EncoderOffset(usize),
+    /// Free play between a joint's drive and its link (searched by prediction, no column).
+    Backlash {
+        /// Joint index.
+        joint: usize,
+        /// Total width of the play [rad or m].
+        width: f64,
+    },
     /// Whole-robot actuation delay.
     Delay {
         /// Delay [s].
@@ -178,6 +187,7 @@ impl Term {
             Term::Payload { .. } => EffectKind::Payload,
             Term::InertialError { .. } => EffectKind::InertialError,
             Term::EncoderOffset(_) => EffectKind::EncoderOffset,
+            Term::Backlash { .. } => EffectKind::Backlash,
         }
     }
 
@@ -203,7 +213,8 @@ impl Term {
             | Term::LoadStribeck { joint, .. }
             | Term::Directional { joint, .. }
             | Term::Saturation { joint, .. }
-            | Term::Cogging { joint, .. } => Some(joint),
+            | Term::Cogging { joint, .. }
+            | Term::Backlash { joint, .. } => Some(joint),
             _ => None,
         }
     }
@@ -258,7 +269,8 @@ impl Term {
             | Term::Delay { delay: x }
             | Term::Coulomb { w: x, .. }
             | Term::LoadFriction { w: x, .. }
-            | Term::Directional { w: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
+            | Term::Directional { w: x, .. }
+            | Term::Backlash { width: x, .. } => TermKey(k, joint, x.to_bits(), [0; 3]),
             Term::Stribeck { vs, w, .. } | Term::LoadStribeck { vs, w, .. } => TermKey(k, joint, vs.to_bits(), [w.to_bits(), 0, 0]),
             Term::Payload { com, max_mass } => TermKey(k, joint, max_mass.to_bits(), com.map(f64::to_bits)),
             Term::InertialError { prior } => TermKey(k, joint, Arc::as_ptr(prior) as usize as u64, [0; 3]),
@@ -313,6 +325,7 @@ pub(crate) fn design(term: &Term, data: &[FitData]) -> TermDesign {
         Term::Payload { com, max_mass } => payload::design(*com, *max_mass, data),
         Term::InertialError { prior } => inertial::design(prior, data),
         Term::EncoderOffset(j) => encoder::design(*j, data),
+        Term::Backlash { .. } => backlash::design(),
     }
 }
 
@@ -333,7 +346,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
         Term::Payload { .. } => payload::physical(theta),
         Term::Spring(_) => spring::physical(theta),
         Term::InertialError { prior } => prior.is_physical(theta),
-        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure | Term::BackEmf(_) | Term::EncoderOffset(_) => true,
+        Term::Cogging { .. } | Term::Delay { .. } | Term::CoriolisStructure | Term::BackEmf(_) | Term::EncoderOffset(_) | Term::Backlash { .. } => true,
     }
 }
 
@@ -341,7 +354,7 @@ pub(crate) fn physical(term: &Term, theta: &[f64]) -> bool {
 pub(crate) fn n_params(term: &Term, d: &TermDesign) -> usize {
     d.cols.len()
         + match term {
-            Term::Stribeck { .. } | Term::LoadStribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } => 1,
+            Term::Stribeck { .. } | Term::LoadStribeck { .. } | Term::Saturation { .. } | Term::Delay { .. } | Term::Cogging { .. } | Term::Backlash { .. } => 1,
             Term::Payload { .. } => 3,
             _ => 0,
         }
@@ -365,6 +378,7 @@ fn apply(model: &Model, f: &FittedTerm, out: &mut Vec<Effect>) {
         Term::Payload { com, .. } => out.push(Effect::Payload { mass: f.theta[0], com: *com }),
         Term::InertialError { prior } => out.push(inertial::apply(model, prior, &f.theta)),
         Term::EncoderOffset(j) => encoder::apply(*j, &f.theta, n, out),
+        Term::Backlash { joint, width } => backlash::apply(*joint, *width, n, out),
     }
 }
 
@@ -387,6 +401,7 @@ fn report(model: &Model, f: &FittedTerm, entry: &mut Entry<'_>) {
         Term::Payload { com, .. } => payload::report(*com, th, sd, entry),
         Term::InertialError { prior } => inertial::report(model, prior, f, entry),
         Term::EncoderOffset(_) => entry.push("offset", th[0], ci(sd[0])),
+        Term::Backlash { width, .. } => entry.push("width", *width, f64::NAN),
     }
 }
 
@@ -406,6 +421,7 @@ fn describe(model: &Model, e: &EffectReport) -> String {
         EffectKind::Payload => payload::describe(model, e),
         EffectKind::DirectionalFriction => directional::describe(e),
         EffectKind::EncoderOffset => encoder::describe(e),
+        EffectKind::Backlash => backlash::describe(e),
         // an inertial error states its changes per link
         EffectKind::InertialError => String::new(),
     }

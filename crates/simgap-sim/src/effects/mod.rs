@@ -40,6 +40,7 @@ use crate::kind::EffectKind;
 
 mod armature;
 mod back_emf;
+mod backlash;
 mod cogging;
 mod coriolis_structure;
 mod coulomb_friction;
@@ -239,6 +240,19 @@ pub enum Effect {
         /// Offsets: true position minus measured position.
         offset: Vec<f64>,
     },
+    /// Free play of total width `width` [rad or m] between the drive and the link (gear
+    /// backlash): the drive's torque reaches the link only while the play is taken up. The
+    /// drive's side carries the joint's rotor inertia (its [`Effect::Armature`]) and moves
+    /// freely inside the gap under the drive's torque; when it reaches the other side it takes
+    /// the link along in a plastic impact. With no rotor inertia on the joint the drive's side
+    /// follows the torque's sign at once and the link's motion is the one without play (the
+    /// state and the log are the link's: a servo's encoder sits on its output shaft). Integrated
+    /// by the [`Stepper`](crate::step::Stepper), which holds the drive side's state (see
+    /// [`crate::backlash`]).
+    Backlash {
+        /// Total widths of the play, `>= 0`.
+        width: Vec<f64>,
+    },
 }
 
 /// How the simulator applies one kind of effect. Each effect's file implements it once, over a
@@ -314,6 +328,9 @@ trait Simulated {
 
     /// Adds the effect's encoder offset to `out` [rad or m] (see [`encoder_offset`]).
     fn add_encoder_offset(&self, _out: &mut [f64]) {}
+
+    /// Adds the effect's backlash width to `out` [rad or m] (see [`backlash`]).
+    fn add_backlash(&self, _out: &mut [f64]) {}
 
     /// Applies the effect to the link inertias of `model` (see [`apply_inertial_effects`]).
     fn apply_to_model(&self, _model: &mut Model) -> Result<()> {
@@ -407,6 +424,7 @@ impl Effect {
             Effect::LoadStribeckFriction { fc, mu, fs, mus, vs, w } => f(&load_stribeck_friction::LoadStribeckFriction { fc, mu, fs, mus, vs, w }),
             Effect::BackEmf { kb } => f(&back_emf::BackEmf { kb }),
             Effect::EncoderOffset { offset } => f(&encoder_offset::EncoderOffset { offset }),
+            Effect::Backlash { width } => f(&backlash::Backlash { width }),
         }
     }
 
@@ -719,6 +737,18 @@ pub fn encoder_offset(effects: &[Effect], out: &mut [f64]) {
     out.fill(0.0);
     for e in effects {
         e.simulated(|e| e.add_encoder_offset(out));
+    }
+}
+
+/// Total backlash width per joint (sum of every [`Effect::Backlash`]) into `out` (overwritten)
+/// [rad or m].
+///
+/// # Panics
+/// If an effect's vector is shorter than `out`.
+pub fn backlash(effects: &[Effect], out: &mut [f64]) {
+    out.fill(0.0);
+    for e in effects {
+        e.simulated(|e| e.add_backlash(out));
     }
 }
 

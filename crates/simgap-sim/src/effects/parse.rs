@@ -6,8 +6,8 @@ use simgap_core::Model;
 
 use super::spelling::Spelling;
 use super::{
-    armature, back_emf, cogging, coriolis_structure, coulomb_friction, directional_friction, encoder_offset, inertial_error, joint_spring, load_friction, load_stribeck_friction,
-    payload, stribeck_friction, time_delay, torque_gain, torque_offset, torque_saturation, typical_width, viscous_friction, Effect, DEFAULT_COULOMB_WIDTH,
+    armature, back_emf, backlash, cogging, coriolis_structure, coulomb_friction, directional_friction, encoder_offset, inertial_error, joint_spring, load_friction,
+    load_stribeck_friction, payload, stribeck_friction, time_delay, torque_gain, torque_offset, torque_saturation, typical_width, viscous_friction, Effect, DEFAULT_COULOMB_WIDTH,
 };
 use crate::error::Result;
 use crate::kind::EffectKind;
@@ -91,6 +91,7 @@ impl Effect {
             EffectKind::LoadStribeckFriction => load_stribeck_friction::parse(&s)?,
             EffectKind::BackEmf => back_emf::parse(&s)?,
             EffectKind::EncoderOffset => encoder_offset::parse(&s)?,
+            EffectKind::Backlash => backlash::parse(&s)?,
         };
         effect.validate(dof)?;
         Ok(effect)
