@@ -49,7 +49,7 @@ RUST_TEST := cargo test --release --workspace --exclude simgap-python
 SELFCHECK_TESTS := fit_recovers_known_effects_in_blind_scenarios families_cycle_through_every_named_family \
   per_joint_gains_are_exchanged_for_the_inertial_correction_taken_first \
   servo_scenarios_find_the_hidden_mechanics_and_the_motor_constants real_drive_families_are_diagnosed_right_with_plausible_effects \
-  encoder_offsets_on_servo_arms_are_found_and_not_invented
+  encoder_offsets_on_servo_arms_are_found_and_not_invented backlash_on_servo_arms_is_found_and_not_invented
 
 rust-test: rust-test-selfcheck rust-test-rest
 

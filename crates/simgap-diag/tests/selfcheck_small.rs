@@ -177,3 +177,28 @@ fn encoder_offsets_on_servo_arms_are_found_and_not_invented() {
     let invented = scores.iter().filter(|s| s.index % 3 == 2 && s.found.iter().any(|f| f.starts_with("encoder_offset@"))).count();
     assert_eq!(invented, 0, "an encoder offset found where none was hidden");
 }
+
+#[test]
+fn backlash_on_servo_arms_is_found_and_not_invented() {
+    use simgap_diag::selfcheck::run_backlash_scenario;
+    // six servo scenarios with rotor inertias and 0.5-2 degrees of play in their gears (two of
+    // them nulls, indices 2 and 5, with the rotor inertias alone): the play found on the joints
+    // that have it, and none invented
+    let seed: u64 = std::env::var("SIMGAP_BACKLASH_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let scores: Vec<_> = (0..6usize).into_par_iter().map(|i| run_backlash_scenario(seed, i)).collect();
+    for s in &scores {
+        eprintln!(
+            "seed {seed} scenario {} {:<15} right={:<5} truth={:?} found={:?} kstep={:.3} {:?} {} {:?}",
+            s.index, s.robot, s.right, s.truth, s.found, s.kstep_ratio, s.parameter_errors, s.rule, s.error
+        );
+    }
+    let play = |names: &[String]| -> Vec<String> { names.iter().filter(|f| f.starts_with("backlash@")).cloned().collect() };
+    let found = scores.iter().filter(|s| s.index % 3 != 2 && !play(&s.truth).is_empty() && play(&s.found) == play(&s.truth)).count();
+    let right = scores.iter().filter(|s| s.right).count();
+    eprintln!("seed {seed}: play found on its joints in {found} of 4 scenarios; {right} of 6 right in every effect");
+    // (measured: 2 of 4 on seed 1, 3 of 4 on seed 2; where it is missed, the rotor inertia alone
+    // predicts the fit runs as well, or a stand-in took its place)
+    assert!(found >= 2, "play found on its joints in {found} of 4 scenarios");
+    let invented = scores.iter().filter(|s| s.index % 3 == 2 && !play(&s.found).is_empty()).count();
+    assert_eq!(invented, 0, "backlash found where none was hidden");
+}

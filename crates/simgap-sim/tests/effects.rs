@@ -63,6 +63,7 @@ fn every_effect_name_parses() {
         "load_stribeck_friction:fc=0.1,0.2;mu=0.3,0.1;fs=0.2,0.3;mus=0.5,0.2;vs=0.05;w=0",
         "back_emf:kb=0.04,0.02",
         "encoder_offset:offset=0.05,-0.02",
+        "backlash:width=0.02,0.01",
     ];
     assert_eq!(specs.len(), EffectKind::ALL.len(), "one spelling per effect");
     for (spec, kind) in specs.iter().zip(EffectKind::ALL) {
@@ -72,7 +73,7 @@ fn every_effect_name_parses() {
     assert_eq!(Effect::parse("viscous_friction:b=2", 2).unwrap(), Effect::ViscousFriction { b: vec![2.0, 2.0] });
     assert!(Effect::parse("viscous_friction:b=1,2,3", 2).is_err());
     assert!(Effect::parse("viscous_friction:c=1", 2).is_err());
-    assert!(Effect::parse("backlash", 2).is_err());
+    assert!(Effect::parse("backlash", 2).is_err(), "backlash needs its width");
     assert!(Effect::parse("viscous_friction:b=-1,0", 2).is_err());
     assert_eq!(Effect::ViscousFriction { b: vec![0.0, 0.175] }.joints_acted(), vec![1]);
     assert_eq!(Effect::TorqueSaturation { limit: vec![f64::INFINITY, 15.0] }.joints_acted(), vec![1]);

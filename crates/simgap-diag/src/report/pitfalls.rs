@@ -199,7 +199,7 @@ fn gravity_column(model: &Model, data: &[FitData]) -> Column {
 }
 
 /// Mean of the diagonal of H(q) over the fit samples, per joint.
-fn mean_mass_diagonal(model: &Model, data: &[FitData]) -> Vec<f64> {
+pub(crate) fn mean_mass_diagonal(model: &Model, data: &[FitData]) -> Vec<f64> {
     let n = model.dof();
     let mut ws = Workspace::new(model);
     let mut h = nalgebra::DMatrix::zeros(n, n);

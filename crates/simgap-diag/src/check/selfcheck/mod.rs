@@ -14,8 +14,10 @@ mod summary;
 mod truth;
 
 pub use scenarios::{double_pendulum, family_of, inertia_about_axis_as_com, robots, scenario, Scenario, CYCLE, FAMILIES, GLITCH_VALUE};
-pub use score::{run_drive_scenario, run_encoder_offset_scenario, run_mixed_scenario, run_scenario, run_servo_scenario, ScenarioScore, MIXED_CYCLE, MOTOR_CONSTANTS};
-pub use servo::{encoder_offset_scenario, servo_draw, servo_scenario, SATURATION_EVERY};
+pub use score::{
+    run_backlash_scenario, run_drive_scenario, run_encoder_offset_scenario, run_mixed_scenario, run_scenario, run_servo_scenario, ScenarioScore, MIXED_CYCLE, MOTOR_CONSTANTS,
+};
+pub use servo::{backlash_scenario, encoder_offset_scenario, servo_draw, servo_scenario, SATURATION_EVERY};
 pub use summary::{summarise, Summary};
 pub use truth::{contradicted, found_set, implausible, truth_set};
 // the crate's tests replay runs and score their own scenarios by the self-check's paths

@@ -8,7 +8,7 @@ use simgap_core::Formulation;
 use simgap_sim::{Effect, EffectKind};
 
 use super::scenarios::{family_of, scenario, Scenario, CYCLE, GLITCH_VALUE};
-use super::servo::{encoder_offset_scenario, servo_family, servo_scenario};
+use super::servo::{backlash_scenario, encoder_offset_scenario, servo_family, servo_scenario};
 use super::truth::{comparisons, contradicted, coverage_of, found_set, implausible, inside, Comparison};
 use crate::options::DiagnoseOptions;
 use crate::pipeline::diagnose;
@@ -133,6 +133,12 @@ pub fn run_encoder_offset_scenario(seed: u64, index: usize) -> ScenarioScore {
     score(index, "servo_encoder_offset", encoder_offset_scenario(seed, index))
 }
 
+/// Runs backlash scenario `index` of seed `seed` ([`backlash_scenario`]) and scores it as a
+/// servo scenario ([`run_servo_scenario`]).
+pub fn run_backlash_scenario(seed: u64, index: usize) -> ScenarioScore {
+    score(index, "servo_backlash", backlash_scenario(seed, index))
+}
+
 /// Runs real-drive scenario `index` of seed `seed` ([`drive_scenario`](crate::check::drives::drive_scenario))
 /// and scores it. Right when the selected set is exactly the hidden one or among the
 /// alternatives, except:
@@ -236,7 +242,7 @@ pub(crate) fn score(index: usize, family: &str, sc: crate::Result<Scenario>) -> 
             let flagged = d.report.notes.iter().any(|n| n.contains(&format!("joint {passive} is passive")));
             ((exact || in_alternatives) && !actuator && flagged, format!("no actuator effect on the passive joint {passive} (one found: {actuator}); flagged passive: {flagged}"))
         }
-        "servo" | "servo_saturation" | "servo_breakaway" | "servo_encoder_offset" => {
+        "servo" | "servo_saturation" | "servo_breakaway" | "servo_encoder_offset" | "servo_backlash" => {
             // the motor constants are fitted: a torque gain or back-EMF corrects them, and the
             // constants the corrected model drives with must be the servo's; a limit must be
             // found on its joint, the most the drive delivers (the limit times the gain) within

@@ -31,7 +31,7 @@ use super::scenarios::{double_pendulum, Scenario};
 /// [`servo_scenario`]`(seed, index)`, scored by [`run_servo_scenario`](super::run_servo_scenario).
 pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
     let family = servo_family(index);
-    draw_servo(seed, index, family == "servo_saturation", family == "servo_breakaway", false)
+    draw_servo(seed, index, family == "servo_saturation", family == "servo_breakaway", Extra::None)
 }
 
 /// A `servo_encoder_offset` scenario: the `servo` draw of [`servo_scenario`] (its mechanics,
@@ -40,8 +40,27 @@ pub fn servo_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
 /// (`encoder_offset`, drawn from a stream of its own); the third (`index % 3 == 2`) is a null,
 /// the servo draw alone.
 pub fn encoder_offset_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
-    let drawn = draw_servo(seed, index, false, false, index % 3 != 2)?;
+    let drawn = draw_servo(seed, index, false, false, if index % 3 != 2 { Extra::Offsets } else { Extra::None })?;
     Ok(Scenario { family: "servo_encoder_offset", ..drawn })
+}
+
+/// A `servo_backlash` scenario: the `servo` draw of [`servo_scenario`] with a rotor inertia of
+/// 0.2–0.6 times its link's on one joint, or on each of the double pendulum's two with even
+/// odds, and, on two indices in three, play of 0.5–2° in those joints' gears (`backlash`, drawn
+/// from a stream of its own); the third (`index % 3 == 2`) is a null with the rotor inertias
+/// alone.
+pub fn backlash_scenario(seed: u64, index: usize) -> crate::Result<Scenario> {
+    let drawn = draw_servo(seed, index, false, false, Extra::Rotors { play: index % 3 != 2 })?;
+    Ok(Scenario { family: "servo_backlash", ..drawn })
+}
+
+/// What a servo draw adds to its effects: nothing, encoder offsets
+/// ([`encoder_offset_scenario`]), or rotor inertias with or without play ([`backlash_scenario`]).
+#[derive(Clone, Copy, PartialEq)]
+enum Extra {
+    None,
+    Offsets,
+    Rotors { play: bool },
 }
 
 /// `effects` (of a `dof`-joint robot) with their first a load friction rising at rest on
@@ -82,13 +101,13 @@ pub const SATURATION_EVERY: usize = 4;
 /// # Errors
 /// [`crate::Error::Input`] when every draw diverged.
 pub fn servo_draw(seed: u64, index: usize, limited: bool) -> crate::Result<Scenario> {
-    draw_servo(seed, index, limited, false, false)
+    draw_servo(seed, index, limited, false, Extra::None)
 }
 
 /// [`servo_draw`], or with `breakaway` the same draw with its first effect a load friction
 /// rising at rest (its parameters and the logs' goals drawn apart, see [`servo_scenario`]); with
-/// `offsets`, encoder offsets added ([`encoder_offset_scenario`]).
-fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool, offsets: bool) -> crate::Result<Scenario> {
+/// `extra`, encoder offsets or rotor inertias and play added.
+fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool, extra: Extra) -> crate::Result<Scenario> {
     use crate::check::bench::{generate_servo, random_fourier, ServoSpec};
     // the limit's share of the gravity torque, drawn apart from the rest
     let limit_share = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(4_000_037).wrapping_add(index as u64)).random_range(0.45..0.75);
@@ -150,7 +169,20 @@ fn draw_servo(seed: u64, index: usize, limited: bool, breakaway: bool, offsets: 
         if breakaway {
             effects = rising_at_rest(&effects, n, joint, kt[joint] / r[joint] * volts, &mut apart);
         }
-        if offsets {
+        if let Extra::Rotors { play } = extra {
+            let mut own = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(7_000_003).wrapping_add(index as u64));
+            let first = own.random_range(0..n);
+            let both = n > 1 && own.random_bool(0.5);
+            let on = |j: usize| j == first || both;
+            let ia: Vec<f64> = (0..n).map(|j| if on(j) { own.random_range(0.2..0.6) * h[(j, j)] } else { 0.0 }).collect();
+            let width: Vec<f64> = (0..n).map(|j| if on(j) { own.random_range(0.5f64..2.0).to_radians() } else { 0.0 }).collect();
+            effects.retain(|e| !matches!(e, Effect::Armature { .. }));
+            effects.push(Effect::Armature { ia });
+            if play {
+                effects.push(Effect::Backlash { width });
+            }
+        }
+        if extra == Extra::Offsets {
             let mut own = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(6_000_047).wrapping_add(index as u64));
             let first = own.random_range(0..n);
             let both = n > 1 && own.random_bool(0.5);

@@ -121,6 +121,16 @@ pub(crate) fn refine_by_shooting(
     if sets.is_empty() {
         return Ok((None, Vec::new()));
     }
+    // the play the search by prediction found goes with every set holding its rotor inertia
+    // (shooting fits no width: the play is the drive's structure, as the rotor is)
+    for (name, terms) in &mut sets {
+        let play: Vec<Term> =
+            selected.iter().filter(|t| matches!(t, Term::Backlash { joint, .. } if terms.contains(&Term::Armature(*joint)))).filter(|t| !terms.contains(t)).cloned().collect();
+        if !play.is_empty() {
+            terms.extend(play);
+            name.push_str(", with the selected backlash");
+        }
+    }
     let sopts = shooting_options(scorer);
     let shoot_runs = std::sync::Arc::new(shooting::shooting_runs(&prep.fit_pred, options.prepare.window, &sopts));
     let stop = options.stop.as_deref();
