@@ -1,19 +1,8 @@
 //! Backlash hidden in the paper's arm (the elbow's gear train with play, its rotor inertia
 //! known to the truth) is found blind by prediction, and held-out runs are predicted better.
 
-use crate::check::bench::{demo_specs, generate};
-use crate::{diagnose, DiagnoseOptions};
-use simgap_core::{Formulation, Model};
+use super::common::paper_arm_diagnosed as diagnosed;
 use simgap_sim::{Effect, EffectKind};
-
-fn diagnosed(hidden: &[Effect]) -> crate::Diagnosis {
-    let model = Model::paper_arm();
-    let (fit_specs, hold_specs) = demo_specs(1);
-    let gen = |s| generate(&model, Formulation::EulerLagrange, hidden, s, 0.0025, 1_024_000.0).unwrap();
-    let fit: Vec<_> = fit_specs.iter().map(gen).collect();
-    let hold: Vec<_> = hold_specs.iter().map(gen).collect();
-    diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &DiagnoseOptions::default(), &mut |_| {}).unwrap()
-}
 
 #[test]
 fn play_in_the_elbows_gears_is_found_beside_its_rotor_inertia() {

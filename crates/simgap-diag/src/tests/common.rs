@@ -1,4 +1,4 @@
-//! Helpers shared by the tests that read the DFKI hardware logs.
+//! Helpers shared by the tests: the DFKI hardware logs, and the paper's arm with hidden effects.
 
 use std::path::{Path, PathBuf};
 
@@ -32,4 +32,17 @@ pub(crate) fn have_data(test: &str, dir: &Path) -> bool {
     assert!(std::env::var_os("CI").is_none(), "{test}: the data it needs is not at {} (CI is set: a test without its data fails)", dir.display());
     println!("SKIPPED {test}: the data is not at {}", dir.display());
     false
+}
+
+/// The diagnosis of the paper's arm with `hidden` effects in its logs: the demo's fit and
+/// held-out runs (seed 1), 2.5 ms samples, a 1,024,000-count encoder, default options.
+pub(crate) fn paper_arm_diagnosed(hidden: &[simgap_sim::Effect]) -> crate::Diagnosis {
+    use crate::check::bench::{demo_specs, generate};
+    use simgap_core::{Formulation, Model};
+    let model = Model::paper_arm();
+    let (fit_specs, hold_specs) = demo_specs(1);
+    let gen = |s| generate(&model, Formulation::EulerLagrange, hidden, s, 0.0025, 1_024_000.0).unwrap();
+    let fit: Vec<_> = fit_specs.iter().map(gen).collect();
+    let hold: Vec<_> = hold_specs.iter().map(gen).collect();
+    crate::diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &crate::DiagnoseOptions::default(), &mut |_| {}).unwrap()
 }

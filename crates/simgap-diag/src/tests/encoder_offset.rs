@@ -1,19 +1,8 @@
 //! An encoder offset hidden in the paper's arm (the shoulder's measured zero 3° off) is found
 //! blind, with its value, and held-out runs are predicted better.
 
-use crate::check::bench::{demo_specs, generate};
-use crate::{diagnose, DiagnoseOptions};
-use simgap_core::{Formulation, Model};
+use super::common::paper_arm_diagnosed as diagnosed;
 use simgap_sim::{Effect, EffectKind};
-
-fn diagnosed(hidden: &[Effect]) -> crate::Diagnosis {
-    let model = Model::paper_arm();
-    let (fit_specs, hold_specs) = demo_specs(1);
-    let gen = |s| generate(&model, Formulation::EulerLagrange, hidden, s, 0.0025, 1_024_000.0).unwrap();
-    let fit: Vec<_> = fit_specs.iter().map(gen).collect();
-    let hold: Vec<_> = hold_specs.iter().map(gen).collect();
-    diagnose(&model, Formulation::EulerLagrange, &fit, &hold, &DiagnoseOptions::default(), &mut |_| {}).unwrap()
-}
 
 #[test]
 fn a_hidden_encoder_offset_is_found_with_its_value() {
