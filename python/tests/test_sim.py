@@ -60,6 +60,19 @@ def test_friction_widens_the_gap(paper_run: Run) -> None:
     assert report.samples == 1201 and report.span == (0.0, 3.0)
 
 
+def test_backlash_acts_through_the_rotor_inertia_it_carries(paper_run: Run) -> None:
+    # play without a rotor inertia leaves the run as it is (the drive side crosses the gap at
+    # once); with the rotor's inertia on its drive side it changes the motion
+    arm = simgap.Model.paper_arm()
+    massless = simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, effects=["backlash:width=0.03,0.03"])
+    np.testing.assert_array_equal(massless.q, paper_run.q)
+    rotor = simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, effects=["armature:ia=0.5,0.2"])
+    play = simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, effects=["armature:ia=0.5,0.2", "backlash:width=0.03,0.03"])
+    assert simgap.compare(play, rotor).overall > 1e-5
+    with pytest.raises(SimulationError, match="backlash"):
+        simgap.simulate(arm, TARGET, controller="pd", kp=KP, kv=KV, effects=["armature:ia=0.5,0.2", "backlash:width=0.03,0.03"], integrator="adaptive")
+
+
 def test_replay_of_the_commanded_torque_reproduces_the_run_open_loop(paper_run: Run) -> None:
     replayed = simgap.simulate(simgap.Model.paper_arm(), paper_run, controller="replay")
     assert simgap.compare(replayed, paper_run).overall < 1e-3
