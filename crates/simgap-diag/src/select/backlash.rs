@@ -1,7 +1,7 @@
 //! The search for backlash: on each actuated joint, with the rotor inertia the selected set holds
 //! there or with one added beside it, the play of
 //! [`WIDTH_GRID`](crate::vocabulary::backlash::WIDTH_GRID) that predicts the fit runs best
-//! (refined between the grid's neighbours to a ratio of 2^(1/4)), kept when it predicts them
+//! (refined halfway, in ratio, toward the grid's neighbours), kept when it predicts them
 //! better by [`ADD_GAIN`]; the terms that stood in for the play (a friction, a payload, cogging
 //! absorbing its lost motion) are then dropped where the set predicts as well without them.
 //!
@@ -185,11 +185,10 @@ impl Tried {
         }
     }
 
-    /// Refined between the grid's neighbours: the width halfway (in ratio) toward each, twice.
+    /// Refined between the grid's neighbours: the width halfway (in ratio) toward each.
     fn refined(mut self, scorer: &Scorer<'_>, stop: &dyn Fn() -> crate::Result<()>) -> crate::Result<Tried> {
-        for step in [2f64.sqrt(), 2f64.powf(0.25)] {
-            let Some(centre) = self.width else { break };
-            for w in [centre / step, centre * step] {
+        if let Some(centre) = self.width {
+            for w in [centre / 2f64.sqrt(), centre * 2f64.sqrt()] {
                 stop()?;
                 self.try_width(scorer, w);
             }

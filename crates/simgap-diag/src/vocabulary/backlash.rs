@@ -14,12 +14,12 @@ use simgap_sim::Effect;
 use super::effects::{per_joint as reported, sig3, unit_of};
 use super::{EffectReport, TermDesign};
 
-/// The widths of play the search tries on a turning joint [rad]: 0.25° to 4°, doubling (a
-/// hobby servo's gear train has about 1°; more than a few degrees is a broken gear, not play).
-pub(crate) const WIDTH_GRID: [f64; 5] = [0.004_363, 0.008_727, 0.017_453, 0.034_907, 0.069_813];
+/// The widths of play the search tries on a turning joint [rad]: 0.5° to 4°, doubling (a hobby
+/// servo's gear train has about 1°; more than a few degrees is a broken gear, not play).
+pub(crate) const WIDTH_GRID: [f64; 4] = [0.008_727, 0.017_453, 0.034_907, 0.069_813];
 
-/// The widths of play tried on a linear axis [m]: 0.05 to 0.8 mm, doubling.
-pub(crate) const WIDTH_GRID_LINEAR: [f64; 5] = [5e-5, 1e-4, 2e-4, 4e-4, 8e-4];
+/// The widths of play tried on a linear axis [m]: 0.1 to 0.8 mm, doubling.
+pub(crate) const WIDTH_GRID_LINEAR: [f64; 4] = [1e-4, 2e-4, 4e-4, 8e-4];
 
 /// No fitted column (the width is searched by prediction).
 pub(super) fn design() -> TermDesign {
