@@ -199,7 +199,7 @@ impl Tried {
 
 /// The rotor inertia, as a share of the joint's mean link inertia `h_jj`, below which play is not
 /// tried on it.
-const ROTOR_SHARE: f64 = 0.03;
+const ROTOR_SHARE: f64 = 0.1;
 
 /// How much worse than the set a base with the rotor alone may predict and still be searched.
 const FAR_WORSE: f64 = 3.0;
