@@ -81,16 +81,6 @@ impl DriveSides {
         }
     }
 
-    /// Whether joint `i`'s gap is open (its drive side moves alone).
-    pub fn is_open(&self, i: usize) -> bool {
-        self.gaps.iter().any(|g| g.joint == i && g.open)
-    }
-
-    /// The drive side minus the link of each joint with play [rad or m], as `(joint, s)`.
-    pub fn positions(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
-        self.gaps.iter().map(|g| (g.joint, if g.side == 0.0 && !g.open { 0.0 } else { g.s }))
-    }
-
     /// Removes from `applied` the drive's torque of the joints whose gap is open: it moves their
     /// rotors, not their links.
     pub fn uncouple(&self, applied: &mut [f64]) {

@@ -518,8 +518,7 @@ impl<'p> Stepper<'p> {
                     }
                     if let Some(sides) = &mut self.sides {
                         // the open rotors under the drive's torque, and their impacts
-                        let torque_at = |qd: &[f64], a: &mut [f64], b: &mut [f64], out: &mut [f64]| torque(qd, a, b, out);
-                        sides.advance(plant, pws, h, &self.qd_start, y, m_diag, &torque_at);
+                        sides.advance(plant, pws, h, &self.qd_start, y, m_diag, &torque);
                     }
                 }
             }

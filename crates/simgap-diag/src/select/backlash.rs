@@ -65,7 +65,7 @@ pub(crate) fn search(
         let width = best.width.unwrap_or(f64::NAN);
         // the play must predict better than the set without it and than the same set with the
         // rotor alone, and lie inside the widths tried (not at the edge of the search)
-        let rotor_alone = scorer.score(&best.base);
+        let rotor_alone = best.rotor_alone;
         let inside = best.width.is_some_and(|w| w >= best.grid[0] * (1.0 - 1e-9) && w <= best.grid[best.grid.len() - 1] * (1.0 + 1e-9));
         if !(best.score < score.min(rotor_alone) * (1.0 - ADD_GAIN)) || !inside {
             // neither it nor any other joint's play predicts better: say so for each
@@ -116,6 +116,8 @@ struct Tried {
     /// The set with the rotor inertia, without the play (and without the terms that stood in for
     /// it, where that predicted better).
     base: Vec<Term>,
+    /// The score of `base`: the set with the rotor alone.
+    rotor_alone: f64,
     /// Why no width was tried (the rotor's fitted inertia too small for play to move the link).
     skipped: Option<String>,
 }
@@ -136,7 +138,7 @@ impl Tried {
         // offset on the joint), which otherwise keep the rotor's fitted inertia near zero
         let lean: Vec<Term> = base.iter().filter(|t| !stands_in(t, j)).cloned().collect();
         let bases = if lean.len() < base.len() { vec![base, lean] } else { vec![base] };
-        let mut t = Tried { joint: j, rotor_added, grid, width: None, score: f64::INFINITY, base: Vec::new(), skipped: None };
+        let mut t = Tried { joint: j, rotor_added, grid, width: None, score: f64::INFINITY, base: Vec::new(), rotor_alone: f64::INFINITY, skipped: None };
         let mut reasons = Vec::new();
         for (bi, base) in bases.into_iter().enumerate() {
             let which = if bi == 0 { "with the set's terms" } else { "without the terms that could stand in for it" };
@@ -160,7 +162,7 @@ impl Tried {
                 ));
                 continue;
             }
-            let mut alt = Tried { joint: j, rotor_added, grid, width: None, score: f64::INFINITY, base, skipped: None };
+            let mut alt = Tried { base, rotor_alone: alone, ..t.blank() };
             for &w in grid {
                 stop()?;
                 alt.try_width(scorer, w);
@@ -173,6 +175,11 @@ impl Tried {
             t.skipped = Some(reasons.join("; "));
         }
         Ok(t)
+    }
+
+    /// The same joint and grid with nothing tried yet.
+    fn blank(&self) -> Tried {
+        Tried { base: Vec::new(), skipped: None, width: None, score: f64::INFINITY, rotor_alone: f64::INFINITY, ..*self }
     }
 
     /// Scores `width` and keeps it if it predicts better.
