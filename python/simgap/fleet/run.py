@@ -10,6 +10,7 @@ task whose worker dies is re-run elsewhere by the scheduler (Dask's ``allowed-fa
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import signal
@@ -249,6 +250,37 @@ def iter_fleet(
             client.cancel(unfinished)
 
 
+def _quiet_distributed_logs() -> None:
+    """Raises the ``distributed`` loggers' console level to CRITICAL in this process."""
+    for handler in logging.getLogger("distributed").handlers:
+        if isinstance(handler, logging.StreamHandler):
+            handler.setLevel(logging.CRITICAL)
+
+
+def _close_quietly(client: Any, cluster: Any) -> None:
+    """Closes a cluster this module started, without its shutdown chatter.
+
+    A worker still busy when its scheduler goes away (Ctrl-C in the middle of a diagnosis)
+    logs the lost heartbeat with a traceback; closing the cluster is this module's decision,
+    so those lines say nothing to the user. The workers are told to keep quiet first (5 s at
+    most: a worker that does not answer is closed anyway), then the cluster is closed.
+    """
+    from distributed.utils import silence_logging_cmgr
+
+    def quiet_workers() -> None:
+        try:
+            client.run(_quiet_distributed_logs, on_error="ignore")
+        except Exception:  # noqa: BLE001 - a cluster already half closed: nothing to quiet
+            pass
+
+    t = threading.Thread(target=quiet_workers, daemon=True)
+    t.start()
+    t.join(5.0)
+    with silence_logging_cmgr(logging.CRITICAL):
+        client.close()
+        cluster.close()
+
+
 def diagnose_fleet(
     index: pd.DataFrame | str | os.PathLike[str],
     urdf: str | os.PathLike[str],
@@ -316,5 +348,4 @@ def diagnose_fleet(
         return FleetResult.from_results(results, time.perf_counter() - start, workers)
     finally:
         if own_cluster is not None:
-            client.close()
-            own_cluster.close()
+            _close_quietly(client, own_cluster)
