@@ -196,9 +196,10 @@ fn backlash_on_servo_arms_is_found_and_not_invented() {
     let found = scores.iter().filter(|s| s.index % 3 != 2 && !play(&s.truth).is_empty() && play(&s.found) == play(&s.truth)).count();
     let right = scores.iter().filter(|s| s.right).count();
     eprintln!("seed {seed}: play found on its joints in {found} of 4 scenarios; {right} of 6 right in every effect");
-    // (measured: 2 of 4 on seed 1, 3 of 4 on seed 2; where it is missed, the rotor inertia alone
-    // predicts the fit runs as well, or a stand-in took its place)
-    assert!(found >= 2, "play found on its joints in {found} of 4 scenarios");
+    // (measured: 3 of 4 on both seeds, 2 of 4 on seed 1 before a set holding play was fitted
+    // without the samples where its gap is open; where it is missed, a stand-in the selection
+    // took before the play stage predicts better than the play with the rotor)
+    assert!(found >= 3, "play found on its joints in {found} of 4 scenarios");
     let invented = scores.iter().filter(|s| s.index % 3 == 2 && !play(&s.found).is_empty()).count();
     assert_eq!(invented, 0, "backlash found where none was hidden");
 }

@@ -22,6 +22,19 @@ impl Column {
         Column { joint, values: Arc::new(values) }
     }
 
+    /// Sets the rows `rows` ((sample, joint) pairs, `dof` joints) to zero.
+    pub(crate) fn zero_rows(&mut self, rows: &[(usize, usize)], dof: usize) {
+        let joint = self.joint;
+        let values = Arc::make_mut(&mut self.values);
+        for &(s, j) in rows {
+            match joint {
+                Some(jj) if jj == j => values[s] = 0.0,
+                Some(_) => {}
+                None => values[s * dof + j] = 0.0,
+            }
+        }
+    }
+
     /// Value at (sample, joint).
     #[inline]
     pub(crate) fn at(&self, s: usize, j: usize, dof: usize) -> f64 {
@@ -70,5 +83,15 @@ impl TermDesign {
     /// A fixed offset and no parameter.
     pub(crate) fn fixed(offset: Column) -> TermDesign {
         TermDesign { offset: Some(offset), ..Default::default() }
+    }
+
+    /// The design with the rows `rows` ((sample, joint) pairs of a problem of `dof` joints) set
+    /// to zero in every column and in the offset (see [`crate::lsq::Problem::without_rows`]).
+    pub(crate) fn without_rows(&self, rows: &[(usize, usize)], dof: usize) -> TermDesign {
+        let mut d = self.clone();
+        for c in d.cols.iter_mut().chain(d.offset.iter_mut()) {
+            c.zero_rows(rows, dof);
+        }
+        d
     }
 }

@@ -105,6 +105,27 @@ impl Problem {
         Problem { dof, samples, block_of, block_start, blocks, weights, tau_rms, y, inertial_gram: Default::default(), pair_cache: Default::default() }
     }
 
+    /// The problem with the rows `rows` ((sample, joint) pairs) left out: their residual is zero,
+    /// and so are their columns in designs taken through [`TermDesign::without_rows`], so that
+    /// they add nothing to a fit; the blocks and the joints' weights stay those of all rows, and
+    /// the caches of column products start empty.
+    pub(crate) fn without_rows(&self, rows: &[(usize, usize)]) -> Problem {
+        let mut y = self.y.clone();
+        y.zero_rows(rows, self.dof);
+        Problem {
+            dof: self.dof,
+            samples: self.samples,
+            block_of: self.block_of.clone(),
+            block_start: self.block_start.clone(),
+            blocks: self.blocks,
+            weights: self.weights.clone(),
+            tau_rms: self.tau_rms.clone(),
+            y,
+            inertial_gram: Default::default(),
+            pair_cache: Default::default(),
+        }
+    }
+
     /// Weighted inner product of two columns per (block, joint): `out[block · dof + joint]`.
     fn dot_blocks(&self, a: &Column, b: &Column, out: &mut [f64]) {
         out.fill(0.0);

@@ -78,9 +78,25 @@ impl Scorer<'_> {
         if !select::admissible(&designs, terms, &all.theta) {
             return None;
         }
+        // a set holding play is fitted without the samples where its gap is open, which the
+        // torque residual reads as rotor inertia, friction or gain (the gap's timing from the
+        // rotor inertia fitted on every sample)
+        let open = open_gap_rows(terms, &designs, &all.theta, self.ctx.data);
+        let masked;
+        let gr = if open.is_empty() {
+            grams()
+        } else {
+            let problem = self.ctx.problem.without_rows(&open);
+            let without: Vec<TermDesign> = designs.iter().map(|d| d.without_rows(&open, problem.dof)).collect();
+            let refs: Vec<&TermDesign> = without.iter().collect();
+            masked = lsq::grams(&problem, &refs);
+            if !select::admissible(&designs, terms, &lsq::fit(&problem, &masked).theta) {
+                return None;
+            }
+            &masked
+        };
         // each fold predicted by the parameters fitted without it (the same contiguous fifths
         // of the runs as the torque fit's folds)
-        let gr = grams();
         let effects_of = |f: usize| -> Vec<Effect> {
             let theta = lsq::theta_without(gr, &|g| g == f);
             effects::to_effects(self.model, &fitted_terms(terms, &designs, &theta, None))
@@ -111,4 +127,26 @@ impl Scorer<'_> {
     pub(crate) fn score(&self, terms: &[Term]) -> f64 {
         kstep::score(&self.cv(terms), &self.nominal)
     }
+}
+
+/// The (sample, joint) rows of the fit runs `data` where the play of a backlash term of `terms`
+/// is open ([`crate::vocabulary::backlash::open_samples`]), with the rotor inertia `theta` gives
+/// the set's rotor on that joint; none for a set without play or without that rotor.
+fn open_gap_rows(terms: &[Term], designs: &[TermDesign], theta: &nalgebra::DVector<f64>, data: &[crate::prepare::dataset::FitData]) -> Vec<(usize, usize)> {
+    let mut rows = Vec::new();
+    for t in terms {
+        let Term::Backlash { joint, width } = *t else { continue };
+        let mut c = 0;
+        let mut ia = None;
+        for (u, d) in terms.iter().zip(designs) {
+            if *u == Term::Armature(joint) {
+                ia = theta.get(c).copied();
+            }
+            c += d.cols.len();
+        }
+        if let Some(ia) = ia {
+            rows.extend(crate::vocabulary::backlash::open_samples(data, joint, width, ia).into_iter().map(|s| (s, joint)));
+        }
+    }
+    rows
 }
