@@ -43,6 +43,7 @@ pub(crate) fn search(
     stop: &dyn Fn() -> crate::Result<()>,
 ) -> crate::Result<Searched> {
     let mut notes = Vec::new();
+    let mut skipped: Vec<Option<String>> = vec![None; joints.len()];
     let mut open: Vec<usize> = (0..joints.len()).filter(|&j| !passive[j]).collect();
     // the link inertia each joint moves, against which a rotor's is weighed
     let h_mean = crate::report::pitfalls::mean_mass_diagonal(scorer.model, scorer.ctx.data);
@@ -52,9 +53,11 @@ pub(crate) fn search(
         for &j in &open {
             let t = Tried::on(scorer, terms, score, j, kinds[j], h_mean[j], stop)?;
             if t.width.is_some() {
+                skipped[j] = None;
                 tried.push(t);
             } else if let Some(why) = t.skipped {
-                notes.push(format!("backlash not tried on {}: {why}", joints[j]));
+                // (one note per joint: the reason of the last pass that skipped it)
+                skipped[j] = Some(format!("backlash not tried on {}: {why}", joints[j]));
             }
         }
         let Some(bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { break };
@@ -101,6 +104,7 @@ pub(crate) fn search(
         // lost motion) leave where the set predicts as well without them
         score = prune_stand_ins(scorer, terms, best.score, log, stop)?;
     }
+    let notes = skipped.into_iter().flatten().chain(notes).collect();
     Ok(Searched { score, notes })
 }
 
