@@ -69,7 +69,11 @@ pub(crate) fn search(
         // the play must predict better than the set without it and than the same set with the
         // rotor alone, and lie inside the widths tried (not at the edge of the search)
         let rotor_alone = best.rotor_alone;
-        let inside = best.width.is_some_and(|w| w >= best.grid[0] * (1.0 - 1e-9) && w <= best.grid[best.grid.len() - 1] * (1.0 + 1e-9));
+        // (or one refinement step past the widest, √2 times it: play as wide as the widest width
+        // tried predicts best a little wider, as the search's widths come out wide; never
+        // narrower than the narrowest, below which the logs do not resolve play)
+        let widest = best.grid[best.grid.len() - 1] * 2f64.sqrt();
+        let inside = best.width.is_some_and(|w| w >= best.grid[0] * (1.0 - 1e-9) && w <= widest * (1.0 + 1e-9));
         if !(best.score < score.min(rotor_alone) * (1.0 - ADD_GAIN)) || !inside {
             // neither it nor any other joint's play predicts better: say so for each
             for t in std::iter::once(&best).chain(&tried) {

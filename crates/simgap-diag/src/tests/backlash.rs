@@ -28,3 +28,13 @@ fn a_rotor_inertia_without_play_gets_no_backlash() {
     assert_eq!(names, [EffectKind::Armature], "{}", d.report.summary());
     assert!(d.report.notes.iter().any(|n| n.starts_with("backlash tried on elbow")), "{:?}", d.report.notes);
 }
+
+#[test]
+fn play_as_wide_as_the_widest_width_searched_is_found() {
+    // 4°, the widest of the grid: found, the search refining one step past it
+    let width = 4f64.to_radians();
+    let d = diagnosed(&[Effect::Armature { ia: vec![0.0, 0.5] }, Effect::Backlash { width: vec![0.0, width] }]);
+    let play = d.report.selected_effects.iter().find(|e| e.effect == EffectKind::Backlash).unwrap_or_else(|| panic!("no play: {:?}", d.report.notes));
+    let found = play.value("width", "elbow").unwrap();
+    assert!(found >= width * 0.8 && found <= width * 2f64.sqrt() * 1.001, "width {found} against {width}");
+}
