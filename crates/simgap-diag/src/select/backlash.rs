@@ -222,9 +222,7 @@ const FAR_WORSE: f64 = 3.0;
 /// The rotor inertia `terms` fit on joint `j` by the torque residual, as a share of `h_jj`.
 fn rotor_share(scorer: &Scorer<'_>, terms: &[Term], j: usize, h_jj: f64) -> f64 {
     let (designs, _, fit) = scorer.ctx.fit_terms(terms);
-    let Some(i) = terms.iter().position(|t| *t == Term::Armature(j)) else { return 0.0 };
-    let c: usize = designs[..i].iter().map(|d| d.cols.len()).sum();
-    fit.theta.get(c).map_or(0.0, |ia| ia / h_jj)
+    crate::vocabulary::rotor::fitted(terms, &designs, &fit.theta, j).map_or(0.0, |ia| ia / h_jj)
 }
 
 /// Whether `t` can stand in for a rotor inertia with play on joint `j`: a drive gain, a payload

@@ -136,15 +136,7 @@ fn open_gap_rows(terms: &[Term], designs: &[TermDesign], theta: &nalgebra::DVect
     let mut rows = Vec::new();
     for t in terms {
         let Term::Backlash { joint, width } = *t else { continue };
-        let mut c = 0;
-        let mut ia = None;
-        for (u, d) in terms.iter().zip(designs) {
-            if *u == Term::Armature(joint) {
-                ia = theta.get(c).copied();
-            }
-            c += d.cols.len();
-        }
-        if let Some(ia) = ia {
+        if let Some(ia) = crate::vocabulary::rotor::fitted(terms, designs, theta, joint) {
             rows.extend(crate::vocabulary::backlash::open_samples(data, joint, width, ia).into_iter().map(|s| (s, joint)));
         }
     }

@@ -24,6 +24,14 @@ pub(crate) fn visible(data: &[FitData]) -> bool {
     !data.iter().any(|d| d.link_side_torque)
 }
 
+/// The rotor inertia on joint `j` [kg·m² or kg] of the set `terms` (with their `designs`)
+/// fitted at coefficients `theta`; `None` where the set holds no rotor inertia there.
+pub(crate) fn fitted(terms: &[super::Term], designs: &[TermDesign], theta: &nalgebra::DVector<f64>, j: usize) -> Option<f64> {
+    let i = terms.iter().position(|t| *t == super::Term::Armature(j))?;
+    let c: usize = designs[..i].iter().map(|d| d.cols.len()).sum();
+    theta.get(c).copied()
+}
+
 /// The column of a rotor inertia on joint `j`, bounded by its physical range.
 pub(super) fn design(j: usize, data: &[FitData]) -> TermDesign {
     let h_max = data.iter().map(|d| d.h_max[j]).fold(0.0f64, f64::max);
