@@ -2,7 +2,7 @@
 //! and the corrected link inertias.
 
 use simgap_core::{Model, SpatialInertia};
-use simgap_sim::{Effect, EffectKind, LinkDelta};
+use simgap_sim::{Effect, EffectKind, LinkDelta, DEFAULT_COULOMB_WIDTH};
 
 use super::ExportError;
 use crate::{EffectReport, Param};
@@ -13,12 +13,18 @@ pub(super) struct Corrections {
     /// Body inertias of the corrected model (payload and inertial errors applied), about each
     /// body's frame origin (the frame of the link its joint moves).
     pub(super) bodies: Vec<SpatialInertia>,
+    /// The corrected model: the input's with payload and inertial errors applied.
+    pub(super) corrected: Model,
     /// Bodies whose inertia the effects change.
     pub(super) changed: Vec<bool>,
     /// Viscous friction [N·m·s/rad or N·s/m].
     pub(super) viscous: Vec<f64>,
     /// Coulomb friction level [N·m or N].
     pub(super) coulomb: Vec<f64>,
+    /// Slope at rest of the smoothed Coulomb friction `fc tanh(q̇/w)`, the sum of `fc/w` over
+    /// the entries [N·m·s/rad or N·s/m]; `+∞` where a width is 0 (the exact sign), and
+    /// [`DEFAULT_COULOMB_WIDTH`] where an entry states no width.
+    pub(super) coulomb_slope: Vec<f64>,
     /// Rotor inertia [kg·m² or kg].
     pub(super) armature: Vec<f64>,
     /// Torque gain [–].
@@ -131,9 +137,11 @@ impl Corrections {
         let n = model.dof();
         let mut c = Corrections {
             bodies: Vec::new(),
+            corrected: model.clone(),
             changed: vec![false; n],
             viscous: vec![0.0; n],
             coulomb: vec![0.0; n],
+            coulomb_slope: vec![0.0; n],
             armature: vec![0.0; n],
             gain: vec![1.0; n],
             limit: vec![f64::INFINITY; n],
@@ -154,7 +162,16 @@ impl Corrections {
             };
             match e.effect {
                 EffectKind::ViscousFriction => nonneg("b")?.into_iter().for_each(|(j, x)| c.viscous[j] += x),
-                EffectKind::CoulombFriction => nonneg("fc")?.into_iter().for_each(|(j, x)| c.coulomb[j] += x),
+                EffectKind::CoulombFriction => {
+                    let fc = nonneg("fc")?;
+                    let w = if e.parameters.contains_key("w") { nonneg("w")? } else { fc.iter().map(|&(j, _)| (j, DEFAULT_COULOMB_WIDTH)).collect() };
+                    for ((j, fc), (_, w)) in fc.into_iter().zip(w) {
+                        c.coulomb[j] += fc;
+                        if fc > 0.0 {
+                            c.coulomb_slope[j] += if w > 0.0 { fc / w } else { f64::INFINITY };
+                        }
+                    }
+                }
                 EffectKind::Armature => nonneg("ia")?.into_iter().for_each(|(j, x)| c.armature[j] += x),
                 EffectKind::TorqueGain => per_joint(model, e, "k")?.into_iter().for_each(|(j, x)| c.gain[j] *= x),
                 EffectKind::TorqueSaturation => nonneg("limit")?.into_iter().for_each(|(j, x)| c.limit[j] = c.limit[j].min(x)),
@@ -185,8 +202,8 @@ impl Corrections {
                 c.spring_q0[j] = spring_moment[j] / c.spring_k[j];
             }
         }
-        let corrected = simgap_sim::effects::apply_inertial_effects(model, &inertial)?;
-        c.bodies = corrected.joints().iter().map(|j| j.inertia).collect();
+        c.corrected = simgap_sim::effects::apply_inertial_effects(model, &inertial)?;
+        c.bodies = c.corrected.joints().iter().map(|j| j.inertia).collect();
         Ok(c)
     }
 }

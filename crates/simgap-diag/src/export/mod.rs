@@ -20,7 +20,7 @@
 //! |---|---|---|
 //! | `inertial_error`, `payload` | `<inertial>` of the link | body `<inertial>` |
 //! | `viscous_friction` | `<dynamics damping>` | joint `damping` |
-//! | `coulomb_friction` | `<dynamics friction>` | joint `frictionloss` |
+//! | `coulomb_friction` | `<dynamics friction>` | joint `frictionloss`, with `solreffriction="0 −rate"` and `solimpfriction="d d …"` making MuJoCo's constraint the band of `tanh(q̇/w)`: `−fc·clip(q̇/(2 ln 2·w), ±1)`, no stiction |
 //! | `armature` | sidecar | joint `armature` |
 //! | `torque_gain` | sidecar | motor `gear` |
 //! | `torque_saturation` | sidecar | motor `forcerange` |
