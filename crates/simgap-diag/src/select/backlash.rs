@@ -95,6 +95,19 @@ pub(crate) fn search(
             "play of {width:.4}{with_rotor} predicts the fit runs better (cross-validated k-step score {:.4} against {score:.4}; widths tried {:?} and between)",
             best.score, best.grid
         );
+        // how precise the width is: the search's step, and an end of the widths searched
+        let (narrowest, widest_tried) = (best.grid[0], best.grid[best.grid.len() - 1]);
+        let end = if width >= widest_tried * (1.0 - 1e-9) {
+            format!(" It lies at or past the widest width searched ({widest_tried:.4}): the play may be wider.")
+        } else if width <= narrowest * (1.0 + 1e-9) {
+            format!(" It lies at the narrowest width searched ({narrowest:.4}), below which these logs do not resolve play: the play may be narrower.")
+        } else {
+            String::new()
+        };
+        notes.push(format!(
+            "backlash on {}: a width of {width:.4}, chosen among widths a factor of √2 apart by the fit runs' prediction, so known to that factor at best (read it as the play's order, not its measure).{end}",
+            joints[j]
+        ));
         for t in terms.iter().filter(|t| !best.base.contains(t)) {
             log.push(Step { term: t.clone(), cv_mse: f64::NAN, accepted: false, reason: format!("stood in for the play on {}: {why}", joints[j]) });
         }
