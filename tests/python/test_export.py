@@ -268,19 +268,36 @@ def kstep_simgap(model: simgap.Model, run: simgap.Run, effects: list[str]) -> li
     return out
 
 
-def check_kstep(model: simgap.Model, run: simgap.Run, report_effects: list[dict[str, Any]], xml: Path, label: str) -> None:
-    names = model.joint_names
-    corrected = kstep_simgap(model, run, effect_specs(report_effects, names))
+def check_kstep(model: simgap.Model, run: simgap.Run, report_effects: list[dict[str, Any]], xml: Path, label: str, unit: str = "rad", better_than_nominal: float = 0.2) -> None:
+    """MuJoCo on the exported MJCF against simgap's corrected model, k-step RMS error on the same
+    windows: within 10 % at 0.1 and 0.5 s (45 % at every horizon), the dry friction mattering on
+    the run, and both well below the nominal model's error."""
+    corrected = kstep_simgap(model, run, effect_specs(report_effects, model.joint_names))
     nominal = kstep_simgap(model, run, [])
     ours = kstep_mujoco(xml, run)
-    print(f"{label}: k-step RMS [rad] at {HORIZONS} s: simgap nominal {nominal}, simgap corrected {corrected}, MuJoCo corrected MJCF {ours}")
-    for h, n, c, mj in zip(HORIZONS, nominal, corrected, ours):
-        # MuJoCo predicts what simgap predicts, within the difference of its constraint dry
-        # friction and simgap's tanh (4-37 % measured, docs/guide/export.md: 37 % on the demo at 0.1 s
-        # since simgap's friction columns are filtered like the torque, which improved simgap's
-        # prediction more than MuJoCo's; 5-23 % before)
-        assert abs(mj - c) <= 0.45 * c, f"h = {h} s: MuJoCo {mj:.3e} rad, simgap {c:.3e} rad, nominal {n:.3e} rad"
-        assert mj < 0.2 * n, f"h = {h} s: MuJoCo {mj:.3e} rad is not better than the nominal model's {n:.3e} rad"
+    # the same file without its dry friction: the friction must matter on this run, or the
+    # agreement proves nothing about it
+    stripped = xml.with_name(xml.stem + "-no-dry-friction.xml")
+    stripped.write_text(re.sub(r' frictionloss="[^"]*"', "", xml.read_text()))
+    without = kstep_mujoco(stripped, run)
+    print(
+        f"{label}: k-step RMS [{unit}] at {HORIZONS} s: simgap nominal {nominal}, simgap corrected {corrected}, MuJoCo corrected MJCF {ours} "
+        f"(MuJoCo/simgap {[round(mj / c, 3) for mj, c in zip(ours, corrected)]}), MuJoCo without frictionloss {without}"
+    )
+    for h, n, c, mj, wo in zip(HORIZONS, nominal, corrected, ours, without):
+        assert abs(mj - c) <= 0.45 * c, f"{label}, h = {h} s: MuJoCo {mj:.3e}, simgap {c:.3e}, nominal {n:.3e}"
+        assert mj < better_than_nominal * n, f"{label}, h = {h} s: MuJoCo {mj:.3e} is not better than the nominal model's {n:.3e}"
+        if h not in (0.1, 0.5):
+            continue
+        # the target: MuJoCo's error within 10 % of simgap's. Measured with MuJoCo 4.0.1
+        # (docs/guide/export.md): +0.8 % and +0.0 % on the carriage, +1.7 % and +1.1 % on the
+        # paper arm, +5.8 % and +3.0 % on the demo at 0.1 and 0.5 s; what is left is the
+        # difference of MuJoCo's band −fc·clip(q̇/(2 ln 2·w)) and simgap's −fc·tanh(q̇/w). The
+        # friction constraint written before (a time constant of two steps, 90 % stiction)
+        # failed it on the carriage (+22 %, +72 %) and the demo (+37 %, +16 %)
+        assert abs(mj - c) <= 0.10 * c, f"{label}, h = {h} s: MuJoCo {mj:.3e}, simgap {c:.3e} ({mj / c - 1:+.1%}), nominal {n:.3e}"
+        # the friction matters: without it MuJoCo's error is at least five times simgap's
+        assert wo > 5 * c, f"{label}, h = {h} s: MuJoCo without frictionloss {wo:.3e}, simgap corrected {c:.3e}"
 
 
 def prediction_gap_without_dry_friction(model: simgap.Model, run: simgap.Run, report_effects: list[dict[str, Any]], xml: Path, horizon: float = 0.5, limits: bool = True) -> float:

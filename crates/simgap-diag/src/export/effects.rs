@@ -10,10 +10,8 @@ use crate::{EffectReport, Param};
 /// The selected effects as numbers, per joint in model order; neutral where nothing acts.
 #[derive(Clone, Debug)]
 pub(super) struct Corrections {
-    /// Body inertias of the corrected model (payload and inertial errors applied), about each
-    /// body's frame origin (the frame of the link its joint moves).
-    pub(super) bodies: Vec<SpatialInertia>,
-    /// The corrected model: the input's with payload and inertial errors applied.
+    /// The corrected model: the input's with payload and inertial errors applied (its bodies,
+    /// [`Corrections::body`]).
     pub(super) corrected: Model,
     /// Bodies whose inertia the effects change.
     pub(super) changed: Vec<bool>,
@@ -136,7 +134,6 @@ impl Corrections {
     pub(super) fn read(model: &Model, effects: &[EffectReport]) -> Result<Corrections, ExportError> {
         let n = model.dof();
         let mut c = Corrections {
-            bodies: Vec::new(),
             corrected: model.clone(),
             changed: vec![false; n],
             viscous: vec![0.0; n],
@@ -203,7 +200,17 @@ impl Corrections {
             }
         }
         c.corrected = simgap_sim::effects::apply_inertial_effects(model, &inertial)?;
-        c.bodies = c.corrected.joints().iter().map(|j| j.inertia).collect();
         Ok(c)
+    }
+
+    /// Body inertia of joint `i`'s link in the corrected model (payload and inertial errors
+    /// applied), about the body's frame origin (the frame of the link its joint moves).
+    pub(super) fn body(&self, i: usize) -> &SpatialInertia {
+        &self.corrected.joints()[i].inertia
+    }
+
+    /// Every body inertia of the corrected model, in joint order ([`Corrections::body`]).
+    pub(super) fn bodies(&self) -> impl Iterator<Item = &SpatialInertia> {
+        self.corrected.joints().iter().map(|j| &j.inertia)
     }
 }

@@ -137,15 +137,15 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
     // the chain: one nested body per joint; MuJoCo needs every moving body's mass and
     // principal moments above zero, so those below a floor far under the robot's are raised
     let radius = geom_radius(model);
-    let floor = Floor::of(&c.bodies);
+    let floor = Floor::of(c.bodies());
     let inverse_weights = inverse_weights(&c, &floor);
-    let raised: Vec<&str> = joints.iter().zip(&c.bodies).filter(|(_, b)| floor.raises(b)).map(|(j, _)| j.link.as_str()).collect();
+    let raised: Vec<&str> = joints.iter().zip(c.bodies()).filter(|(_, b)| floor.raises(b)).map(|(j, _)| j.link.as_str()).collect();
     for (i, j) in joints.iter().enumerate() {
         let pad = "  ".repeat(i + 2);
         let p = j.placement.translation;
         let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(j.placement.rotation));
         let _ = writeln!(s, "{pad}<body name=\"{}\" pos=\"{} {} {}\" quat=\"{} {} {} {}\">", xml(&j.link), num(p.x), num(p.y), num(p.z), num(q.w), num(q.i), num(q.j), num(q.k));
-        let (pos, mass, quat, moments) = principal_inertial(&c.bodies[i], &floor);
+        let (pos, mass, quat, moments) = principal_inertial(c.body(i), &floor);
         let _ = writeln!(
             s,
             "{pad}  <inertial pos=\"{} {} {}\" mass=\"{}\" quat=\"{} {} {} {}\" diaginertia=\"{} {} {}\"/>",
@@ -210,7 +210,7 @@ pub fn export_mjcf(model: &Model, effects: &[EffectReport], options: &MjcfOption
             );
         }
         // a visual capsule to the next joint (the last body's to its centre of mass)
-        let to: Vector3<f64> = joints.get(i + 1).map_or(c.bodies[i].com(), |next| next.placement.translation);
+        let to: Vector3<f64> = joints.get(i + 1).map_or(c.body(i).com(), |next| next.placement.translation);
         if to.norm() > 1e-6 {
             let _ = writeln!(s, "{pad}  <geom name=\"{}_geom\" fromto=\"0 0 0 {} {} {}\" size=\"{}\"/>", xml(&j.link), num(to.x), num(to.y), num(to.z), num(radius));
         } else {
@@ -428,7 +428,7 @@ fn inverse_weights(c: &Corrections, floor: &Floor) -> Vec<f64> {
     let joints = c.corrected.joints();
     // a simple body of slides: 1/mass
     if let [joint] = joints {
-        let (pos, mass, quat, _) = principal_inertial(&c.bodies[0], floor);
+        let (pos, mass, quat, _) = principal_inertial(c.body(0), floor);
         let aligned = joint.axis.iter().filter(|x| x.abs() > 1e-14).count() == 1;
         let identity = [quat.w.abs() - 1.0, quat.i, quat.j, quat.k].iter().all(|x| x.abs() < 1e-6);
         if joint.kind == JointKind::Prismatic && aligned && identity && pos.iter().all(|x| x.abs() < 1e-6) {
@@ -468,9 +468,8 @@ struct Floor {
 }
 
 impl Floor {
-    fn of(bodies: &[SpatialInertia]) -> Floor {
-        let mass = bodies.iter().map(|b| b.mass).fold(0.0, f64::max);
-        let moment = bodies.iter().map(|b| b.inertia_about_com().symmetric_eigenvalues().max()).fold(0.0, f64::max);
+    fn of<'a>(bodies: impl Iterator<Item = &'a SpatialInertia>) -> Floor {
+        let (mass, moment) = bodies.fold((0.0f64, 0.0f64), |(m, i), b| (m.max(b.mass), i.max(b.inertia_about_com().symmetric_eigenvalues().max())));
         Floor { mass: (1e-9 * mass).max(1e-12), moment: (1e-9 * moment).max(1e-15) }
     }
 
@@ -598,7 +597,7 @@ mod tests {
         let rotor = entry(EffectKind::Armature, &["carriage"], &[("ia", vec![8.0])]);
         let weights = |model: &Model, effects: &[EffectReport]| {
             let c = Corrections::read(model, effects).unwrap();
-            inverse_weights(&c, &Floor::of(&c.bodies))[0]
+            inverse_weights(&c, &Floor::of(c.bodies()))[0]
         };
         assert!((weights(&model, std::slice::from_ref(&rotor)) - 1.0 / 48.0).abs() < 1e-15);
         let play = entry(EffectKind::Backlash, &["carriage"], &[("width", vec![0.001])]);

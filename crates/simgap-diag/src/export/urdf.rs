@@ -63,7 +63,7 @@ pub fn export_urdf(urdf_text: &str, source_name: &str, model: &Model, effects: &
         }
         let el = link_el(&joint.link).ok_or_else(|| urdf_err(&format!("link '{}'", joint.link), "not found; expected the link of joint's child".into()))?;
         let (old, rpy) = read_inertial(&el).map_err(|m| urdf_err(&format!("<inertial> of link '{}'", joint.link), m))?;
-        let delta = difference(&corrections.bodies[i], &joint.inertia);
+        let delta = difference(corrections.body(i), &joint.inertia);
         let new = add(&old, &delta);
         check_link(&new).map_err(|m| ExportError::Effect {
             effect: EffectKind::InertialError.to_string(),
@@ -125,7 +125,7 @@ pub fn export_urdf(urdf_text: &str, source_name: &str, model: &Model, effects: &
     // the result loads and reproduces the corrected bodies
     let exported = Model::from_urdf_str_with(&text, source_name, &UrdfOptions { tip }).map_err(|e| urdf_err("exported URDF", format!("does not load: {e}")))?;
     for (k, j) in exported.joints().iter().enumerate() {
-        if !same_inertia(&j.inertia, &corrections.bodies[k]) {
+        if !same_inertia(&j.inertia, corrections.body(k)) {
             return Err(urdf_err(&format!("link '{}'", j.link), "the exported URDF does not reproduce the corrected body; this is a bug of the exporter".into()));
         }
     }

@@ -72,8 +72,9 @@ pub(crate) fn search(
         // (or one refinement step past the widest, √2 times it: play as wide as the widest width
         // tried predicts best a little wider, as the search's widths come out wide; never
         // narrower than the narrowest, below which the logs do not resolve play)
-        let widest = best.grid[best.grid.len() - 1] * 2f64.sqrt();
-        let inside = best.width.is_some_and(|w| w >= best.grid[0] * (1.0 - 1e-9) && w <= widest * (1.0 + 1e-9));
+        let (narrowest, widest_tried) = (best.grid[0], best.grid[best.grid.len() - 1]);
+        let widest = widest_tried * 2f64.sqrt();
+        let inside = best.width.is_some_and(|w| w >= narrowest * (1.0 - 1e-9) && w <= widest * (1.0 + 1e-9));
         if !(best.score < score.min(rotor_alone) * (1.0 - ADD_GAIN)) || !inside {
             // neither it nor any other joint's play predicts better: say so for each
             for t in std::iter::once(&best).chain(&tried) {
@@ -96,7 +97,6 @@ pub(crate) fn search(
             best.score, best.grid
         );
         // how precise the width is: the search's step, and an end of the widths searched
-        let (narrowest, widest_tried) = (best.grid[0], best.grid[best.grid.len() - 1]);
         let end = if width >= widest_tried * (1.0 - 1e-9) {
             format!(" It lies at or past the widest width searched ({widest_tried:.4}): the play may be wider.")
         } else if width <= narrowest * (1.0 + 1e-9) {
