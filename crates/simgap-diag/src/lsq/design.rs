@@ -69,6 +69,12 @@ pub(crate) struct TermDesign {
 }
 
 impl TermDesign {
+    /// The index in θ of the first coefficient of the `i`-th of `designs` (θ lays out each
+    /// design's columns in turn).
+    pub(crate) fn first_column(designs: &[TermDesign], i: usize) -> usize {
+        designs[..i].iter().map(|d| d.cols.len()).sum()
+    }
+
     /// Columns without constraints.
     pub(crate) fn free(cols: Vec<Column>) -> TermDesign {
         TermDesign { cols, ..Default::default() }

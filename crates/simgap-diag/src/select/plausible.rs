@@ -271,7 +271,7 @@ pub(crate) fn parsimony(scorer: &Scorer<'_>, terms: &mut Vec<Term>, current: f64
     // may say the same with a parameter each
     if let Some(i) = terms.iter().position(|t| matches!(t, Term::InertialError { .. })) {
         let (designs, _, fit) = scorer.ctx.fit_terms(terms);
-        let c0: usize = designs[..i].iter().map(|d| d.cols.len()).sum();
+        let c0 = crate::vocabulary::TermDesign::first_column(&designs, i);
         let k = designs[i].cols.len();
         let parts: Vec<AffineTorque> = if fit.theta.len() >= c0 + k {
             affine_torque_joints(&designs[i], &fit.theta.as_slice()[c0..c0 + k], scorer.ctx.data).into_iter().filter(|p| !scorer.prep.passive[p.joint]).collect()

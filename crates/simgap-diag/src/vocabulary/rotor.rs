@@ -28,8 +28,7 @@ pub(crate) fn visible(data: &[FitData]) -> bool {
 /// fitted at coefficients `theta`; `None` where the set holds no rotor inertia there.
 pub(crate) fn fitted(terms: &[super::Term], designs: &[TermDesign], theta: &nalgebra::DVector<f64>, j: usize) -> Option<f64> {
     let i = terms.iter().position(|t| *t == super::Term::Armature(j))?;
-    let c: usize = designs[..i].iter().map(|d| d.cols.len()).sum();
-    theta.get(c).copied()
+    theta.get(TermDesign::first_column(designs, i)).copied()
 }
 
 /// The column of a rotor inertia on joint `j`, bounded by its physical range.
