@@ -425,3 +425,25 @@ fn a_friction_band_faster_than_the_samples_is_the_exact_sign_at_the_samples() {
     let plant = Plant::new(&model, Formulation::EulerLagrange, &wide).unwrap();
     assert!(simgap_sim::unresolved_bands_exact(&plant, &params, 16).is_none());
 }
+
+#[test]
+fn a_load_friction_band_faster_than_the_samples_is_exact_where_the_drive_torque_is_held() {
+    // a load-dependent friction of the default width on the 7-DOF arm's wrist: its band, like a
+    // Coulomb friction's, is far too fast for 200 Hz
+    let model = arm7();
+    let mut mu = vec![0.0; 7];
+    mu[6] = 0.5;
+    let load = vec![Effect::LoadFriction { fc: vec![0.0; 7], mu, w: vec![simgap_sim::DEFAULT_COULOMB_WIDTH; 7] }];
+    let plant = Plant::new(&model, Formulation::EulerLagrange, &load).unwrap();
+    let params = SimParams { sample_period: 0.005, substeps: 1, q0: vec![0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0], ..SimParams::default() };
+    let width = |effects: &[Effect]| match &effects[0] {
+        Effect::LoadFriction { w, .. } => w[6],
+        other => panic!("the load friction should come first: {other:?}"),
+    };
+    // a torque-driven run holds its drive torque over each sample: the sign is made exact
+    let held = simgap_sim::unresolved_bands_exact_with(&plant, &params, 16, true).expect("the wrist's band needs more than 16 steps");
+    assert_eq!(width(&held), 0.0);
+    // a servo's torque follows its back-EMF within the sample: its load friction keeps its band
+    let servo = simgap_sim::unresolved_bands_exact_with(&plant, &params, 16, false);
+    assert!(servo.as_ref().is_none_or(|e| width(e) == simgap_sim::DEFAULT_COULOMB_WIDTH), "{servo:?}");
+}

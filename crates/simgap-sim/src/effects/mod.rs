@@ -475,6 +475,26 @@ impl Effect {
         }
     }
 
+    /// [`Effect::make_sign_exact`] for the load frictions (load-dependent friction and the
+    /// one rising at rest): where the drive's torque is held over each sample (a torque-driven
+    /// run: logged efforts replayed, or a controller whose command is held), their level is
+    /// constant within it and their sign can be exact as the other dry frictions'. Not for a
+    /// servo, whose torque follows its back-EMF within the sample.
+    ///
+    /// # Panics
+    /// If `exact` is shorter than a friction's vector of widths.
+    pub fn make_load_sign_exact(&mut self, exact: &[bool]) {
+        let w = match self {
+            Effect::LoadFriction { w, .. } | Effect::LoadStribeckFriction { w, .. } => w,
+            _ => return,
+        };
+        for (wi, e) in w.iter_mut().zip(exact) {
+            if *e {
+                *wi = 0.0;
+            }
+        }
+    }
+
     /// Checks lengths against `dof` and signs (friction levels, armature, limits, delay `>= 0`,
     /// numbers finite except saturation limits).
     ///
