@@ -30,6 +30,13 @@ pub enum ControllerKind {
 }
 
 impl ControllerKind {
+    /// Whether the drive's torque is held over each sample (zero-order hold of the command or of
+    /// the logged effort): every controller but the servo, whose torque follows its back-EMF
+    /// within the sample.
+    pub fn holds_torque_over_sample(self) -> bool {
+        self != ControllerKind::Servo
+    }
+
     /// The metadata spelling: `pd`, `pd_gravity` or `replay`.
     pub fn as_str(self) -> &'static str {
         match self {

@@ -40,4 +40,4 @@ pub use reference::{reference_from_run, reference_from_run_for, Fourier, Piecewi
 pub use sensor::{SensorParams, VelocityEstimate};
 pub use simulate::{simulate, simulate_experiment, simulate_experiment_with_end};
 pub use step::Stepper;
-pub use substeps::{effective_substeps, resolvable_effects, resolvable_effects_with, unresolved_bands_exact, unresolved_bands_exact_with};
+pub use substeps::{effective_substeps, resolvable_effects, unresolved_bands_exact};

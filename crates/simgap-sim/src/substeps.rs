@@ -45,19 +45,13 @@ pub(crate) fn substeps_and_moving_rate(plant: &Plant, params: &SimParams) -> (us
 /// on a joint whose friction rate `s_i (H⁻¹)_ii` (its slope bound from
 /// [`friction_slope_bound`] over its inertia at `params.q0`) would ask RK4 for more than
 /// `max_substeps` steps per sample, every smoothed dry friction becomes the exact sign (`w = 0`),
-/// integrated as stick–slip. Such a band's time constant is below `period / (2 max_substeps)`:
+/// integrated as stick–slip; the load frictions too where `held_drive` (the drive's torque held
+/// over each sample, [`Effect::make_sign_exact`]). Such a band's time constant is below `period / (2 max_substeps)`:
 /// the motion inside it is over within a small part of one sample and no log sampled at
 /// `period` can tell it from the exact sign, while resolving it would cost that many RK4 steps
 /// per sample (hundreds for a narrow band on a light wrist joint). `None` when no joint is
 /// changed (no friction, the adaptive integrator, a singular H, or bands the steps resolve).
-pub fn unresolved_bands_exact(plant: &Plant, params: &SimParams, max_substeps: usize) -> Option<Vec<Effect>> {
-    unresolved_bands_exact_with(plant, params, max_substeps, false)
-}
-
-/// [`unresolved_bands_exact`], with the load frictions made exact as well where `held_drive`
-/// ([`Effect::make_load_sign_exact`]: a torque-driven run, whose drive torque is held over each
-/// sample; not a servo).
-pub fn unresolved_bands_exact_with(plant: &Plant, params: &SimParams, max_substeps: usize, held_drive: bool) -> Option<Vec<Effect>> {
+pub fn unresolved_bands_exact(plant: &Plant, params: &SimParams, max_substeps: usize, held_drive: bool) -> Option<Vec<Effect>> {
     let n = plant.dof();
     let mut slope = vec![0.0; n];
     friction_slope_bound(plant.effects(), &mut slope);
@@ -69,10 +63,7 @@ pub fn unresolved_bands_exact_with(plant: &Plant, params: &SimParams, max_subste
     }
     let mut effects = plant.effects().to_vec();
     for e in &mut effects {
-        e.make_sign_exact(&exact);
-        if held_drive {
-            e.make_load_sign_exact(&exact);
-        }
+        e.make_sign_exact(&exact, held_drive);
     }
     Some(effects)
 }
@@ -81,13 +72,7 @@ pub fn unresolved_bands_exact_with(plant: &Plant, params: &SimParams, max_subste
 /// `formulation` sampled as `params` says: the same effects, with the dry frictions too stiff for
 /// the sample period made exact (unchanged when the plant cannot be built: the simulation then
 /// reports why).
-pub fn resolvable_effects(model: &simgap_core::Model, formulation: simgap_core::Formulation, effects: &[Effect], params: &SimParams, max_substeps: usize) -> Vec<Effect> {
-    resolvable_effects_with(model, formulation, effects, params, max_substeps, false)
-}
-
-/// [`resolvable_effects`], with the load frictions made exact as well where `held_drive` (see
-/// [`unresolved_bands_exact_with`]).
-pub fn resolvable_effects_with(
+pub fn resolvable_effects(
     model: &simgap_core::Model,
     formulation: simgap_core::Formulation,
     effects: &[Effect],
@@ -96,7 +81,7 @@ pub fn resolvable_effects_with(
     held_drive: bool,
 ) -> Vec<Effect> {
     match Plant::new(model, formulation, effects) {
-        Ok(plant) => unresolved_bands_exact_with(&plant, params, max_substeps, held_drive).unwrap_or_else(|| effects.to_vec()),
+        Ok(plant) => unresolved_bands_exact(&plant, params, max_substeps, held_drive).unwrap_or_else(|| effects.to_vec()),
         Err(_) => effects.to_vec(),
     }
 }

@@ -401,7 +401,7 @@ fn a_friction_band_faster_than_the_samples_is_the_exact_sign_at_the_samples() {
     let params = SimParams { sample_period: 0.005, substeps: 1, q0: vec![0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0], ..SimParams::default() };
     let full = simgap_sim::effective_substeps(&plant, &params);
     assert!(full > 100, "the band should be far too fast for 200 Hz: {full} substeps");
-    let exact = simgap_sim::unresolved_bands_exact(&plant, &params, 16).expect("some joint's band needs more than 16 steps");
+    let exact = simgap_sim::unresolved_bands_exact(&plant, &params, 16, true).expect("some joint's band needs more than 16 steps");
     let changed: Vec<usize> = match &exact[1] {
         Effect::CoulombFriction { w, .. } => (0..7).filter(|&i| w[i] == 0.0).collect(),
         other => panic!("the Coulomb friction should come second: {other:?}"),
@@ -423,7 +423,7 @@ fn a_friction_band_faster_than_the_samples_is_the_exact_sign_at_the_samples() {
     // a band the samples resolve is left as it is
     let wide = vec![Effect::CoulombFriction { fc: vec![0.1; 7], w: vec![0.5; 7] }];
     let plant = Plant::new(&model, Formulation::EulerLagrange, &wide).unwrap();
-    assert!(simgap_sim::unresolved_bands_exact(&plant, &params, 16).is_none());
+    assert!(simgap_sim::unresolved_bands_exact(&plant, &params, 16, true).is_none());
 }
 
 #[test]
@@ -441,9 +441,9 @@ fn a_load_friction_band_faster_than_the_samples_is_exact_where_the_drive_torque_
         other => panic!("the load friction should come first: {other:?}"),
     };
     // a torque-driven run holds its drive torque over each sample: the sign is made exact
-    let held = simgap_sim::unresolved_bands_exact_with(&plant, &params, 16, true).expect("the wrist's band needs more than 16 steps");
+    let held = simgap_sim::unresolved_bands_exact(&plant, &params, 16, true).expect("the wrist's band needs more than 16 steps");
     assert_eq!(width(&held), 0.0);
     // a servo's torque follows its back-EMF within the sample: its load friction keeps its band
-    let servo = simgap_sim::unresolved_bands_exact_with(&plant, &params, 16, false);
+    let servo = simgap_sim::unresolved_bands_exact(&plant, &params, 16, false);
     assert!(servo.as_ref().is_none_or(|e| width(e) == simgap_sim::DEFAULT_COULOMB_WIDTH), "{servo:?}");
 }

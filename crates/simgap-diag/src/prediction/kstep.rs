@@ -20,7 +20,7 @@
 
 use rayon::prelude::*;
 use simgap_core::{Formulation, Model};
-use simgap_sim::{controller_from_experiment, unresolved_bands_exact_with, ControllerKind, Effect, Plant, Run, SimParams, Stepper};
+use simgap_sim::{controller_from_experiment, unresolved_bands_exact, ControllerKind, Effect, Plant, Run, SimParams, Stepper};
 
 use crate::error::Result;
 use crate::prediction::MAX_BAND_SUBSTEPS;
@@ -162,8 +162,8 @@ pub(crate) fn predict(model: &Model, formulation: Formulation, effects: &[Effect
     let params = if params.q0.len() == n { params } else { SimParams { q0: Vec::new(), ..params } };
     // a dry friction's band too narrow for the sample period is predicted as the exact sign
     // (the load frictions too where the drive's torque is held over each sample: not a servo)
-    let held_drive = exp.is_none_or(|e| e.controller != ControllerKind::Servo);
-    let exact = unresolved_bands_exact_with(&plant, &params, MAX_BAND_SUBSTEPS, held_drive).and_then(|e| Plant::new(model, formulation, &e).ok());
+    let held_drive = exp.is_none_or(|e| e.controller.holds_torque_over_sample());
+    let exact = unresolved_bands_exact(&plant, &params, MAX_BAND_SUBSTEPS, held_drive).and_then(|e| Plant::new(model, formulation, &e).ok());
     let plant = exact.as_ref().unwrap_or(&plant);
     let mut stepper = Stepper::new(plant, &params, run.len())?;
     let mut y = vec![0.0; 2 * n];

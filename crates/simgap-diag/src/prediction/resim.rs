@@ -1,7 +1,7 @@
 //! How far: closed-loop re-simulation of logged runs with and without effects.
 
 use simgap_core::{Formulation, Model};
-use simgap_sim::{l2_between, reference_from_run_for, resolvable_effects_with, simulate_experiment_with_end, Effect, Run, RunEnd, SensorParams, SimParams};
+use simgap_sim::{l2_between, reference_from_run_for, resolvable_effects, simulate_experiment_with_end, Effect, Run, RunEnd, SensorParams, SimParams};
 
 use crate::error::{Error, Result};
 use crate::prediction::MAX_BAND_SUBSTEPS;
@@ -44,8 +44,7 @@ pub(crate) fn resimulate(model: &Model, formulation: Formulation, effects: &[Eff
     // a dry friction's band too narrow for the sample period as the exact sign, as k-step
     // predictions integrate it (a load friction's too, where the drive's torque is held over
     // each sample: not a servo)
-    let held_drive = exp.controller != simgap_sim::ControllerKind::Servo;
-    let effects = resolvable_effects_with(model, formulation, effects, &params, MAX_BAND_SUBSTEPS, held_drive);
+    let effects = resolvable_effects(model, formulation, effects, &params, MAX_BAND_SUBSTEPS, exp.controller.holds_torque_over_sample());
     Ok(simulate_experiment_with_end(model, formulation, &effects, exp, reference.as_ref(), &params, replay)?)
 }
 
@@ -91,7 +90,7 @@ pub(crate) fn resimulate_tracked(model: &Model, formulation: Formulation, effect
     let tracking = simgap_sim::Experiment { controller: simgap_sim::ControllerKind::Pd, kp, kv, ..exp.clone() };
     let reference = simgap_sim::Sampled { t: run.t.clone(), q: run.q.clone(), qd: if run.qd.len() == rows * n { run.qd.clone() } else { Vec::new() }, tau_ff: run.tau.clone() };
     let params = sim_params(run, exp.sample_period);
-    let effects = resolvable_effects_with(model, formulation, effects, &params, MAX_BAND_SUBSTEPS, true);
+    let effects = resolvable_effects(model, formulation, effects, &params, MAX_BAND_SUBSTEPS, tracking.controller.holds_torque_over_sample());
     let (mut sim, end) = simulate_experiment_with_end(model, formulation, &effects, &tracking, &reference, &params, None)?;
     sim.experiment = Some(exp.clone());
     Ok((sim, end))

@@ -457,35 +457,18 @@ impl Effect {
     }
 
     /// Makes the dry frictions of the joints where `exact[i]` holds the exact sign (`w = 0`,
-    /// integrated as stick–slip): Coulomb, Stribeck and directional friction. The load
-    /// frictions, whose level follows the drive's torque within the sample, and any other
-    /// effect are left as they are.
+    /// integrated as stick–slip): Coulomb, Stribeck and directional friction, and the load
+    /// frictions (load-dependent and rising at rest) where `held_drive`: where the drive's torque
+    /// is held over each sample ([`ControllerKind::holds_torque_over_sample`](crate::ControllerKind::holds_torque_over_sample)),
+    /// their level is constant within it, while a servo's follows its back-EMF. Any other effect
+    /// is left as it is.
     ///
     /// # Panics
     /// If `exact` is shorter than a friction's vector of widths.
-    pub fn make_sign_exact(&mut self, exact: &[bool]) {
+    pub fn make_sign_exact(&mut self, exact: &[bool], held_drive: bool) {
         let w = match self {
             Effect::CoulombFriction { w, .. } | Effect::StribeckFriction { w, .. } | Effect::DirectionalFriction { w, .. } => w,
-            _ => return,
-        };
-        for (wi, e) in w.iter_mut().zip(exact) {
-            if *e {
-                *wi = 0.0;
-            }
-        }
-    }
-
-    /// [`Effect::make_sign_exact`] for the load frictions (load-dependent friction and the
-    /// one rising at rest): where the drive's torque is held over each sample (a torque-driven
-    /// run: logged efforts replayed, or a controller whose command is held), their level is
-    /// constant within it and their sign can be exact as the other dry frictions'. Not for a
-    /// servo, whose torque follows its back-EMF within the sample.
-    ///
-    /// # Panics
-    /// If `exact` is shorter than a friction's vector of widths.
-    pub fn make_load_sign_exact(&mut self, exact: &[bool]) {
-        let w = match self {
-            Effect::LoadFriction { w, .. } | Effect::LoadStribeckFriction { w, .. } => w,
+            Effect::LoadFriction { w, .. } | Effect::LoadStribeckFriction { w, .. } if held_drive => w,
             _ => return,
         };
         for (wi, e) in w.iter_mut().zip(exact) {
