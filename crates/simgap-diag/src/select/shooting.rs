@@ -31,8 +31,9 @@
 //! of the last iteration (pseudo-inverse over the directions the data see) and `σ² = ‖r‖² / (N − P)`. The errors of one window are correlated
 //! (they accumulate along it), so these intervals are narrower than the real spread.
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -82,10 +83,10 @@ impl Options {
 ///
 /// At most [`MAX_WINDOWS`] windows in all: longer fit runs get theirs spread evenly, in
 /// proportion to their durations, so that a fit's cost stops growing with the logs' length.
-pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Options) -> Vec<PredictionRun> {
+pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Options) -> Windows {
     let horizons = options.horizons();
     let total: f64 = fit_pred.iter().map(|pr| pr.run.duration()).sum();
-    fit_pred
+    let runs = fit_pred
         .iter()
         .enumerate()
         .map(|(i, pr)| {
@@ -94,7 +95,63 @@ pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options:
             let windows = consecutive.min(share.max(1));
             PredictionRun::new(pr.run.clone(), &horizons, smoothing, pr.sensor.clone(), i * FOLDS_PER_RUN, windows)
         })
-        .collect()
+        .collect();
+    Windows { runs, done: Mutex::default() }
+}
+
+/// The fit runs cut into shooting windows ([`shooting_runs`]), with the fits already done on
+/// them.
+///
+/// A fit is a deterministic function of its problem and of the start it begins from (the
+/// starts' costs, the Jacobian's columns and the trial steps are computed in a fixed order), and
+/// the stages ask for the same fit more than once: the same set's cross-validation tried again
+/// after a term left and came back; a half of a set's cross-validation fitted again from its own
+/// answer for the intervals. A fit asked again from the same start is answered from here, bit
+/// for bit what it would compute; so is a fit from the answer of a fit that no step moved from
+/// its start (that answer is its start mapped to the constraints' coordinates and back, equal
+/// to rounding, where the fit stops again).
+pub(crate) struct Windows {
+    /// The runs, each cut into windows.
+    pub runs: Vec<PredictionRun>,
+    /// Fits done, by [`fit_key`].
+    done: Mutex<HashMap<Vec<u8>, Shot>>,
+}
+
+impl Windows {
+    /// Number of starts whose fit these windows answer.
+    #[cfg(test)]
+    pub(crate) fn fits_done(&self) -> usize {
+        self.done.lock().map_or(0, |d| d.len())
+    }
+}
+
+impl std::ops::Deref for Windows {
+    type Target = [PredictionRun];
+    fn deref(&self) -> &[PredictionRun] {
+        &self.runs
+    }
+}
+
+/// What a fit on [`Windows`] depends on besides the windows, as bytes: the model and
+/// formulation, the terms and their designs' layout and bounds, the options, which windows
+/// count, and the start `theta` it begins from.
+fn fit_key(p: &Problem<'_>, theta: &[f64]) -> Vec<u8> {
+    let mut key = format!("{:?}|{:?}|{:?}|{:?}|", p.model, p.formulation, p.terms, p.options).into_bytes();
+    for d in p.designs {
+        key.extend_from_slice(&d.cols.len().to_le_bytes());
+        for v in d.lo.iter().chain(&d.hi) {
+            key.extend_from_slice(&v.to_bits().to_le_bytes());
+        }
+        key.extend_from_slice(format!("{:?}|", d.inertial).as_bytes());
+    }
+    for (r, pr) in p.runs.iter().enumerate() {
+        key.extend((0..pr.windows()).map(|w| u8::from((p.keep)(r, w))));
+        key.push(b'|');
+    }
+    for v in theta {
+        key.extend_from_slice(&v.to_bits().to_le_bytes());
+    }
+    key
 }
 
 /// Shooting windows of all fit runs at most: 400 windows of 0.5 s (200 s of logs, 2,000 instants
@@ -130,7 +187,7 @@ pub(crate) struct Problem<'a> {
     /// Their designs (bounds, number of columns, inertial prior).
     pub designs: &'a [TermDesign],
     /// Shooting windows ([`shooting_runs`]).
-    pub runs: &'a [PredictionRun],
+    pub runs: &'a Windows,
     /// Which windows count: `keep(run, window)`.
     pub keep: &'a (dyn Fn(usize, usize) -> bool + Sync),
     /// Options.
@@ -371,7 +428,6 @@ fn stopped(stop: Option<&AtomicBool>) -> Result<()> {
 pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&AtomicBool>) -> Result<Shot> {
     let ev = Evaluator::new(problem)?;
     let layout = &ev.layout;
-    let nx = layout.nx();
     // the start of lowest cost
     let mut best: Option<(usize, Vec<f64>, Vec<f64>, f64)> = None;
     for (i, s) in starts.iter().enumerate() {
@@ -383,9 +439,31 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
             best = Some((i, x, r, f));
         }
     }
-    let Some((start, mut x, mut r, mut f)) = best else {
+    let Some((start, x, r, f)) = best else {
         return Err(Error::Input("multiple shooting needs at least one start".into()));
     };
+    // the same fit done before on these windows, or one that found no step from this start
+    let key = fit_key(problem, starts[start].as_slice());
+    let done = problem.runs.done.lock().ok().and_then(|d| d.get(&key).cloned());
+    if let Some(done) = done {
+        return Ok(Shot { start, ..done });
+    }
+    let shot = descend(&ev, start, x, r, f, stop)?;
+    if let Ok(mut d) = problem.runs.done.lock() {
+        // a fit that no step moved from its start ends there: from its answer (its start,
+        // through the constraints' coordinates and back) it would stop again
+        if shot.iterations <= 1 && shot.cost == shot.cost_start {
+            d.insert(fit_key(problem, shot.theta.as_slice()), shot.clone());
+        }
+        d.insert(key, shot.clone());
+    }
+    Ok(shot)
+}
+
+/// Levenberg–Marquardt from `x` (start number `start`, residuals `r`, cost `f`).
+fn descend(ev: &Evaluator<'_>, start: usize, mut x: Vec<f64>, mut r: Vec<f64>, mut f: f64, stop: Option<&AtomicBool>) -> Result<Shot> {
+    let (layout, problem) = (&ev.layout, ev.p);
+    let nx = layout.nx();
     let cost_start = ev.data_cost(&r);
     // a set without parameters (no terms, or only grid members) has nothing to fit
     if nx == 0 {

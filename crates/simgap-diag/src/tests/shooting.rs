@@ -82,6 +82,19 @@ fn shooting_recovers_what_the_torque_residual_fit_gets_wrong() {
     assert!(shot.cost < shot.cost_start, "{} → {}", shot.cost_start, shot.cost);
     assert!(shot.std.iter().all(|s| s.is_finite() && *s >= 0.0), "{}", shot.std);
 
+    // the same fit asked again of the same windows is answered from them, bit for bit what new
+    // windows compute; a fit of other windows is a fit of its own
+    let again = shooting::fit(&sp, std::slice::from_ref(&torque_fit.theta), None).unwrap();
+    let fresh = shooting::shooting_runs(&fit_pred, prepare.window, &options);
+    let computed = shooting::fit(&shooting::Problem { runs: &fresh, ..sp }, std::slice::from_ref(&torque_fit.theta), None).unwrap();
+    for s in [&again, &computed] {
+        assert_eq!((&s.theta, &s.std, s.cost_start, s.cost, s.iterations), (&shot.theta, &shot.std, shot.cost_start, shot.cost, shot.iterations));
+    }
+    assert_eq!(runs.fits_done(), 1);
+    let even = |_: usize, w: usize| w % 2 == 0;
+    shooting::fit(&shooting::Problem { keep: &even, ..sp }, std::slice::from_ref(&torque_fit.theta), None).unwrap();
+    assert_eq!(runs.fits_done(), 2);
+
     // held-out prediction: shooting at least as good at every horizon
     let eff = |th| effects::to_effects(&model, &fitted_terms(&terms, &designs, th, None));
     let k_torque = crate::predict(&model, formulation, &eff(&torque_fit.theta), &hold, &horizons, prepare.window).unwrap();

@@ -105,7 +105,7 @@ pub(super) const HALF_NAMES: [&str; 2] = ["the answer fitted on the 2nd and 4th 
 /// and `earlier(half, designs)`, and predicted with it.
 pub(super) fn try_set(
     scorer: &Scorer<'_>,
-    shoot_runs: &[kstep::PredictionRun],
+    shoot_runs: &shooting::Windows,
     sopts: &shooting::Options,
     name: &str,
     terms: &[Term],

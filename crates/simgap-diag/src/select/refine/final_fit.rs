@@ -36,7 +36,7 @@ pub(crate) struct Refined {
     /// the leak-free starts of a set with a term more or less.
     pub(crate) halves: (Vec<Term>, Vec<TermDesign>, Vec<nalgebra::DVector<f64>>),
     /// The fit runs cut into shooting windows, as it was fitted on (shared with its refits).
-    pub(crate) runs: std::sync::Arc<Vec<kstep::PredictionRun>>,
+    pub(crate) runs: std::sync::Arc<shooting::Windows>,
 }
 
 /// The set `best` fitted on all fit runs (from its torque-residual fit and its halves' answers),
@@ -44,7 +44,7 @@ pub(crate) struct Refined {
 /// note of what was done.
 pub(super) fn finish(
     scorer: &Scorer<'_>,
-    shoot_runs: &std::sync::Arc<Vec<kstep::PredictionRun>>,
+    shoot_runs: &std::sync::Arc<shooting::Windows>,
     sopts: &shooting::Options,
     best: Tried,
     what: &str,

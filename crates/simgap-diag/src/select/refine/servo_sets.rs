@@ -65,7 +65,7 @@ const CLAMP_STEP: f64 = 1.15;
 /// of the 5 that stalled.
 pub(super) fn servo_limit(
     scorer: &Scorer<'_>,
-    shoot_runs: &[kstep::PredictionRun],
+    shoot_runs: &shooting::Windows,
     sopts: &shooting::Options,
     drive: &Tried,
     limited: &[usize],
@@ -167,7 +167,7 @@ pub(super) fn servo_limit(
 /// it, unless its level at rest is higher.
 pub(super) fn load_friction_at_rest(
     scorer: &Scorer<'_>,
-    shoot_runs: &[kstep::PredictionRun],
+    shoot_runs: &shooting::Windows,
     sopts: &shooting::Options,
     base: &Tried,
     stop: Option<&std::sync::atomic::AtomicBool>,
