@@ -113,7 +113,7 @@ pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options:
 pub(crate) struct Windows {
     /// The runs, each cut into windows.
     pub runs: Vec<PredictionRun>,
-    /// Fits done, by [`fit_key`].
+    /// Fits done, by [`key_at`].
     done: Mutex<HashMap<Vec<u8>, Shot>>,
 }
 
@@ -132,10 +132,10 @@ impl std::ops::Deref for Windows {
     }
 }
 
-/// What a fit on [`Windows`] depends on besides the windows, as bytes: the model and
-/// formulation, the terms and their designs' layout and bounds, the options, which windows
-/// count, and the start `theta` it begins from.
-fn fit_key(p: &Problem<'_>, theta: &[f64]) -> Vec<u8> {
+/// What a fit on [`Windows`] depends on besides the windows and its start, as bytes: the model
+/// and formulation, the terms and their designs' layout and bounds, the options, and which
+/// windows count ([`key_at`] appends the start).
+fn problem_key(p: &Problem<'_>) -> Vec<u8> {
     let mut key = format!("{:?}|{:?}|{:?}|{:?}|", p.model, p.formulation, p.terms, p.options).into_bytes();
     for d in p.designs {
         key.extend_from_slice(&d.cols.len().to_le_bytes());
@@ -148,6 +148,13 @@ fn fit_key(p: &Problem<'_>, theta: &[f64]) -> Vec<u8> {
         key.extend((0..pr.windows()).map(|w| u8::from((p.keep)(r, w))));
         key.push(b'|');
     }
+    key
+}
+
+/// The key of the fit of the problem keyed `problem` from the start `theta`.
+fn key_at(problem: &[u8], theta: &[f64]) -> Vec<u8> {
+    let mut key = Vec::with_capacity(problem.len() + 8 * theta.len());
+    key.extend_from_slice(problem);
     for v in theta {
         key.extend_from_slice(&v.to_bits().to_le_bytes());
     }
@@ -443,7 +450,8 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
         return Err(Error::Input("multiple shooting needs at least one start".into()));
     };
     // the same fit done before on these windows, or one that found no step from this start
-    let key = fit_key(problem, starts[start].as_slice());
+    let problem_key = problem_key(problem);
+    let key = key_at(&problem_key, starts[start].as_slice());
     let done = problem.runs.done.lock().ok().and_then(|d| d.get(&key).cloned());
     if let Some(done) = done {
         return Ok(Shot { start, ..done });
@@ -453,7 +461,7 @@ pub(crate) fn fit(problem: &Problem<'_>, starts: &[DVector<f64>], stop: Option<&
         // a fit that no step moved from its start ends there: from its answer (its start,
         // through the constraints' coordinates and back) it would stop again
         if shot.iterations <= 1 && shot.cost == shot.cost_start {
-            d.insert(fit_key(problem, shot.theta.as_slice()), shot.clone());
+            d.insert(key_at(&problem_key, shot.theta.as_slice()), shot.clone());
         }
         d.insert(key, shot.clone());
     }
