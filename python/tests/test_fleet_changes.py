@@ -9,6 +9,7 @@ parameters is measured."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -21,12 +22,26 @@ from simgap.fleet.synthetic import ChangeFleet, make_change_fleet  # noqa: E402
 from simgap.fleet.check import interval_coverage  # noqa: E402
 
 
+# the thread settings a Dask nanny writes into its parent's environment before it spawns a
+# worker, as the caller had them before the fleet run and after it
+THREAD_VARIABLES = ("RAYON_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+CALLER_ENVIRON: dict[str, dict[str, str | None]] = {}
+
+
 @pytest.fixture(scope="module")
 def changes(tmp_path_factory: pytest.TempPathFactory) -> tuple[ChangeFleet, fleet.FleetResult]:
     root = tmp_path_factory.mktemp("change-fleet")
     planted = make_change_fleet(root)
+    CALLER_ENVIRON["before"] = {k: os.environ.get(k) for k in THREAD_VARIABLES}
     result = fleet.diagnose_fleet(fleet.index_from_folder(root), planted.urdf, n_workers=2, timeout=600)
+    CALLER_ENVIRON["after"] = {k: os.environ.get(k) for k in THREAD_VARIABLES}
     return planted, result
+
+
+def test_the_fleet_run_leaves_its_callers_thread_settings_as_they_were(changes: tuple[ChangeFleet, fleet.FleetResult]) -> None:
+    # (the nanny's RAYON_NUM_THREADS=1 left behind made every later simgap CLI the caller ran,
+    # a whole diagnosis, run on one core)
+    assert CALLER_ENVIRON["after"] == CALLER_ENVIRON["before"]
 
 
 def test_every_robot_day_of_every_format_is_diagnosed(changes: tuple[ChangeFleet, fleet.FleetResult]) -> None:

@@ -257,6 +257,32 @@ def _quiet_distributed_logs() -> None:
             handler.setLevel(logging.CRITICAL)
 
 
+class _SavedEnviron:
+    """The values (or absence) of the variables a Dask nanny writes into this process's
+    ``os.environ`` before it spawns a worker (``distributed.nanny.pre-spawn-environ``:
+    ``RAYON_NUM_THREADS``, ``OMP_NUM_THREADS``, …) and never takes back. Left there, every
+    later diagnosis of the caller (a ``simgap`` CLI it starts, or this process's first use of the
+    diagnosis's thread pool) would run on one thread."""
+
+    def __init__(self, keys: list[str]) -> None:
+        self.values = {k: os.environ.get(k) for k in keys}
+
+    def restore(self) -> None:
+        for k, v in self.values.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _spawn_environ_saved() -> _SavedEnviron:
+    """The caller's values of the variables a nanny sets before spawning (see :class:`_SavedEnviron`)."""
+    import dask
+
+    keys = list((dask.config.get("distributed.nanny.pre-spawn-environ", default={}) or {}).keys())
+    return _SavedEnviron(keys + ["RAYON_NUM_THREADS"])
+
+
 def _close_quietly(client: Any, cluster: Any) -> None:
     """Closes a cluster this module started, without its shutdown chatter.
 
@@ -326,7 +352,11 @@ def diagnose_fleet(
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
         try:
             with dask.config.set({"distributed.nanny.pre-spawn-environ.RAYON_NUM_THREADS": os.environ.get("RAYON_NUM_THREADS", "1")}):
-                own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0")
+                environ = _spawn_environ_saved()
+                try:
+                    own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0")
+                finally:
+                    environ.restore()
         finally:
             if main_thread:
                 signal.signal(signal.SIGINT, previous)
@@ -349,3 +379,5 @@ def diagnose_fleet(
     finally:
         if own_cluster is not None:
             _close_quietly(client, own_cluster)
+            # (a worker its nanny restarted set them again)
+            environ.restore()
