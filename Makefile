@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 SIMGAP_BIN := $(CURDIR)/target/release/simgap
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: test all-tests lint check-features bin rust-test rust-test-selfcheck rust-test-rest python-test browser venv python-package demo bench compare-pinocchio clean
+.PHONY: test all-tests lint check-features bin rust-test rust-test-selfcheck selfcheck-build rust-test-rest python-test browser venv python-package demo bench compare-pinocchio clean
 
 # Three jobs at a time, each job's output printed whole when it ends: the venv's installs
 # (downloads, unpacking) overlap the Rust compilation, and the tests run in three streams, the
@@ -31,7 +31,7 @@ all-tests: venv lint rust-test-selfcheck python-test rust-test-rest
 # lz4) are then those of the release builds below, not compiled a second time for `dev`.
 # check-features: every release build below asks its dependencies for the same features, so
 # that they share one compilation (see .ci/check-features).
-lint: check-features
+lint: check-features selfcheck-build
 	cargo fmt --all -- --check
 	MAKEFLAGS= cargo clippy --release --workspace --all-targets -- -D warnings
 
@@ -53,8 +53,14 @@ SELFCHECK_TESTS := fit_recovers_known_effects_in_blind_scenarios families_cycle_
 
 rust-test: rust-test-selfcheck rust-test-rest
 
-rust-test-selfcheck: bin browser
+rust-test-selfcheck: selfcheck-build browser
 	MAKEFLAGS= SIMGAP_BIN=$(SIMGAP_BIN) $(RUST_TEST) --test selfcheck_small
+
+# The self-check is the longest stream: its binary is built right after the CLI, before clippy
+# (which waits for it, as every cargo waits for cargo's lock on target/), so that it starts
+# minutes earlier and the lints run beside it.
+selfcheck-build: bin
+	MAKEFLAGS= $(RUST_TEST) --test selfcheck_small --no-run
 
 rust-test-rest: bin browser
 	MAKEFLAGS= SIMGAP_BIN=$(SIMGAP_BIN) $(RUST_TEST) -- --exact $(addprefix --skip ,$(SELFCHECK_TESTS))

@@ -2,6 +2,8 @@
 //! shows stalled or whose motor constants were fitted clamped ([`servo_limit`]), and with its
 //! load friction rising at rest ([`load_friction_at_rest`]).
 
+use rayon::prelude::*;
+
 use crate::error::Result;
 use crate::prediction::kstep;
 use crate::prepare::servo;
@@ -196,7 +198,8 @@ pub(super) fn load_friction_at_rest(
         let name = format!("{} with its load friction rising at rest (load Stribeck friction, vs = {ratio} w)", base.name);
         try_set(scorer, shoot_runs, sopts, &name, &terms, &earlier, stop)
     };
-    let tries: Vec<Tried> = grid.iter().map(|&r| try_vs(r)).collect::<Result<_>>()?;
+    // (the velocities' fits are independent: on as many cores as there are)
+    let tries: Vec<Tried> = grid.par_iter().map(|&r| try_vs(r)).collect::<Result<_>>()?;
     let scores: Vec<String> = grid.iter().zip(&tries).map(|(r, t)| format!("{:.4} at vs = {r} w", t.score)).collect();
     let Some(best) = tries.into_iter().min_by(|a, b| a.score.total_cmp(&b.score)) else { return Ok((None, String::new())) };
     let head = format!(
