@@ -59,6 +59,9 @@ fn set_key(terms: &[Term]) -> Vec<crate::vocabulary::TermKey> {
 /// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
 /// their combination by [`point_mass_parameters`](crate::vocabulary::point_mass_parameters)),
 /// row-major and as free columns, and the largest commanded torque.
+/// Rows per block of [`PayloadBasis::block_bounds`].
+pub(super) const PAYLOAD_BLOCK: usize = 32;
+
 pub(super) struct PayloadBasis {
     /// Per row, the basis entries that are not zero in every row (a planar motion leaves
     /// most of them zero), row-major, rows by decreasing Euclidean norm.
@@ -67,6 +70,10 @@ pub(super) struct PayloadBasis {
     pub(super) norms: Vec<f64>,
     /// Which of the ten parameters those entries belong to.
     pub(super) nonzero: Vec<usize>,
+    /// Per block of [`PAYLOAD_BLOCK`] consecutive rows, the largest magnitude of each entry
+    /// (row-major, one row of `nonzero.len()` per block): `Σ_i bound_i |π_i|` bounds every
+    /// `|row · π|` of the block.
+    pub(super) block_bounds: Vec<f64>,
     pub(super) design: TermDesign,
     pub(super) tau_max: f64,
 }

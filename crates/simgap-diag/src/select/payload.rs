@@ -4,7 +4,7 @@
 use nalgebra::{DMatrix, DVector};
 use simgap_core::PARAMS_PER_LINK;
 
-use super::context::{Context, PayloadBasis};
+use super::context::{Context, PayloadBasis, PAYLOAD_BLOCK};
 use super::residual::screen_fit;
 use crate::lsq::{grams, Grams};
 use crate::vocabulary::{largest_command, payload_basis_rows, payload_mass_bound, point_mass_parameters, Column, Term, TermDesign};
@@ -56,8 +56,11 @@ impl Context<'_> {
                 .collect();
             compact.sort_by(|a, b| b.0.total_cmp(&a.0));
             let norms = compact.iter().map(|r| r.0).collect();
-            let rows = compact.into_iter().flat_map(|r| r.1).collect();
-            PayloadBasis { rows, norms, nonzero, design: TermDesign::free(cols), tau_max: largest_command(self.data) }
+            let rows: Vec<f64> = compact.into_iter().flat_map(|r| r.1).collect();
+            let nz = nonzero.len().max(1);
+            let block_bounds =
+                rows.chunks(nz * PAYLOAD_BLOCK).flat_map(|block| (0..nz).map(move |i| block.iter().skip(i).step_by(nz).fold(0.0f64, |m, v| m.max(v.abs())))).collect();
+            PayloadBasis { rows, norms, nonzero, block_bounds, design: TermDesign::free(cols), tau_max: largest_command(self.data) }
         });
         let mut refs: Vec<&TermDesign> = rest.iter().collect();
         refs.push(&basis.design);
@@ -84,13 +87,22 @@ impl Context<'_> {
             // that bound falls below the largest entry found, no later row can exceed it
             let pi_nz: Vec<f64> = basis.nonzero.iter().map(|&i| pi[i]).collect();
             let pi_norm = pi_nz.iter().map(|x| x * x).sum::<f64>().sqrt();
+            // (a block whose entries' bounds cannot exceed the largest found is skipped)
             let mut col_max = 0.0f64;
-            if !pi_nz.is_empty() {
-                for (row, norm) in basis.rows.chunks_exact(pi_nz.len()).zip(&basis.norms) {
-                    if norm * pi_norm * (1.0 + 1e-9) < col_max {
-                        break;
+            let nz = pi_nz.len();
+            if nz > 0 {
+                let pi_abs: Vec<f64> = pi_nz.iter().map(|x| x.abs()).collect();
+                let blocks = basis.rows.chunks(nz * PAYLOAD_BLOCK).zip(basis.norms.chunks(PAYLOAD_BLOCK)).zip(basis.block_bounds.chunks_exact(nz));
+                'rows: for ((block, norms), bound) in blocks {
+                    if bound.iter().zip(&pi_abs).map(|(a, b)| a * b).sum::<f64>() * (1.0 + 1e-9) < col_max {
+                        continue;
                     }
-                    col_max = col_max.max(row.iter().zip(&pi_nz).map(|(a, b)| a * b).sum::<f64>().abs());
+                    for (row, norm) in block.chunks_exact(nz).zip(norms) {
+                        if norm * pi_norm * (1.0 + 1e-9) < col_max {
+                            break 'rows;
+                        }
+                        col_max = col_max.max(row.iter().zip(&pi_nz).map(|(a, b)| a * b).sum::<f64>().abs());
+                    }
                 }
             }
             solver.hi[k] = payload_mass_bound(col_max, basis.tau_max, max_mass);
