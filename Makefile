@@ -54,13 +54,16 @@ SELFCHECK_TESTS := fit_recovers_known_effects_in_blind_scenarios families_cycle_
 rust-test: rust-test-selfcheck rust-test-rest
 
 rust-test-selfcheck: selfcheck-build browser
-	MAKEFLAGS= SIMGAP_BIN=$(SIMGAP_BIN) $(RUST_TEST) --test selfcheck_small
+	cd crates/simgap-diag && SIMGAP_BIN=$(SIMGAP_BIN) "$$(cat $(SELFCHECK_EXE))"
 
 # The self-check is the longest stream: its binary is built right after the CLI, before clippy
-# (which waits for it, as every cargo waits for cargo's lock on target/), so that it starts
-# minutes earlier and the lints run beside it.
+# (which waits for it, as every cargo waits for cargo's lock on target/), and run directly (its
+# path from cargo's messages; a `cargo test` would wait for that lock again, behind clippy and
+# the other builds), so that it starts minutes earlier and the lints run beside it.
+SELFCHECK_EXE := $(CURDIR)/target/selfcheck_small.path
 selfcheck-build: bin
-	MAKEFLAGS= $(RUST_TEST) --test selfcheck_small --no-run
+	MAKEFLAGS= $(RUST_TEST) --test selfcheck_small --no-run --message-format=json-render-diagnostics | \
+	  $(PYTHON) -c 'import json, sys; print(next(m["executable"] for m in map(json.loads, sys.stdin) if m.get("reason") == "compiler-artifact" and m.get("executable") and m["target"]["name"] == "selfcheck_small"))' > $(SELFCHECK_EXE)
 
 rust-test-rest: bin browser
 	MAKEFLAGS= SIMGAP_BIN=$(SIMGAP_BIN) $(RUST_TEST) -- --exact $(addprefix --skip ,$(SELFCHECK_TESTS))

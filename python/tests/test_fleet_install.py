@@ -30,7 +30,7 @@ def fleet_venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
     python = venv / "bin" / "python"
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
-    proc = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", f"{PACKAGE}[fleet]"], capture_output=True, text=True, timeout=170, env=env)
+    proc = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", f"{PACKAGE}[fleet]"], capture_output=True, text=True, timeout=900, env=env)
     if proc.returncode != 0 and any(m in proc.stderr for m in NO_NETWORK):
         pytest.skip(f"no package index reachable: {proc.stderr.strip().splitlines()[-1]}")
     assert proc.returncode == 0, proc.stderr
