@@ -264,8 +264,11 @@ class _SavedEnviron:
     later diagnosis of the caller (a ``simgap`` CLI it starts, or this process's first use of the
     diagnosis's thread pool) would run on one thread."""
 
-    def __init__(self, keys: list[str]) -> None:
-        self.values = {k: os.environ.get(k) for k in keys}
+    def __init__(self) -> None:
+        import dask
+
+        keys = list((dask.config.get("distributed.nanny.pre-spawn-environ", default={}) or {}).keys())
+        self.values = {k: os.environ.get(k) for k in [*keys, "RAYON_NUM_THREADS"]}
 
     def restore(self) -> None:
         for k, v in self.values.items():
@@ -273,14 +276,6 @@ class _SavedEnviron:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-
-
-def _spawn_environ_saved() -> _SavedEnviron:
-    """The caller's values of the variables a nanny sets before spawning (see :class:`_SavedEnviron`)."""
-    import dask
-
-    keys = list((dask.config.get("distributed.nanny.pre-spawn-environ", default={}) or {}).keys())
-    return _SavedEnviron(keys + ["RAYON_NUM_THREADS"])
 
 
 def _close_quietly(client: Any, cluster: Any) -> None:
@@ -352,7 +347,7 @@ def diagnose_fleet(
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
         try:
             with dask.config.set({"distributed.nanny.pre-spawn-environ.RAYON_NUM_THREADS": os.environ.get("RAYON_NUM_THREADS", "1")}):
-                environ = _spawn_environ_saved()
+                environ = _SavedEnviron()
                 try:
                     own_cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0")
                 finally:

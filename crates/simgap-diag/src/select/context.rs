@@ -56,12 +56,12 @@ fn set_key(terms: &[Term]) -> Vec<crate::vocabulary::TermKey> {
     terms.iter().map(Term::key).collect()
 }
 
-/// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
-/// their combination by [`point_mass_parameters`](crate::vocabulary::point_mass_parameters)),
-/// row-major and as free columns, and the largest commanded torque.
 /// Rows per block of [`PayloadBasis::block_bounds`].
 pub(super) const PAYLOAD_BLOCK: usize = 32;
 
+/// What every payload search shares: the last link's ten regressor columns (a payload at `c` is
+/// their combination by [`point_mass_parameters`](crate::vocabulary::point_mass_parameters)),
+/// row-major and as free columns, and the largest commanded torque.
 pub(super) struct PayloadBasis {
     /// Per row, the basis entries that are not zero in every row (a planar motion leaves
     /// most of them zero), row-major, rows by decreasing Euclidean norm.

@@ -57,6 +57,7 @@ impl Context<'_> {
             compact.sort_by(|a, b| b.0.total_cmp(&a.0));
             let norms = compact.iter().map(|r| r.0).collect();
             let rows: Vec<f64> = compact.into_iter().flat_map(|r| r.1).collect();
+            // (no entry left: no rows, no blocks; `chunks` asks for a positive size)
             let nz = nonzero.len().max(1);
             let block_bounds =
                 rows.chunks(nz * PAYLOAD_BLOCK).flat_map(|block| (0..nz).map(move |i| block.iter().skip(i).step_by(nz).fold(0.0f64, |m, v| m.max(v.abs())))).collect();
@@ -85,23 +86,27 @@ impl Context<'_> {
             // the mass bound from the column's largest entry, as the payload's design states it
             // (the entries left out are zero: the same sums); |row·π| <= ‖row‖ ‖π‖, so once
             // that bound falls below the largest entry found, no later row can exceed it
-            let pi_nz: Vec<f64> = basis.nonzero.iter().map(|&i| pi[i]).collect();
-            let pi_norm = pi_nz.iter().map(|x| x * x).sum::<f64>().sqrt();
             // (a block whose entries' bounds cannot exceed the largest found is skipped)
+            let nz = basis.nonzero.len();
+            let (mut pi_nz, mut pi_abs) = ([0.0; PARAMS_PER_LINK], [0.0; PARAMS_PER_LINK]);
+            for (a, &i) in basis.nonzero.iter().enumerate() {
+                pi_nz[a] = pi[i];
+                pi_abs[a] = pi[i].abs();
+            }
+            let (pi_nz, pi_abs) = (&pi_nz[..nz], &pi_abs[..nz]);
+            let pi_norm = pi_nz.iter().map(|x| x * x).sum::<f64>().sqrt();
             let mut col_max = 0.0f64;
-            let nz = pi_nz.len();
             if nz > 0 {
-                let pi_abs: Vec<f64> = pi_nz.iter().map(|x| x.abs()).collect();
                 let blocks = basis.rows.chunks(nz * PAYLOAD_BLOCK).zip(basis.norms.chunks(PAYLOAD_BLOCK)).zip(basis.block_bounds.chunks_exact(nz));
                 'rows: for ((block, norms), bound) in blocks {
-                    if bound.iter().zip(&pi_abs).map(|(a, b)| a * b).sum::<f64>() * (1.0 + 1e-9) < col_max {
+                    if bound.iter().zip(pi_abs).map(|(a, b)| a * b).sum::<f64>() * (1.0 + 1e-9) < col_max {
                         continue;
                     }
                     for (row, norm) in block.chunks_exact(nz).zip(norms) {
                         if norm * pi_norm * (1.0 + 1e-9) < col_max {
                             break 'rows;
                         }
-                        col_max = col_max.max(row.iter().zip(&pi_nz).map(|(a, b)| a * b).sum::<f64>().abs());
+                        col_max = col_max.max(row.iter().zip(pi_nz).map(|(a, b)| a * b).sum::<f64>().abs());
                     }
                 }
             }
