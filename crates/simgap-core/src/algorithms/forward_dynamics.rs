@@ -57,7 +57,7 @@ pub fn try_forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], q
         check_len(model, "qd", qd);
         check_len(model, "tau", tau);
         check_len(model, "out", out);
-        arm.forward_dynamics(q, qd, tau, formulation, out)
+        arm.forward_dynamics(q, qd, tau, [0.0; 2], formulation, out)
     } else if n >= ABA_MIN_DOF {
         check_len(model, "tau", tau);
         crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, &[], formulation, out)
@@ -102,7 +102,8 @@ fn crba_solve(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f
 /// false, with `out` unspecified, when `H + diag(ia)` is not positive definite (a negative
 /// rotor inertia).
 ///
-/// From [`ABA_MIN_DOF`] joints on, the articulated-body algorithm with the rotor inertia in
+/// An arm of two rotational joints uses its closed form (as [`try_forward_dynamics_into`] does)
+/// with `ia` added to the diagonal of H. Otherwise, from [`ABA_MIN_DOF`] joints on, the articulated-body algorithm with the rotor inertia in
 /// each joint's pivot (`D_i = S_iᵀ IA_i S_i + ia_i`, Featherstone 2008, §7.3), O(n); below,
 /// bias torques, the mass matrix plus `diag(ia)` (sharing one kinematics pass) and a Cholesky
 /// solve. Equivalent to [`bias_torques_into`](crate::bias_torques_into), then
@@ -119,6 +120,12 @@ pub fn forward_dynamics_armature_into(model: &Model, ws: &mut Workspace, q: &[f6
     check_len(model, "tau", tau);
     check_len(model, "rotor inertias ia", armature);
     let n = model.dof();
+    if let Some(arm) = closed_forms::two_joint(model, ws) {
+        check_len(model, "q", q);
+        check_len(model, "qd", qd);
+        check_len(model, "out", out);
+        return arm.forward_dynamics(q, qd, tau, [armature[0], armature[1]], formulation, out);
+    }
     if n >= ABA_MIN_DOF {
         return crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, armature, formulation, out);
     }

@@ -95,14 +95,15 @@ impl TwoJoint {
         g[1] = t.g[1];
     }
 
-    /// q̈ = H⁻¹ (τ − C q̇ − g) into `out`; false (and `out` untouched) when H is not positive
-    /// definite.
+    /// q̈ = (H + diag(ia))⁻¹ (τ − C q̇ − g) into `out`, with rotor inertias `ia` [kg·m²] (zeros
+    /// for none); false (and `out` untouched) when `H + diag(ia)` is not positive definite.
     #[inline]
-    pub(crate) fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
+    pub(crate) fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64], ia: [f64; 2], formulation: Formulation, out: &mut [f64]) -> bool {
         let t = self.terms(q, qd, formulation);
         let r1 = tau[0] - (t.c[0] * qd[0] + t.c[1] * qd[1] + t.g[0]);
         let r2 = tau[1] - (t.c[2] * qd[0] + t.c[3] * qd[1] + t.g[1]);
         let [h11, h12, h22] = t.h;
+        let (h11, h22) = (h11 + ia[0], h22 + ia[1]);
         let det = h11 * h22 - h12 * h12;
         if !(h11 > 0.0 && det > 0.0) {
             return false;
