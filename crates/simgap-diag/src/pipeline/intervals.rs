@@ -381,7 +381,8 @@ fn judge_round(
         let mut scores: Option<(f64, f64)> = None;
         // a term whose interval holds its neutral value is asked of the fit runs' prediction:
         // it stays when they are predicted worse without it by more than the margin by which
-        // the prune stage calls a stepwise term weak ([`plausible::needed_by_prediction`]). An interval holds no effect where the
+        // the prune stage calls a stepwise term weak, and, where that loss is small, in every
+        // part of them ([`plausible::needed_by_prediction`]). An interval holds no effect where the
         // pipeline's shared error, or a partner it trades with (viscous friction beside a
         // servo's back-EMF), is wider than the value, or where the data do not resolve it:
         // prediction tells an effect the runs need from one they do not. (Dropped by its
@@ -411,7 +412,7 @@ fn judge_round(
             };
             let without_scored = Scored::of(scorer, refined, &without, options)?;
             let test = with.against(scorer, &without_scored);
-            let needed = plausible::needed_by_prediction(with.score, without_scored.score);
+            let needed = plausible::needed_by_prediction(with.score, without_scored.score, &test);
             let evidence = format!(
                 "cross-validated k-step score {:.4} without it against {:.4} with it; fold by fold, the upper 2-standard-error bound of the ratio with/without is {:.3} and the worst fold's {:.3}",
                 without_scored.score, with.score, test.bound, test.worst
@@ -426,8 +427,8 @@ fn judge_round(
                     cv_mse: f64::NAN,
                     accepted: true,
                     reason: format!(
-                        "established by prediction although the 95 % interval of {name} holds its neutral value (no effect): the fit runs are predicted worse without it by more than {:.0} % ({evidence})",
-                        100.0 * PRUNE_TOLERANCE
+                        "established by prediction although the 95 % interval of {name} holds its neutral value (no effect): the fit runs are {} ({evidence})",
+                        plausible::need_in_words()
                     ),
                 });
                 kept_needed.push((t.clone(), evidence));
@@ -437,8 +438,8 @@ fn judge_round(
                 judgment = plausible::Judgment::NoFinding(
                     Rule::NotEstablished,
                     format!(
-                        "not a finding: the 95 % interval of {name} holds its neutral value (no effect) in every parameter, and the fit runs are not predicted worse without it by more than {:.0} %: {evidence}",
-                        100.0 * PRUNE_TOLERANCE
+                        "not a finding: the 95 % interval of {name} holds its neutral value (no effect) in every parameter, and the fit runs do not need it (needed: {}): {evidence}",
+                        plausible::need_in_words()
                     ),
                 );
             }
@@ -539,7 +540,8 @@ fn report_effects(model: &Model, scorer: &Scorer<'_>, prep: &Prepared, terms: &[
                 e.description.push_str("; ");
             }
             e.description.push_str(&format!(
-                "established by prediction{on}, not by its interval: its 95 % interval holds the value of no effect, and the fit runs are predicted worse without it by more than {:.0} % ({evidence})", 100.0 * PRUNE_TOLERANCE
+                "established by prediction{on}, not by its interval: its 95 % interval holds the value of no effect, and the fit runs are {} ({evidence})",
+                plausible::need_in_words()
             ));
         }
     }
