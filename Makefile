@@ -11,16 +11,17 @@ export CARGO_TERM_COLOR ?= never
 
 .PHONY: test all-tests lint check-features bin rust-test rust-test-selfcheck selfcheck-build rust-test-rest python-test browser venv python-package demo bench compare-pinocchio clean
 
-# Three jobs at a time, each job's output printed whole when it ends: the venv's installs
+# Four jobs at a time, each job's output printed whole when it ends: the venv's installs
 # (downloads, unpacking) overlap the Rust compilation, and the tests run in three streams, the
 # blind self-check (its servo scenarios are the longest test: minutes), the other Rust tests and
 # pytest, so that the two cores stay busy through what one stream leaves serial (a diagnosis's
 # serial stages, Python's own work, process and cluster start-ups, the last long test of a
-# binary). Cargo's lock on target/ still compiles one thing at a time, and each stream starts
-# as soon as what it runs is built. MAKEFLAGS is cleared for cargo and pytest: the jobserver of
-# this make is not theirs.
+# binary). The fourth slot is the lints': with three, the self-check waited for clippy to end
+# before it started (2 minutes in a CI run), and its stream ended alone. Cargo's lock on target/
+# still compiles one thing at a time, and each stream starts as soon as what it runs is built.
+# MAKEFLAGS is cleared for cargo and pytest: the jobserver of this make is not theirs.
 test:
-	@$(MAKE) --no-print-directory -j3 --output-sync=target all-tests
+	@$(MAKE) --no-print-directory -j4 --output-sync=target all-tests
 
 all-tests: venv lint rust-test-selfcheck python-test rust-test-rest
 
