@@ -6,6 +6,8 @@
 //! Also, per robot: `forward_dynamics_crba` and `forward_dynamics_aba` (the two algorithms
 //! `forward_dynamics` picks from, side by side); `h_c_g_general` (three calls of the general
 //! algorithms, the reference of the two-joint closed form behind `dynamics_terms/paper_arm`);
+//! `forward_dynamics_armature` (rotor inertias of 0.01 on every joint: the two-joint closed form
+//! with them on H's diagonal on the paper arm, the articulated-body algorithm elsewhere);
 //! and the batch functions on 1000 states, `mass_matrix_batch/panda/1000` etc., beside
 //! `mass_matrix_loop/panda/1000` etc. (the one-state function in a loop over the same states).
 //!
@@ -19,8 +21,8 @@ use criterion::Throughput;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use nalgebra::DMatrix;
 use simgap::core::{
-    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_crba_into, forward_dynamics_into,
-    gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
+    bias_torques_into, coriolis_matrix_into, coriolis_torques_into, dynamics_terms_into, forward_dynamics_aba_into, forward_dynamics_armature_into, forward_dynamics_crba_into,
+    forward_dynamics_into, gravity_torques_into, inverse_dynamics_into, mass_matrix_derivative_into, mass_matrix_into, DynamicsTerms, Formulation, Model, Workspace,
 };
 
 #[path = "support/robots.rs"]
@@ -58,6 +60,9 @@ fn run<M: criterion::measurement::Measurement>(
     });
 }
 
+/// Rotor inertias [kg·m² or kg] of `forward_dynamics_armature` (the first `dof` of them).
+const ROTOR_INERTIAS: [f64; 64] = [0.01; 64];
+
 fn dynamics(c: &mut Criterion) {
     let mut benches: Vec<Bench> = all_robots(true)
         .into_iter()
@@ -75,7 +80,7 @@ fn dynamics(c: &mut Criterion) {
         })
         .collect();
     type F = fn(&Model, &mut Workspace, &State, &mut DMatrix<f64>, &mut [f64], &mut DynamicsTerms);
-    let functions: [(&str, F); 13] = [
+    let functions: [(&str, F); 14] = [
         ("mass_matrix", |m, ws, s, h, _, _| mass_matrix_into(m, ws, &s.q, h)),
         ("coriolis_matrix/euler_lagrange", |m, ws, s, c, _, _| coriolis_matrix_into(m, ws, &s.q, &s.qd, Formulation::EulerLagrange, c)),
         ("coriolis_matrix/simplified", |m, ws, s, c, _, _| coriolis_matrix_into(m, ws, &s.q, &s.qd, Formulation::Simplified, c)),
@@ -88,6 +93,9 @@ fn dynamics(c: &mut Criterion) {
         ("dynamics_terms", |m, ws, s, _, _, t| dynamics_terms_into(m, ws, &s.q, &s.qd, Formulation::EulerLagrange, t)),
         ("forward_dynamics_crba", |m, ws, s, _, v, _| forward_dynamics_crba_into(m, ws, &s.q, &s.qd, &s.tau, Formulation::EulerLagrange, v)),
         ("forward_dynamics_aba", |m, ws, s, _, v, _| forward_dynamics_aba_into(m, ws, &s.q, &s.qd, &s.tau, Formulation::EulerLagrange, v)),
+        ("forward_dynamics_armature", |m, ws, s, _, v, _| {
+            forward_dynamics_armature_into(m, ws, &s.q, &s.qd, &s.tau, &ROTOR_INERTIAS[..m.dof()], Formulation::EulerLagrange, v);
+        }),
         ("h_c_g_general", |m, ws, s, _, _, t| {
             mass_matrix_into(m, ws, &s.q, &mut t.mass_matrix);
             coriolis_matrix_into(m, ws, &s.q, &s.qd, Formulation::EulerLagrange, &mut t.coriolis_matrix);
