@@ -66,9 +66,7 @@ selfcheck-build: bin
 	MAKEFLAGS= $(RUST_TEST) --test selfcheck_small --no-run --message-format=json-render-diagnostics | \
 	  $(PYTHON) -c 'import json, sys; print(next(m["executable"] for m in map(json.loads, sys.stdin) if m.get("reason") == "compiler-artifact" and m.get("executable") and m["target"]["name"] == "selfcheck_small"))' > $(SELFCHECK_EXE)
 
-# (after the self-check's binary: the first cargo to take the lock on target/ after the CLI
-# compiles what it asked for first, and this one's is every test, 3 minutes in a CI run)
-rust-test-rest: bin browser selfcheck-build
+rust-test-rest: bin browser
 	MAKEFLAGS= SIMGAP_BIN=$(SIMGAP_BIN) $(RUST_TEST) -- --exact $(addprefix --skip ,$(SELFCHECK_TESTS))
 
 # The CLI that the CLI tests of both suites run ($SIMGAP_BIN).
