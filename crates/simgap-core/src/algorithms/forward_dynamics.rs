@@ -103,10 +103,10 @@ fn crba_solve(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f
 /// rotor inertia).
 ///
 /// An arm of two rotational joints uses its closed form (as [`try_forward_dynamics_into`] does)
-/// with `ia` added to the diagonal of H. Otherwise, from [`ABA_MIN_DOF`] joints on, the articulated-body algorithm with the rotor inertia in
-/// each joint's pivot (`D_i = S_iᵀ IA_i S_i + ia_i`, Featherstone 2008, §7.3), O(n); below,
-/// bias torques, the mass matrix plus `diag(ia)` (sharing one kinematics pass) and a Cholesky
-/// solve. Equivalent to [`bias_torques_into`](crate::bias_torques_into), then
+/// with `ia` added to the diagonal of H. Otherwise, from [`ABA_MIN_DOF`] joints on, the
+/// articulated-body algorithm with the rotor inertia in each joint's pivot
+/// (`D_i = S_iᵀ IA_i S_i + ia_i`, Featherstone 2008, §7.3), O(n); below, bias torques, the mass
+/// matrix plus `diag(ia)` (sharing one kinematics pass) and a Cholesky solve. Equivalent to [`bias_torques_into`](crate::bias_torques_into), then
 /// [`mass_matrix_into`](crate::mass_matrix_into) plus `diag(ia)` and
 /// [`try_solve_spd_in_place`], to rounding.
 ///

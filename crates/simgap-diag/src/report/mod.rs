@@ -133,9 +133,8 @@ pub struct DroppedEffect {
     /// The rule: `too_small` (less than 1 % of its joint's commanded torque), `at_edge_of_range`,
     /// `not_established` (its 95 % interval holds its neutral value and the fit runs are not
     /// predicted worse without it by more than 2 %, or by less than 10 % and not in every part of
-    /// them), `set_no_better_than_nominal` (the others
-    /// left, and the set no longer predicts the fit runs better than the nominal model by 2 %,
-    /// in every part of them).
+    /// them), `set_no_better_than_nominal` (the others left, and the set no longer predicts the
+    /// fit runs better than the nominal model by 2 %, in every part of them).
     pub rule: String,
     /// Why, in words, with the figures.
     pub why: String,
