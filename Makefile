@@ -62,8 +62,9 @@ rust-test-selfcheck: selfcheck-build browser
 # path from cargo's messages; a `cargo test` would wait for that lock again, behind clippy and
 # the other builds), so that it starts minutes earlier and the lints run beside it. The other
 # tests' build, started at the same moment, often takes the lock first and the self-check then
-# starts after it; made to wait for the self-check's binary, it cost a clean-clone run 80 s more
-# than it saved (four streams on two cores, pytest ending last), so the race stays.
+# starts after it; made to wait for the self-check's binary, a clean-clone run took 798 s
+# against 716 and 771 s without the wait (four streams on two cores, pytest ending last): no
+# gain, so the race stays.
 SELFCHECK_EXE := $(CURDIR)/target/selfcheck_small.path
 selfcheck-build: bin
 	MAKEFLAGS= $(RUST_TEST) --test selfcheck_small --no-run --message-format=json-render-diagnostics | \
