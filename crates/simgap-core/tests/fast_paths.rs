@@ -1,6 +1,6 @@
 //! The fast paths equal the general algorithms: the articulated-body algorithm equals CRBA +
-//! Cholesky forward dynamics, and the closed form of a two-joint arm equals H, C, g and q̈ of
-//! the general algorithms, to 1e-10 relative.
+//! Cholesky forward dynamics, the closed form of a two-joint arm equals H, C, g and q̈ of the
+//! general algorithms, and that of a one-joint arm q̈, to 1e-10 relative.
 
 mod common;
 
@@ -128,6 +128,37 @@ fn two_joint_closed_form_equals_the_general_algorithms() {
                 forward_dynamics_into(&model, &mut ws, &q, &qd, &tau, f, &mut fast);
                 forward_dynamics_crba_into(&model, &mut ws, &q, &qd, &tau, f, &mut general);
                 assert_close(&format!("{what} qdd"), &fast, &general, 1e-10);
+            }
+        }
+    }
+}
+
+#[test]
+fn one_joint_closed_form_equals_the_general_algorithms() {
+    // turning and sliding joints (random chains of one joint draw both), gravity tilted
+    let mut arms: Vec<Model> = (1..=12).map(|seed| Model::random_chain(1, seed)).collect();
+    assert!(arms.iter().any(|m| m.joints()[0].kind == JointKind::Prismatic) && arms.iter().any(|m| m.joints()[0].kind != JointKind::Prismatic));
+    for i in 0..arms.len() {
+        let mut tilted = arms[i].clone();
+        tilted.set_gravity(Vector3::new(1.0, -2.0, -9.0));
+        arms.push(tilted);
+    }
+    for model in &arms {
+        let mut ws = Workspace::new(model);
+        for seed in 0..50 {
+            let [q, qd, tau] = state(1, seed);
+            let ia = [0.05 * (1 + seed % 4) as f64];
+            for f in Formulation::ALL {
+                let what = format!("{} {f} state {seed}", model.name());
+                let (mut fast, mut general) = ([0.0], [0.0]);
+                forward_dynamics_into(model, &mut ws, &q, &qd, &tau, f, &mut fast);
+                forward_dynamics_crba_into(model, &mut ws, &q, &qd, &tau, f, &mut general);
+                assert_close(&format!("{what} qdd"), &fast, &general, 1e-10);
+                // with a rotor inertia: (H + ia) q̈ = τ − (C q̇ + g), solved densely
+                let h = mass_matrix(model, &mut ws, &q)[(0, 0)] + ia[0];
+                let want = (tau[0] - bias_torques(model, &mut ws, &q, &qd, f)[0]) / h;
+                assert!(forward_dynamics_armature_into(model, &mut ws, &q, &qd, &tau, &ia, f, &mut fast));
+                assert_close(&format!("{what} qdd with ia"), &fast, &[want], 1e-10);
             }
         }
     }

@@ -9,6 +9,7 @@
 
 use crate::algorithms::crba::mass_matrix;
 use crate::algorithms::energy::potential_energy;
+use crate::algorithms::one_joint::OneJoint;
 use crate::algorithms::two_joint::TwoJoint;
 use crate::algorithms::workspace::Workspace;
 use crate::model::Model;
@@ -73,4 +74,43 @@ fn generate_two_joint(model: &Model, ws: &mut Workspace) -> Option<TwoJoint> {
         }
     }
     Some(TwoJoint::from_coefficients(h, u))
+}
+
+/// The one-joint closed form of `model`, generated into `ws` if it is not there yet; `None`
+/// when the model has not exactly one joint.
+#[inline]
+pub(crate) fn one_joint<'w>(model: &Model, ws: &'w mut Workspace) -> Option<&'w OneJoint> {
+    if model.dof() != 1 {
+        return None;
+    }
+    if ws.one_joint.as_ref().is_none_or(|(revision, _)| *revision != model.revision()) {
+        refresh_one_joint(model, ws);
+    }
+    ws.one_joint.as_ref().and_then(|(_, arm)| arm.as_ref())
+}
+
+/// Generates the one-joint closed form of `model` into `ws` (out of line, as [`refresh`]).
+#[cold]
+#[inline(never)]
+fn refresh_one_joint(model: &Model, ws: &mut Workspace) {
+    let generated = generate_one_joint(model, ws);
+    ws.one_joint = Some((model.revision(), generated));
+}
+
+/// Samples the general algorithms of `model` into the coefficients of [`OneJoint`]: H at
+/// q = 0, U at q = 0, π/2, π, 3π/2 (turning) or 0 and 1 (sliding).
+fn generate_one_joint(model: &Model, ws: &mut Workspace) -> Option<OneJoint> {
+    if model.dof() != 1 {
+        return None;
+    }
+    let rotational = model.joints()[0].kind.is_rotational();
+    let h = mass_matrix(model, ws, &[0.0])[(0, 0)];
+    let u = if rotational {
+        let pi = std::f64::consts::PI;
+        let e: Vec<f64> = (0..4).map(|k| potential_energy(model, ws, &[k as f64 * pi / 2.0])).collect();
+        [(e[0] - e[2]) / 2.0, (e[1] - e[3]) / 2.0]
+    } else {
+        [potential_energy(model, ws, &[1.0]) - potential_energy(model, ws, &[0.0]), 0.0]
+    };
+    Some(OneJoint::from_coefficients(h, u, rotational))
 }

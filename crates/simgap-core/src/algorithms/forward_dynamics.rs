@@ -58,6 +58,12 @@ pub fn try_forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], q
         check_len(model, "tau", tau);
         check_len(model, "out", out);
         arm.forward_dynamics(q, qd, tau, [0.0; 2], formulation, out)
+    } else if let Some(arm) = closed_forms::one_joint(model, ws) {
+        check_len(model, "q", q);
+        check_len(model, "qd", qd);
+        check_len(model, "tau", tau);
+        check_len(model, "out", out);
+        arm.forward_dynamics(q, tau, 0.0, out)
     } else if n >= ABA_MIN_DOF {
         check_len(model, "tau", tau);
         crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, &[], formulation, out)
@@ -125,6 +131,12 @@ pub fn forward_dynamics_armature_into(model: &Model, ws: &mut Workspace, q: &[f6
         check_len(model, "qd", qd);
         check_len(model, "out", out);
         return arm.forward_dynamics(q, qd, tau, [armature[0], armature[1]], formulation, out);
+    }
+    if let Some(arm) = closed_forms::one_joint(model, ws) {
+        check_len(model, "q", q);
+        check_len(model, "qd", qd);
+        check_len(model, "out", out);
+        return arm.forward_dynamics(q, tau, armature[0], out);
     }
     if n >= ABA_MIN_DOF {
         return crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, armature, formulation, out);

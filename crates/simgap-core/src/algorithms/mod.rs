@@ -9,6 +9,7 @@ pub mod crba;
 pub mod energy;
 pub mod forward_dynamics;
 pub mod kinematics;
+pub(crate) mod one_joint;
 pub mod regressor;
 pub mod rnea;
 pub(crate) mod soa;

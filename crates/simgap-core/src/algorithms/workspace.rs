@@ -3,6 +3,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::algorithms::one_joint::OneJoint;
 use crate::algorithms::soa::SoaWs;
 use crate::algorithms::two_joint::TwoJoint;
 use crate::model::Model;
@@ -48,6 +49,8 @@ pub struct Workspace {
     /// The closed form of the model of this revision ([`Model::revision`]), `None` inside when
     /// that model has none; filled by [`closed_forms`](crate::algorithms::closed_forms).
     pub(crate) closed_form: Option<(u64, Option<TwoJoint>)>,
+    /// The one-joint closed form of the model of this revision, as `closed_form`.
+    pub(crate) one_joint: Option<(u64, Option<OneJoint>)>,
 }
 
 impl Workspace {
@@ -71,6 +74,7 @@ impl Workspace {
             scratch_vector: DVector::zeros(n),
             lanes: SoaWs::new(n),
             closed_form: None,
+            one_joint: None,
         }
     }
 
