@@ -12,8 +12,8 @@ use crate::model::Model;
 
 /// Joint accelerations q̈ = H⁻¹ (τ − C q̇ − g) with the chosen formulation's C.
 ///
-/// The algorithm is picked by the model: for an arm of two rotational joints, a closed form
-/// generated from the model into `ws` on the first call with it; from [`ABA_MIN_DOF`] joints on, the
+/// The algorithm is picked by the model: for an arm of one joint or of two rotational joints, a
+/// closed form generated from the model into `ws` on the first call with it; from [`ABA_MIN_DOF`] joints on, the
 /// articulated-body algorithm ([`forward_dynamics_aba_into`](crate::forward_dynamics_aba_into)),
 /// O(n); below, the bias torques (Newton–Euler), the mass matrix (composite rigid body
 /// algorithm) and an in-place Cholesky solve ([`forward_dynamics_crba_into`]), O(n³). All
@@ -52,18 +52,8 @@ pub fn forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &
 /// If a length or `ws` does not match the model.
 pub fn try_forward_dynamics_into(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], formulation: Formulation, out: &mut [f64]) -> bool {
     let n = model.dof();
-    if let Some(arm) = closed_forms::two_joint(model, ws) {
-        check_len(model, "q", q);
-        check_len(model, "qd", qd);
-        check_len(model, "tau", tau);
-        check_len(model, "out", out);
-        arm.forward_dynamics(q, qd, tau, [0.0; 2], formulation, out)
-    } else if let Some(arm) = closed_forms::one_joint(model, ws) {
-        check_len(model, "q", q);
-        check_len(model, "qd", qd);
-        check_len(model, "tau", tau);
-        check_len(model, "out", out);
-        arm.forward_dynamics(q, tau, 0.0, out)
+    if let Some(solved) = closed_forms::forward_dynamics(model, ws, q, qd, tau, &[], formulation, out) {
+        solved
     } else if n >= ABA_MIN_DOF {
         check_len(model, "tau", tau);
         crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, &[], formulation, out)
@@ -108,11 +98,12 @@ fn crba_solve(model: &Model, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f
 /// false, with `out` unspecified, when `H + diag(ia)` is not positive definite (a negative
 /// rotor inertia).
 ///
-/// An arm of two rotational joints uses its closed form (as [`try_forward_dynamics_into`] does)
-/// with `ia` added to the diagonal of H. Otherwise, from [`ABA_MIN_DOF`] joints on, the
-/// articulated-body algorithm with the rotor inertia in each joint's pivot
-/// (`D_i = S_iᵀ IA_i S_i + ia_i`, Featherstone 2008, §7.3), O(n); below, bias torques, the mass
-/// matrix plus `diag(ia)` (sharing one kinematics pass) and a Cholesky solve. Equivalent to [`bias_torques_into`](crate::bias_torques_into), then
+/// An arm of one joint, or of two rotational joints, uses its closed form (as
+/// [`try_forward_dynamics_into`] does) with `ia` added to the diagonal of H. Otherwise, from
+/// [`ABA_MIN_DOF`] joints on, the articulated-body algorithm with the rotor inertia in each
+/// joint's pivot (`D_i = S_iᵀ IA_i S_i + ia_i`, Featherstone 2008, §7.3), O(n); below, bias
+/// torques, the mass matrix plus `diag(ia)` (sharing one kinematics pass) and a Cholesky solve.
+/// Equivalent to [`bias_torques_into`](crate::bias_torques_into), then
 /// [`mass_matrix_into`](crate::mass_matrix_into) plus `diag(ia)` and
 /// [`try_solve_spd_in_place`], to rounding.
 ///
@@ -126,17 +117,8 @@ pub fn forward_dynamics_armature_into(model: &Model, ws: &mut Workspace, q: &[f6
     check_len(model, "tau", tau);
     check_len(model, "rotor inertias ia", armature);
     let n = model.dof();
-    if let Some(arm) = closed_forms::two_joint(model, ws) {
-        check_len(model, "q", q);
-        check_len(model, "qd", qd);
-        check_len(model, "out", out);
-        return arm.forward_dynamics(q, qd, tau, [armature[0], armature[1]], formulation, out);
-    }
-    if let Some(arm) = closed_forms::one_joint(model, ws) {
-        check_len(model, "q", q);
-        check_len(model, "qd", qd);
-        check_len(model, "out", out);
-        return arm.forward_dynamics(q, tau, armature[0], out);
+    if let Some(solved) = closed_forms::forward_dynamics(model, ws, q, qd, tau, armature, formulation, out) {
+        return solved;
     }
     if n >= ABA_MIN_DOF {
         return crate::algorithms::aba::articulated_body(model, ws, q, qd, tau, armature, formulation, out);

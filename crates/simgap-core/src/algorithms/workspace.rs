@@ -48,10 +48,14 @@ pub struct Workspace {
     pub(crate) lanes: SoaWs<1>,
     /// The closed form of the model of this revision ([`Model::revision`]), `None` inside when
     /// that model has none; filled by [`closed_forms`](crate::algorithms::closed_forms).
-    pub(crate) closed_form: Option<(u64, Option<TwoJoint>)>,
+    pub(crate) closed_form: Slot<TwoJoint>,
     /// The one-joint closed form of the model of this revision, as `closed_form`.
-    pub(crate) one_joint: Option<(u64, Option<OneJoint>)>,
+    pub(crate) one_joint: Slot<OneJoint>,
 }
+
+/// A workspace's slot of one closed form: the model revision it was generated for, and the
+/// form (`None` when that model has none).
+pub(crate) type Slot<T> = Option<(u64, Option<T>)>;
 
 impl Workspace {
     /// Allocates a workspace for `model`.
