@@ -3,11 +3,16 @@
 DFKI records, checked afterwards on the held-out run it never saw (docs/results/findings.md).
 
 Run after run.py, from the repository root, on the same --out (and, for the XL330 servo, after
-examples/case-study-servo/run.py, on its --out given as --servo):
+examples/case-study-servo/run.py, on its --out given as --servo; for the SO-101, on the JSON
+report of the diagnosis docs/results/case-study-so101.md runs, given as --so101):
 
     python3 examples/case-study-dfki/run.py --data ../shared/data --bin target/release/simgap --out /tmp/cs
     python3 examples/case-study-servo/run.py --data ../shared/data/rhoban-bam-xl330 --bin target/release/simgap --out /tmp/servo-cs
-    python3 examples/case-study-dfki/findings.py --data ../shared/data --bin target/release/simgap --out /tmp/cs --servo /tmp/servo-cs
+    target/release/simgap diagnose --urdf ../shared/data/sage-so101/so101_new_calib.urdf \
+        --log '../shared/data/sage-so101/lerobot#4,17,21' --holdout '../shared/data/sage-so101/lerobot#14,18,24,31,37' \
+        --experiment examples/case-study-so101/so101.experiment.json --json /tmp/so101.json
+    python3 examples/case-study-dfki/findings.py --data ../shared/data --bin target/release/simgap --out /tmp/cs \
+        --servo /tmp/servo-cs --so101 /tmp/so101.json
 
 Python 3 standard library only. For every diagnosis report run.py wrote (`c0_hold0..4.json`,
 `a0.json`, `sp_hold_*.json`; the servo's `fold-*/report.json`, whose held-out logs are predicted
@@ -49,6 +54,29 @@ def servo_cases(out):
          f"XL330 servo, {d[len('fold-'):]} held out")
         for d in folds
     ]
+
+
+def so101_case(report, data, tmp_dir):
+    """(report, URDF, held-out logs, experiment, label) of an SO-101 diagnosis report: the
+    published URDF (its gripper locked by simgap), the report's held-out episodes, the case
+    study's experiment file with the report's servo constants where the diagnosis fitted them."""
+    if not report:
+        return []
+    with open(report) as f:
+        rep = json.load(f)
+    experiment = os.path.join(HERE, "..", "case-study-so101", "so101.experiment.json")
+    servo = rep.get("servo") or {}
+    if servo.get("source") == "fitted":
+        with open(experiment) as f:
+            e = json.load(f)
+        e["kt"] = ",".join(map(repr, servo["kt"]))
+        e["R"] = ",".join(map(repr, servo["R"]))
+        experiment = os.path.join(tmp_dir, "so101_fitted.experiment.json")
+        with open(experiment, "w") as f:
+            json.dump(e, f)
+    held = [h.split("#")[-1] for h in rep["holdout_logs"]]
+    label = f"SO-101, episodes {', '.join(held)} held out"
+    return [(report, os.path.join(data, "sage-so101/so101_new_calib.urdf"), rep["holdout_logs"], experiment, label)]
 
 
 def cases(data, out):
@@ -190,10 +218,12 @@ def main():
     ap.add_argument("--bin", default="target/release/simgap")
     ap.add_argument("--out", default="/tmp/cs")
     ap.add_argument("--servo", default=None, help="the --out of examples/case-study-servo/run.py (optional)")
+    ap.add_argument("--so101", default=None, help="the JSON report of an SO-101 diagnosis (optional; see above)")
     args = ap.parse_args()
     tmp = os.path.join(args.out, "findings_predict.json")
     rows = []
     every = [(p, u, [], e, l) for p, u, e, l in cases(args.data, args.out)] + [(p, u, logs, None, l) for p, u, logs, l in servo_cases(args.servo)]
+    every += so101_case(args.so101, args.data, args.out)
     for path, urdf, logs, experiment, label in every:
         with open(path) as f:
             rep = json.load(f)
@@ -201,6 +231,10 @@ def main():
         logs = logs or rep["holdout_logs"]
         selected = rep["selected_effects"]
         with_all = [at(k, k["after"], h) for h in HORIZONS]
+        # the corrected model as `simgap predict` spells it must predict what the report says
+        again = predict(args.bin, urdf, logs, experiment, specs(selected, joints), tmp)
+        if any(abs(a - b) > 1e-3 * b for a, b in zip(again, with_all)):
+            raise SystemExit(f"{path}: the selected effects predict {again} here, the report says {with_all}")
         for e in selected:
             for t in terms(e):
                 without = predict(args.bin, urdf, logs, experiment, specs(selected, joints, without=t), tmp)

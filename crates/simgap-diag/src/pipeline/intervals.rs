@@ -100,6 +100,19 @@ impl Scored {
             _ => kstep::FoldTest::of(&[]),
         }
     }
+
+    /// On a chain of several joints, how `without` (this set less a term acting on `joint`)
+    /// predicts that joint against this set; `None` on one joint or without errors.
+    fn on_joint(&self, scorer: &Scorer<'_>, without: &Scored, joint: usize) -> Option<plausible::OnItsJoint> {
+        let (a, b) = (self.errors.as_ref()?, without.errors.as_ref()?);
+        if a.dof < 2 || joint >= a.dof {
+            return None;
+        }
+        let js = [joint];
+        let ratio = kstep::fold_ratios_on(b, a, &vec![0; a.windows()], Some(&js)).first().copied().unwrap_or(f64::NAN);
+        let test = kstep::FoldTest::of(&kstep::fold_ratios_on(a, b, &scorer.folds, Some(&js)));
+        Some(plausible::OnItsJoint { ratio, test })
+    }
 }
 
 /// The intervals of one round's set.
@@ -412,11 +425,22 @@ fn judge_round(
             };
             let without_scored = Scored::of(scorer, refined, &without, options)?;
             let test = with.against(scorer, &without_scored);
-            let needed = plausible::needed_by_prediction(with.score, without_scored.score, &test);
-            let evidence = format!(
+            let on_its_joint = t.joint().and_then(|j| with.on_joint(scorer, &without_scored, j));
+            let needed = plausible::needed_by_prediction(with.score, without_scored.score, &test)
+                || on_its_joint.as_ref().is_some_and(|on| plausible::needed_on_its_joint(with.score, without_scored.score, on));
+            let mut evidence = format!(
                 "cross-validated k-step score {:.4} without it against {:.4} with it; fold by fold, the upper 2-standard-error bound of the ratio with/without is {:.3} and the worst fold's {:.3}",
                 without_scored.score, with.score, test.bound, test.worst
             );
+            if let (Some(on), Some(j)) = (&on_its_joint, t.joint()) {
+                evidence += &format!(
+                    "; on {} alone, {:.3} times the error without it, the upper bound of the ratio with/without {:.3} and the worst fold's {:.3}",
+                    joints.get(j).map_or("its joint", String::as_str),
+                    on.ratio,
+                    on.test.bound,
+                    on.test.worst
+                );
+            }
             scores = Some((with.score, without_scored.score));
             with_of_round = Some(with);
             asked.push(t.clone());

@@ -333,7 +333,13 @@ pub(crate) fn predict_cv(
 /// over horizons of `rms_set / rms_reference` over the windows of that fold (`fold[w]` is the
 /// fold of window `w`, in the order of `set.sq`). Folds where either has no window are left out.
 pub(crate) fn fold_ratios(set: &Errors, reference: &Errors, fold: &[usize]) -> Vec<f64> {
+    fold_ratios_on(set, reference, fold, None)
+}
+
+/// [`fold_ratios`] over the errors of `joints` only (every joint with `None`).
+pub(crate) fn fold_ratios_on(set: &Errors, reference: &Errors, fold: &[usize], joints: Option<&[usize]>) -> Vec<f64> {
     let (hs, n) = (set.horizons, set.dof);
+    let on = |a: &[f64]| -> f64 { joints.map_or_else(|| a.iter().sum::<f64>(), |js| js.iter().filter_map(|&j| a.get(j)).sum::<f64>()) };
     if set.sq.len() != reference.sq.len() || set.windows() != fold.len() {
         return Vec::new();
     }
@@ -346,8 +352,8 @@ pub(crate) fn fold_ratios(set: &Errors, reference: &Errors, fold: &[usize]) -> V
             let (a, b) = (&set.sq[row.clone()], &reference.sq[row]);
             if a[0].is_finite() && b[0].is_finite() {
                 let e = &mut acc[f * hs + h];
-                e.0 += a.iter().sum::<f64>();
-                e.1 += b.iter().sum::<f64>();
+                e.0 += on(a);
+                e.1 += on(b);
                 e.2 += 1;
             }
         }
@@ -412,7 +418,7 @@ pub(crate) fn score(rms: &[f64], reference: &[f64]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{fold_ratios, Errors, FoldTest};
+    use super::{fold_ratios, fold_ratios_on, Errors, FoldTest};
 
     /// Errors of `windows` windows, one horizon, one joint, window `w` with squared error `f(w)`.
     fn errors(windows: usize, f: impl Fn(usize) -> f64) -> Errors {
@@ -435,6 +441,22 @@ mod tests {
         let b = errors(4, |_| 1e-2);
         let r = fold_ratios(&a, &b, &[0, 0, 1, 1]);
         assert!((r[0] - 0.5).abs() < 1e-12 && (r[1] - 1.0).abs() < 1e-12, "{r:?}");
+    }
+
+    #[test]
+    fn fold_ratio_on_one_joint_sees_only_that_joint() {
+        // two joints: the set halves the RMS error of joint 1 and leaves joint 0, four times as
+        // large, as it is
+        let a = Errors { horizons: 1, dof: 2, sq: [16e-4, 0.25e-4].repeat(4) };
+        let b = Errors { horizons: 1, dof: 2, sq: [16e-4, 1e-4].repeat(4) };
+        let fold = [0, 0, 1, 1];
+        let on1 = fold_ratios_on(&a, &b, &fold, Some(&[1]));
+        let on0 = fold_ratios_on(&a, &b, &fold, Some(&[0]));
+        let pooled = fold_ratios(&a, &b, &fold);
+        assert!(on1.iter().all(|r| (r - 0.5).abs() < 1e-12), "{on1:?}");
+        assert!(on0.iter().all(|r| (r - 1.0).abs() < 1e-12), "{on0:?}");
+        // pooled: sqrt(16.25 / 17), a gain of 2 % the loaded joint hides
+        assert!(pooled.iter().all(|r| (r - (16.25f64 / 17.0).sqrt()).abs() < 1e-12), "{pooled:?}");
     }
 
     #[test]
