@@ -429,16 +429,17 @@ fn judge_round(
             let needed = plausible::needed_by_prediction(with.score, without_scored.score, &test)
                 || on_its_joint.as_ref().is_some_and(|on| plausible::needed_on_its_joint(with.score, without_scored.score, on));
             let mut evidence = format!(
-                "cross-validated k-step score {:.4} without it against {:.4} with it; fold by fold, the upper 2-standard-error bound of the ratio with/without is {:.3} and the worst fold's {:.3}",
-                without_scored.score, with.score, test.bound, test.worst
+                "cross-validated k-step score {:.4} without it against {:.4} with it; fold by fold, the upper 2-standard-error bound of the ratio with/without is {:.3}, the worst fold's {:.3} and their geometric mean {:.3}",
+                without_scored.score, with.score, test.bound, test.worst, test.mean
             );
             if let (Some(on), Some(j)) = (&on_its_joint, t.joint()) {
                 evidence += &format!(
-                    "; on {} alone, {:.3} times the error without it, the upper bound of the ratio with/without {:.3} and the worst fold's {:.3}",
+                    "; on {} alone, {:.3} times the error without it, the upper bound of the ratio with/without {:.3}, the worst fold's {:.3} and their geometric mean {:.3}",
                     joints.get(j).map_or("its joint", String::as_str),
                     on.ratio,
                     on.test.bound,
-                    on.test.worst
+                    on.test.worst,
+                    on.test.mean
                 );
             }
             scores = Some((with.score, without_scored.score));

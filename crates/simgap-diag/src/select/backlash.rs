@@ -75,7 +75,20 @@ pub(crate) fn search(
         let (narrowest, widest_tried) = (best.grid[0], best.grid[best.grid.len() - 1]);
         let widest = widest_tried * 2f64.sqrt();
         let inside = best.width.is_some_and(|w| w >= narrowest * (1.0 - 1e-9) && w <= widest * (1.0 + 1e-9));
-        if !(best.score < score.min(rotor_alone) * (1.0 - ADD_GAIN)) || !inside {
+        // and the typical fold of the fit runs must not be worse with it: a pooled gain carried by
+        // a few folds' large errors (trajectories that diverge) is no play
+        let mut with_play = best.base.clone();
+        with_play.push(Term::Backlash { joint: j, width });
+        let gains = best.score < score.min(rotor_alone) * (1.0 - ADD_GAIN) && inside;
+        let contradicted = gains.then(|| scorer.gain_test(&with_play, terms)).filter(crate::select::plausible::typical_fold_contradicts);
+        if let Some(test) = contradicted {
+            notes.push(format!(
+                "backlash on {}{with_rotor}: a width of {width:.4} predicts the fit runs at {:.4} of the nominal error against {score:.4} without it, but the typical fold is worse with it (the geometric mean of the fold ratios with/without is {:.3}): the gain is carried by a few folds' large errors, and the play is not kept",
+                joints[j], best.score, test.mean
+            ));
+            break;
+        }
+        if !gains {
             // neither it nor any other joint's play predicts better: say so for each
             for t in std::iter::once(&best).chain(&tried) {
                 notes.push(format!(
