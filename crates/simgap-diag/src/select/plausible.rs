@@ -119,7 +119,7 @@ fn gain_is_a_need(gain: f64, test: &FoldTest) -> bool {
 }
 
 /// Whether the typical fold contradicts a gain (`test`: with the term against without it): the
-/// geometric mean of the fold ratios is above 1 by [`CLEAR_GAIN`] or more, so that whatever the
+/// geometric mean of the fold ratios is above 1 by more than [`CLEAR_GAIN`], so that whatever the
 /// pooled score gains is carried by a few folds' large errors.
 pub(crate) fn typical_fold_contradicts(test: &FoldTest) -> bool {
     test.mean > 1.0 + CLEAR_GAIN
