@@ -62,8 +62,12 @@ def so101_case(report, data, tmp_dir):
     study's experiment file with the report's servo constants where the diagnosis fitted them."""
     if not report:
         return []
-    with open(report) as f:
-        rep = json.load(f)
+    try:
+        with open(report) as f:
+            rep = json.load(f)
+        held_logs = rep["holdout_logs"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise SystemExit(f"--so101 {report}: expected the JSON report of `simgap diagnose --json` with held-out episodes ({e})")
     experiment = os.path.join(HERE, "..", "case-study-so101", "so101.experiment.json")
     servo = rep.get("servo") or {}
     if servo.get("source") == "fitted":
@@ -74,9 +78,9 @@ def so101_case(report, data, tmp_dir):
         experiment = os.path.join(tmp_dir, "so101_fitted.experiment.json")
         with open(experiment, "w") as f:
             json.dump(e, f)
-    held = [h.split("#")[-1] for h in rep["holdout_logs"]]
+    held = [h.split("#")[-1] for h in held_logs]
     label = f"SO-101, episodes {', '.join(held)} held out"
-    return [(report, os.path.join(data, "sage-so101/so101_new_calib.urdf"), rep["holdout_logs"], experiment, label)]
+    return [(report, os.path.join(data, "sage-so101/so101_new_calib.urdf"), held_logs, experiment, label)]
 
 
 def cases(data, out):

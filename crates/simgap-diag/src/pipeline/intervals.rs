@@ -108,9 +108,8 @@ impl Scored {
         if a.dof < 2 || joint >= a.dof {
             return None;
         }
-        let js = [joint];
-        let ratio = kstep::fold_ratios_on(b, a, &vec![0; a.windows()], Some(&js)).first().copied().unwrap_or(f64::NAN);
-        let test = kstep::FoldTest::of(&kstep::fold_ratios_on(a, b, &scorer.folds, Some(&js)));
+        let ratio = kstep::score(&b.rms_per_joint()[joint], &a.rms_per_joint()[joint]);
+        let test = kstep::FoldTest::of(&kstep::fold_ratios_on(a, b, &scorer.folds, Some(&[joint])));
         Some(plausible::OnItsJoint { ratio, test })
     }
 }
@@ -425,17 +424,17 @@ fn judge_round(
             };
             let without_scored = Scored::of(scorer, refined, &without, options)?;
             let test = with.against(scorer, &without_scored);
-            let on_its_joint = t.joint().and_then(|j| with.on_joint(scorer, &without_scored, j));
+            let on_its_joint = t.joint().and_then(|j| with.on_joint(scorer, &without_scored, j).map(|on| (j, on)));
             let needed = plausible::needed_by_prediction(with.score, without_scored.score, &test)
-                || on_its_joint.as_ref().is_some_and(|on| plausible::needed_on_its_joint(with.score, without_scored.score, on));
+                || on_its_joint.as_ref().is_some_and(|(_, on)| plausible::needed_on_its_joint(with.score, without_scored.score, on));
             let mut evidence = format!(
                 "cross-validated k-step score {:.4} without it against {:.4} with it; fold by fold, the upper 2-standard-error bound of the ratio with/without is {:.3}, the worst fold's {:.3} and their geometric mean {:.3}",
                 without_scored.score, with.score, test.bound, test.worst, test.mean
             );
-            if let (Some(on), Some(j)) = (&on_its_joint, t.joint()) {
+            if let Some((j, on)) = &on_its_joint {
                 evidence += &format!(
                     "; on {} alone, {:.3} times the error without it, the upper bound of the ratio with/without {:.3}, the worst fold's {:.3} and their geometric mean {:.3}",
-                    joints.get(j).map_or("its joint", String::as_str),
+                    joints.get(*j).map_or("its joint", String::as_str),
                     on.ratio,
                     on.test.bound,
                     on.test.worst,

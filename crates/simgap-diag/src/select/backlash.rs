@@ -77,10 +77,9 @@ pub(crate) fn search(
         let inside = best.width.is_some_and(|w| w >= narrowest * (1.0 - 1e-9) && w <= widest * (1.0 + 1e-9));
         // and the typical fold of the fit runs must not be worse with it: a pooled gain carried by
         // a few folds' large errors (trajectories that diverge) is no play
-        let mut with_play = best.base.clone();
-        with_play.push(Term::Backlash { joint: j, width });
         let gains = best.score < score.min(rotor_alone) * (1.0 - ADD_GAIN) && inside;
-        let contradicted = gains.then(|| scorer.gain_test(&with_play, terms)).filter(crate::select::plausible::typical_fold_contradicts);
+        let with_play = || best.base.iter().cloned().chain([Term::Backlash { joint: j, width }]).collect::<Vec<_>>();
+        let contradicted = gains.then(|| scorer.gain_test(&with_play(), terms)).filter(crate::select::plausible::typical_fold_contradicts);
         if let Some(test) = contradicted {
             notes.push(format!(
                 "backlash on {}{with_rotor}: a width of {width:.4} predicts the fit runs at {:.4} of the nominal error against {score:.4} without it, but the typical fold is worse with it (the geometric mean of the fold ratios with/without is {:.3}): the gain is carried by a few folds' large errors, and the play is not kept",
