@@ -127,6 +127,38 @@ fn a_set_without_parameters_is_fitted_as_it_is() {
 }
 
 #[test]
+fn long_logs_are_searched_on_windows_spread_evenly_and_fitted_on_all() {
+    // 240 s of logs (480 consecutive windows of 0.5 s): the search keeps about SEARCH_WINDOWS of
+    // them spread over every run in proportion to its length, the final fit MAX_WINDOWS; a
+    // short log is searched and fitted on all of its windows
+    let model = Model::paper_arm();
+    let period = 0.01;
+    let options = shooting::Options::default();
+    let run_of = |seconds: f64| {
+        let k = (seconds / period) as usize + 1;
+        let t: Vec<f64> = (0..k).map(|i| i as f64 * period).collect();
+        let q: Vec<f64> = t.iter().flat_map(|t| [0.3 * t.sin(), 0.2 * (0.7 * t).cos()]).collect();
+        let mut run = Run::new(model.joint_names().iter().map(|s| s.to_string()).collect());
+        (run.tau, run.t, run.q) = (vec![0.0; 2 * k], t, q);
+        align_run(&model, &run).unwrap()
+    };
+    let pr = |i: usize, seconds: f64| PredictionRun::new(run_of(seconds), &DEFAULT_HORIZONS, 0.05, SensorParams::exact(), i * FOLDS_PER_RUN, FIT_WINDOWS_PER_RUN);
+    let long = shooting::shooting_runs(&[pr(0, 160.0), pr(1, 80.0)], 0.05, &options);
+    let (searched, all, consecutive) = long.counts();
+    assert_eq!(consecutive, 480);
+    assert!((shooting::SEARCH_WINDOWS..=shooting::SEARCH_WINDOWS + 2).contains(&searched), "searched on {searched}");
+    assert!((shooting::MAX_WINDOWS..=shooting::MAX_WINDOWS + 2).contains(&all), "fitted on {all}");
+    // each run's share follows its length, and the search's windows span the whole run
+    let (a, b) = (long.runs[0].windows(), long.runs[1].windows());
+    assert!(a > b && (a as f64 / b as f64 - 2.0).abs() < 0.1, "{a} and {b} windows");
+    let last = *long.runs[0].starts.last().unwrap() as f64 * period;
+    assert!(last > 150.0, "the last window of the 160 s run starts at {last} s");
+    let short = shooting::shooting_runs(&[pr(0, 30.0)], 0.05, &options);
+    assert_eq!(short.counts(), (60, 60, 60));
+    assert!(std::ptr::eq(short.whole(), &short));
+}
+
+#[test]
 fn dfki_c0_corrected_model_beats_the_urdf_on_a_held_out_run() {
     let root = shared_data();
     let dp = root.join("dfki-double-pendulum");

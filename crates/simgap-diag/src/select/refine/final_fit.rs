@@ -55,13 +55,16 @@ pub(super) fn finish(
     let mut notes = Vec::new();
     let keep = |_: usize, _: usize| true;
     let (_, _, f) = ctx.fit_terms(&best.terms);
+    // the final fit on every window of the fit runs (up to `shooting::MAX_WINDOWS`), the
+    // halves again and the jackknife on the search's
     let problem = shooting::Problem { model, formulation, terms: &best.terms, designs: &best.designs, runs: shoot_runs, keep: &keep, options: sopts };
+    let whole = shooting::Problem { runs: shoot_runs.whole(), ..problem };
     // starts: the torque-residual fit (and with the URDF's inertia), the two halves' answers
     let mut from = starts(&best.designs, f.theta.clone());
     let mut start_names: Vec<&str> = START_NAMES[..from.len()].to_vec();
     from.extend(best.halves.iter().cloned());
     start_names.extend(&HALF_NAMES[..best.halves.len()]);
-    let mut shot = shooting::fit(&problem, &from, stop)?;
+    let mut shot = shooting::fit(&whole, &from, stop)?;
     // where the fit began, and whether it moved from there (on rough costs, e.g. a servo's
     // stalls and clipped duty, no step may lower it: the answer is then that start's)
     let began = start_names.get(shot.start).copied().unwrap_or("a start");
@@ -110,8 +113,12 @@ pub(super) fn finish(
         ", and the squared difference from the torque-residual fit of the same set (the disagreement of two methods bounds the error either makes), up to what that fit's own error on the fit runs re-simulated with the answer and 1.96 times the spread above explain (the rest is model mismatch the two methods read differently)".to_string()
     };
     notes.push(format!(
-        "{what} by multiple shooting on all fit runs {moved} (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals and a quarter of the squared difference of the two halves' answers (each half fitted again from its answer and from the answer on all fit runs, the lower cost on it kept){method_term}",
-        shot.cost_start, shot.cost, shot.iterations
+        "{what} by multiple shooting on all fit runs ({} windows of {} s) {moved} (normalised k-step cost {:.3e} → {:.3e} in {} iterations); their 95 % intervals are 1.96 σ with σ² the sum of σ² (JᵀJ)⁻¹ of the shooting residuals and a quarter of the squared difference of the two halves' answers (each half fitted again from its answer and from the answer on all fit runs, the lower cost on it kept){method_term}",
+        shoot_runs.counts().1,
+        sopts.window,
+        shot.cost_start,
+        shot.cost,
+        shot.iterations
     ));
     // the reported spread: σ² (JᵀJ)⁻¹ alone treats the errors along a window as independent
     // and misses what the whole record shares (the self-check found 38 % coverage with it);

@@ -188,6 +188,16 @@ pub(crate) fn refine_by_shooting(
         })
         .collect();
     notes.extend(limit_notes);
+    let (searched, fitted, all) = shoot_runs.counts();
+    if searched < all {
+        notes.push(format!(
+            "multiple shooting: the fit runs hold {all} consecutive windows of {} s; the sets were fitted and cross-validated on {searched} of them spread evenly over every run (the search takes {} in all, {} s of logs, each run's share rounded up), and the chosen set's final fit on {}",
+            sopts.window,
+            shooting::SEARCH_WINDOWS,
+            shooting::SEARCH_WINDOWS as f64 * sopts.window,
+            if fitted < all { format!("{fitted} (it takes {} in all)", shooting::MAX_WINDOWS) } else { format!("all {all}") }
+        ));
+    }
     let Some(bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { return Ok((None, notes)) };
     if tried[bi].score < current * (1.0 - ADD_GAIN) && !tried[bi].test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
         notes.push(format!(
