@@ -127,7 +127,7 @@ fn a_set_without_parameters_is_fitted_as_it_is() {
 }
 
 #[test]
-fn long_logs_are_searched_on_windows_spread_evenly_and_fitted_on_all() {
+fn long_logs_are_searched_on_fewer_windows_spread_evenly_than_the_final_fit_takes() {
     // 240 s of logs (480 consecutive windows of 0.5 s): the search keeps about SEARCH_WINDOWS of
     // them spread over every run in proportion to its length, the final fit MAX_WINDOWS; a
     // short log is searched and fitted on all of its windows
