@@ -86,33 +86,37 @@ impl Options {
 /// ([`Windows::whole`]): longer fit runs get theirs spread evenly, in proportion to their
 /// durations, so that a fit's cost stops growing with the logs' length.
 pub(crate) fn shooting_runs(fit_pred: &[PredictionRun], smoothing: f64, options: &Options) -> Windows {
-    let search = cut(fit_pred, smoothing, options, SEARCH_WINDOWS);
-    let whole = cut(fit_pred, smoothing, options, MAX_WINDOWS);
-    let count = |runs: &[PredictionRun]| runs.iter().map(|pr| pr.windows()).sum::<usize>();
-    let consecutive = fit_pred.iter().map(|pr| consecutive(pr, options)).sum();
-    let whole = (count(&whole) > count(&search)).then(|| Box::new(Windows { runs: whole, done: Mutex::default(), whole: None, consecutive }));
-    Windows { runs: search, done: Mutex::default(), whole, consecutive }
+    let search = window_counts(fit_pred, options, SEARCH_WINDOWS);
+    let whole = window_counts(fit_pred, options, MAX_WINDOWS);
+    let consecutive = window_counts(fit_pred, options, usize::MAX).iter().sum();
+    // the final fit's windows are cut only where they are more than the search's
+    let whole = (whole != search).then(|| Box::new(Windows { runs: cut(fit_pred, smoothing, options, &whole), done: Mutex::default(), whole: None, consecutive }));
+    Windows { runs: cut(fit_pred, smoothing, options, &search), done: Mutex::default(), whole, consecutive }
 }
 
-/// Consecutive windows of [`Options::window`] in a fit run (at least one).
-fn consecutive(pr: &PredictionRun, options: &Options) -> usize {
-    ((pr.run.duration() / options.window).floor() as usize).max(1)
-}
-
-/// The fit runs cut into consecutive windows of [`Options::window`], at most `most` in all
-/// (spread evenly over each run, in proportion to the runs' durations, beyond that).
-fn cut(fit_pred: &[PredictionRun], smoothing: f64, options: &Options, most: usize) -> Vec<PredictionRun> {
-    let horizons = options.horizons();
+/// The windows of [`Options::window`] of each fit run: all consecutive ones (at least one), at
+/// most `most` in all (each run's share in proportion to its duration, rounded up) beyond that.
+fn window_counts(fit_pred: &[PredictionRun], options: &Options, most: usize) -> Vec<usize> {
     let total: f64 = fit_pred.iter().map(|pr| pr.run.duration()).sum();
     fit_pred
         .iter()
-        .enumerate()
-        .map(|(i, pr)| {
-            let consecutive = consecutive(pr, options);
+        .map(|pr| {
+            let consecutive = ((pr.run.duration() / options.window).floor() as usize).max(1);
             let share = (most as f64 * pr.run.duration() / total.max(f64::MIN_POSITIVE)).ceil() as usize;
-            let windows = consecutive.min(share.max(1));
-            PredictionRun::new(pr.run.clone(), &horizons, smoothing, pr.sensor.clone(), i * FOLDS_PER_RUN, windows)
+            consecutive.min(share.max(1))
         })
+        .collect()
+}
+
+/// The fit runs cut into `counts[i]` windows each (spread evenly where fewer than the
+/// consecutive ones).
+fn cut(fit_pred: &[PredictionRun], smoothing: f64, options: &Options, counts: &[usize]) -> Vec<PredictionRun> {
+    let horizons = options.horizons();
+    fit_pred
+        .iter()
+        .zip(counts)
+        .enumerate()
+        .map(|(i, (pr, &windows))| PredictionRun::new(pr.run.clone(), &horizons, smoothing, pr.sensor.clone(), i * FOLDS_PER_RUN, windows))
         .collect()
 }
 
@@ -148,8 +152,12 @@ impl Windows {
     /// Windows the search uses, windows the final fit uses and consecutive windows the fit runs
     /// hold: the first two are spread evenly over the runs where they are fewer than the third.
     pub(crate) fn counts(&self) -> (usize, usize, usize) {
-        let count = |w: &Windows| w.runs.iter().map(|pr| pr.windows()).sum::<usize>();
-        (count(self), count(self.whole()), self.consecutive)
+        (self.count(), self.whole().count(), self.consecutive)
+    }
+
+    /// Windows in all.
+    fn count(&self) -> usize {
+        self.runs.iter().map(|pr| pr.windows()).sum()
     }
 
     /// Number of starts whose fit these windows answer.
