@@ -7,7 +7,8 @@
 //!
 //! KIND is `cycle` for the scenarios of the cycle of 13 (INDEX as `simgap selfcheck` numbers
 //! them), `drive` for the real-drive families (INDEX as the family table of its output numbers
-//! them) or `servo` for the servo scenarios. `--link-side-torque` diagnoses as
+//! them), `servo` for the servo scenarios, `backlash` and `offset` for the
+//! `servo_backlash` and `servo_encoder_offset` families. `--link-side-torque` diagnoses as
 //! `simgap diagnose --link-side-torque` does. `--truth` prints the simulated effects with their
 //! parameters and stops; `--steps` adds the selection's steps (each decision and why);
 //! `--priors` gives a servo scenario's logs the true motor constants as priors; `--write DIR`
@@ -21,7 +22,7 @@ use simgap::sim::controller::servo_keys;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo INDEX [--link-side-torque] [--truth] [--steps] [--priors] [--write DIR] [--score]";
+    let usage = "usage: selfcheck_scenario SEED cycle|drive|servo|backlash|offset INDEX [--link-side-torque] [--truth] [--steps] [--priors] [--write DIR] [--score]";
     let (Some(seed), Some(kind), Some(index)) = (args.first().and_then(|s| s.parse::<u64>().ok()), args.get(1), args.get(2).and_then(|s| s.parse::<usize>().ok())) else {
         eprintln!("{usage}");
         std::process::exit(2);
@@ -30,6 +31,8 @@ fn main() {
         "cycle" => selfcheck::scenario(seed, index),
         "drive" => drives::drive_scenario(seed, index),
         "servo" => selfcheck::servo_scenario(seed, index),
+        "backlash" => selfcheck::backlash_scenario(seed, index),
+        "offset" => selfcheck::encoder_offset_scenario(seed, index),
         other => {
             eprintln!("unknown kind '{other}'; {usage}");
             std::process::exit(2);
@@ -92,6 +95,8 @@ fn main() {
         let score = match kind.as_str() {
             "cycle" => selfcheck::run_scenario(seed, index),
             "drive" => selfcheck::run_drive_scenario(seed, index),
+            "backlash" => selfcheck::run_backlash_scenario(seed, index),
+            "offset" => selfcheck::run_encoder_offset_scenario(seed, index),
             _ => selfcheck::run_servo_scenario(seed, index),
         };
         println!("found {:?}\n{}: {}", score.found, if score.right { "right" } else { "wrong" }, score.rule);
