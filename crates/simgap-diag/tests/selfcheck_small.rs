@@ -203,3 +203,23 @@ fn backlash_on_servo_arms_is_found_and_not_invented() {
     let invented = scores.iter().filter(|s| s.index % 3 == 2 && !play(&s.found).is_empty()).count();
     assert_eq!(invented, 0, "backlash found where none was hidden");
 }
+
+#[test]
+fn a_larger_shooting_set_replaces_the_selection_only_when_its_gain_holds_fold_by_fold() {
+    use simgap_core::Formulation;
+    use simgap_diag::{diagnose, drives, DiagnoseOptions};
+    // a pendulum whose logs a recorder low-pass filtered, with viscous friction hidden (the
+    // `filtered` family, seed 2, index 41 of the 200-scenario run): shooting's set of an
+    // inertial correction with Coulomb and viscous friction and a rotor inertia predicts the
+    // fit runs 2.6 % better than the selected viscous friction, pooled, but not fold by fold
+    // (measured: upper bound of the ratio 1.57, worst fold 3.1); before that was asked, it
+    // replaced the selection and the report named a rotor inertia and an inertial correction
+    // the logs do not have
+    let sc = drives::drive_scenario(2, 41).expect("scenario");
+    assert_eq!(sc.family, "filtered");
+    let options = DiagnoseOptions { directional_friction: sc.directional_friction, load_stribeck_friction: sc.load_stribeck_friction, ..DiagnoseOptions::default() };
+    let d = diagnose(&sc.diagnosis_model, Formulation::EulerLagrange, &sc.fit, &sc.holdout, &options, &mut |_| {}).expect("diagnosis");
+    let found: Vec<&str> = d.report.selected_effects.iter().map(|e| e.effect.as_str()).collect();
+    assert_eq!(found, ["viscous_friction"], "notes: {:#?}", d.report.notes);
+    assert!(d.report.notes.iter().any(|n| n.contains("the selected set is kept")), "notes: {:#?}", d.report.notes);
+}

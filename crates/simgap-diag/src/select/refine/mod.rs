@@ -16,6 +16,7 @@ use simgap_sim::ControllerKind;
 
 use crate::error::Result;
 use crate::options::{check_stop, DiagnoseOptions, Progress};
+use crate::prediction::kstep;
 use crate::prepare::servo;
 use crate::select::prediction::{ADD_GAIN, PRUNE_TOLERANCE};
 use crate::select::scorer::Scorer;
@@ -198,7 +199,30 @@ pub(crate) fn refine_by_shooting(
             if fitted < all { format!("{fitted} (it takes {} in all)", shooting::MAX_WINDOWS) } else { format!("all {all}") }
         ));
     }
-    let Some(bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { return Ok((None, notes)) };
+    let Some(mut bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { return Ok((None, notes)) };
+    // a set with more parameters than the selected set (as shooting fits it) earns its place as
+    // an effect added by the prune stage does: better by ADD_GAIN, in every part of the fit runs
+    let columns = |t: &Tried| t.designs.iter().map(|d| d.cols.len()).sum::<usize>();
+    if let Some(si) = tried.iter().position(|t| t.terms == selected) {
+        if bi != si && columns(&tried[bi]) > columns(&tried[si]) {
+            let (best, simpler) = (&tried[bi], &tried[si]);
+            let test = kstep::FoldTest::of(&kstep::fold_ratios(&best.errors, &simpler.errors, &scorer.folds));
+            if !(best.score < simpler.score * (1.0 - ADD_GAIN) && test.holds(PRUNE_TOLERANCE, ADD_GAIN)) {
+                notes.push(format!(
+                    "multiple shooting: {} predicts the fit runs at {:.4} of the nominal model's k-step error against {:.4} with the selected set's fewer parameters, {}: the selected set is kept",
+                    best.name,
+                    best.score,
+                    simpler.score,
+                    if best.score < simpler.score * (1.0 - ADD_GAIN) {
+                        format!("but not in every part of them (fold by fold, the upper 2-standard-error bound of the ratio with/without its extra terms is {:.3}, the worst fold's {:.3})", test.bound, test.worst)
+                    } else {
+                        format!("not better by {:.0} %", 100.0 * ADD_GAIN)
+                    }
+                ));
+                bi = si;
+            }
+        }
+    }
     if tried[bi].score < current * (1.0 - ADD_GAIN) && !tried[bi].test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
         notes.push(format!(
             "multiple shooting: {} predicts the fit runs at {:.4} of the nominal model's k-step error, but not in every part of them (fold by fold, the upper 2-standard-error bound of that ratio is {:.3} and the worst fold's {:.3}): the torque-residual answer is kept",
