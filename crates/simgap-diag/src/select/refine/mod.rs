@@ -201,26 +201,36 @@ pub(crate) fn refine_by_shooting(
     }
     let Some(mut bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { return Ok((None, notes)) };
     // a set with more parameters than the selected set (as shooting fits it) earns its place as
-    // an effect added by the prune stage does: better by ADD_GAIN, in every part of the fit runs
+    // an effect added by the prune stage does: better by ADD_GAIN, in every part of the fit runs;
+    // the best set that does (or that has no more parameters) is taken
     let columns = |t: &Tried| t.designs.iter().map(|d| d.cols.len()).sum::<usize>();
     if let Some(si) = tried.iter().position(|t| t.terms == selected) {
-        if bi != si && columns(&tried[bi]) > columns(&tried[si]) {
-            let (best, simpler) = (&tried[bi], &tried[si]);
-            let test = kstep::FoldTest::of(&kstep::fold_ratios(&best.errors, &simpler.errors, &scorer.folds));
-            if !(best.score < simpler.score * (1.0 - ADD_GAIN) && test.holds(PRUNE_TOLERANCE, ADD_GAIN)) {
-                notes.push(format!(
-                    "multiple shooting: {} predicts the fit runs at {:.4} of the nominal model's k-step error against {:.4} with the selected set's fewer parameters, {}: the selected set is kept",
-                    best.name,
-                    best.score,
-                    simpler.score,
-                    if best.score < simpler.score * (1.0 - ADD_GAIN) {
-                        format!("but not in every part of them (fold by fold, the upper 2-standard-error bound of the ratio with/without its extra terms is {:.3}, the worst fold's {:.3})", test.bound, test.worst)
-                    } else {
-                        format!("not better by {:.0} %", 100.0 * ADD_GAIN)
-                    }
-                ));
-                bi = si;
+        let mut order: Vec<usize> = (0..tried.len()).collect();
+        order.sort_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score));
+        for &i in order.iter().take_while(|&&i| i != si) {
+            let (larger, simpler) = (&tried[i], &tried[si]);
+            if columns(larger) <= columns(simpler) {
+                bi = i;
+                break;
             }
+            let gain = larger.score < simpler.score * (1.0 - ADD_GAIN);
+            let test = kstep::FoldTest::of(&kstep::fold_ratios(&larger.errors, &simpler.errors, &scorer.folds));
+            if gain && test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
+                bi = i;
+                break;
+            }
+            notes.push(format!(
+                "multiple shooting: {} predicts the fit runs at {:.4} of the nominal model's k-step error against {:.4} with the selected set's fewer parameters, {}: it does not replace the selected set",
+                larger.name,
+                larger.score,
+                simpler.score,
+                if gain {
+                    format!("but not in every part of them (fold by fold, the upper 2-standard-error bound of the ratio with/without its extra terms is {:.3}, the worst fold's {:.3})", test.bound, test.worst)
+                } else {
+                    format!("not better by {:.0} %", 100.0 * ADD_GAIN)
+                }
+            ));
+            bi = si;
         }
     }
     if tried[bi].score < current * (1.0 - ADD_GAIN) && !tried[bi].test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
