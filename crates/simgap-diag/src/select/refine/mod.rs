@@ -58,7 +58,11 @@ pub(crate) use final_fit::jackknife_variance;
 /// (torque-residual start and shooting) on the other half alone and predicted with it. The set of
 /// lowest score replaces the selection when it beats `current` (the selected set's score with its
 /// torque-residual fit, cross-validated over every fold) by [`ADD_GAIN`]; it is then refitted on
-/// all fit runs. Returns it (or none) and notes saying what was tried.
+/// all fit runs. A set with more parameters than the selected set (as shooting fits it) takes
+/// its place only when it predicts the fit runs better than it by [`ADD_GAIN`] and in every part
+/// of them (the fold test of [`kstep::FoldTest::holds`], as an effect joins in the prune stage);
+/// the best set that does, or that has no more parameters, is taken. Returns it (or none) and
+/// notes saying what was tried.
 pub(crate) fn refine_by_shooting(
     scorer: &Scorer<'_>,
     selected: &[Term],
