@@ -203,23 +203,22 @@ pub(crate) fn refine_by_shooting(
             if fitted < all { format!("{fitted} (it takes {} in all)", shooting::MAX_WINDOWS) } else { format!("all {all}") }
         ));
     }
-    let Some(mut bi) = (0..tried.len()).min_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score)) else { return Ok((None, notes)) };
+    // the sets, best score first
+    let mut order: Vec<usize> = (0..tried.len()).collect();
+    order.sort_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score));
+    let Some(&(mut bi)) = order.first() else { return Ok((None, notes)) };
     // a set with more parameters than the selected set (as shooting fits it) earns its place as
     // an effect added by the prune stage does: better by ADD_GAIN, in every part of the fit runs;
     // the best set that does (or that has no more parameters) is taken
     let columns = |t: &Tried| t.designs.iter().map(|d| d.cols.len()).sum::<usize>();
     if let Some(si) = tried.iter().position(|t| t.terms == selected) {
-        let mut order: Vec<usize> = (0..tried.len()).collect();
-        order.sort_by(|a, b| tried[*a].score.total_cmp(&tried[*b].score));
+        let simpler = &tried[si];
+        bi = si;
         for &i in order.iter().take_while(|&&i| i != si) {
-            let (larger, simpler) = (&tried[i], &tried[si]);
-            if columns(larger) <= columns(simpler) {
-                bi = i;
-                break;
-            }
+            let larger = &tried[i];
             let gain = larger.score < simpler.score * (1.0 - ADD_GAIN);
             let test = kstep::FoldTest::of(&kstep::fold_ratios(&larger.errors, &simpler.errors, &scorer.folds));
-            if gain && test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
+            if columns(larger) <= columns(simpler) || (gain && test.holds(PRUNE_TOLERANCE, ADD_GAIN)) {
                 bi = i;
                 break;
             }
@@ -234,7 +233,6 @@ pub(crate) fn refine_by_shooting(
                     format!("not better by {:.0} %", 100.0 * ADD_GAIN)
                 }
             ));
-            bi = si;
         }
     }
     if tried[bi].score < current * (1.0 - ADD_GAIN) && !tried[bi].test.holds(PRUNE_TOLERANCE, ADD_GAIN) {
